@@ -1,0 +1,444 @@
+"""Train every method under a time budget and measure it as the seed papers did.
+
+What ``manage.py benchmark_methods`` runs. For each data setting (:data:`SETTINGS`) the
+action classifier is trained on the training subjects and measured on the held-out
+ones; then each method trains for ``budget`` seconds of wall time, draws ``n`` motions
+per action and is evaluated (:func:`generation.evaluation.evaluate`) with the metrics of
+the papers whose tables the setting compares with (:mod:`generation.paper_numbers`).
+
+Everything lands in ``work``: per setting the classifier, and per method its checkpoint,
+its samples (``.npz``) and a record (``.json``) of the seconds spent, iterations and
+evaluation. Checkpoints are written every ``checkpoint_every`` seconds, so an interrupted
+run resumes where it stopped, and a rerun with the same budget reuses all of it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass, field, replace
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from generation.datasets import get_dataset
+from generation.datasets.base import DATASETS
+from generation.evaluation import EvaluationError, evaluate
+from generation.formats import npz
+from generation.methods import Method, MethodError, get_method, list_methods
+from generation.motion import MotionError
+from generation.recognition import ActionClassifier, ClassifierError, one_thread, train_classifier
+from generation.skeletons import get_skeleton
+
+H36M_TRAIN = ("S1", "S5", "S6", "S7", "S8")
+H36M_TEST = ("S9",)  # the papers test on S11, which our copy of Human3.6M lacks
+METRICS_2D = ("mmd_avg", "mmd_seq", "accuracy", "fid", "diversity", "multimodality")
+METRICS_3D = ("fid", "accuracy", "diversity", "multimodality")
+# Training runs as one call per resume; this many iterations is never reached.
+UNBOUNDED = 10**9
+
+
+class BenchmarkError(ValueError):
+    """A benchmark cannot run as asked (unknown dataset or method, no clips, bad budget)."""
+
+
+@dataclass(frozen=True)
+class Setting:
+    """A dataset with its split, the metrics to measure and the paper tables to compare with."""
+
+    dataset: str
+    train_subjects: tuple[str, ...] | None
+    test_subjects: tuple[str, ...] | None
+    metrics: tuple[str, ...]
+    tables: tuple[str, ...]  # keys of generation.paper_numbers.TABLES
+
+
+SETTINGS = {
+    "h36m2d": Setting("h36m2d", H36M_TRAIN, H36M_TEST, METRICS_2D,
+                      ("004_table_1", "003_table_1", "004_table_2")),
+    "h36m": Setting("h36m", H36M_TRAIN, H36M_TEST, METRICS_3D, ("000_table_1",)),
+    "demo": Setting("demo", None, None, METRICS_3D, ("000_table_1",)),
+}
+
+
+def setting_for(dataset: str, subjects=None, test_subjects=None) -> Setting:
+    """Return the setting of ``dataset``, with other training or held-out subjects if given.
+
+    Datasets without an entry in :data:`SETTINGS` get the 2D papers' metrics and tables
+    for 2D skeletons, A2M's for 3D, and the dataset's default split. Subjects are
+    ignored for datasets without subjects (their held-out clips are whole takes).
+    """
+    try:
+        cls = DATASETS.get(dataset)
+    except KeyError as exc:
+        raise BenchmarkError(exc.args[0]) from None
+    setting = SETTINGS.get(dataset)
+    if setting is None:
+        flat = get_skeleton(cls.skeleton).dims == 2
+        setting = Setting(dataset, None, None, METRICS_2D if flat else METRICS_3D,
+                          SETTINGS["h36m2d" if flat else "h36m"].tables)
+    changes = {}
+    if cls.subjects is None:
+        return setting
+    if subjects:
+        changes["train_subjects"] = tuple(subjects)
+    if test_subjects:
+        changes["test_subjects"] = tuple(test_subjects)
+    return replace(setting, **changes)
+
+
+@dataclass(frozen=True)
+class Recipe:
+    """How a method is built for the budget: a config preset and changes to it."""
+
+    preset: str = "demo"
+    changes: dict = field(default_factory=dict)
+
+    def describe(self) -> str:
+        changed = ", ".join(f"{key}={value}" for key, value in self.changes.items())
+        return f"{self.preset} ({changed})" if changed else self.preset
+
+    def config(self, cls: type[Method]):
+        return replace(cls.Config.preset(self.preset), **self.changes)
+
+
+# The paper presets need hours (A2M: 40,000 iterations; the GAN baselines pretrain for
+# 10,000); the demo presets (smaller networks, batches of 32) learn something in a
+# minute of one core. ODMO's teacher forcing decays over 300 iterations instead of
+# 1,000, since a minute holds about 400.
+RECIPES = {
+    "odmo": Recipe("demo", {"teacher_forcing_iters": 300}),
+    "odmo_conv": Recipe("demo", {"teacher_forcing_iters": 300}),
+}
+
+
+def recipe_for(method: str, presets: dict[str, str] | None = None) -> Recipe:
+    """Return the recipe of ``method``; a preset named in ``presets`` replaces it (no changes)."""
+    if presets and method in presets:
+        return Recipe(presets[method])
+    return RECIPES.get(method, Recipe())
+
+
+class _BudgetSpent(Exception):
+    """Raised inside a training step once the time budget is spent."""
+
+
+@contextmanager
+def deadline(model: Method, seconds: float, on_step: Callable[[], None]):
+    """Make ``model``'s training steps raise :class:`_BudgetSpent` after ``seconds``.
+
+    :meth:`Method.fit` counts iterations, the budget is in seconds: rather than training
+    in chunks (each re-encodes the clips, which takes seconds for a2m), one ``fit`` runs
+    until a step finds the time up. The check happens before the step, when the model is
+    consistent (its iteration counter counts finished steps), so ``on_step`` may save it.
+    """
+    end = time.perf_counter() + seconds
+    step = model.train_step
+
+    def timed_step(batch, generator):
+        if time.perf_counter() >= end:
+            raise _BudgetSpent
+        on_step()
+        return step(batch, generator)
+
+    model.train_step = timed_step
+    try:
+        yield
+    except _BudgetSpent:
+        pass
+    finally:
+        del model.train_step
+
+
+def read_json(path: Path) -> dict:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return {}
+
+
+def write_json(path: Path, values: dict) -> None:
+    """Write ``values`` beside ``path`` and rename, so a crash never leaves half a file."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_name(path.name + ".partial")
+    partial.write_text(json.dumps(values, indent=2, allow_nan=False, default=_plain) + "\n")
+    os.replace(partial, path)
+
+
+def _plain(value):
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
+def train_within_budget(method: str, clips, actions: Sequence[str], budget: float,
+                        folder: Path, recipe: Recipe, seed: int = 0,
+                        checkpoint_every: float = 15.0,
+                        on_tick: Callable[[str], None] | None = None) -> tuple[Method, dict]:
+    """Train ``method`` on ``clips`` until ``budget`` seconds of training are spent in all.
+
+    The checkpoint ``folder/<method>.pt`` and the record ``folder/<method>.json`` (seconds,
+    CPU seconds, iterations) resume an interrupted run; a model whose record says the
+    budget is spent is loaded and returned as it is. Another recipe, seed or data starts
+    afresh. Methods with their own ``fit`` (ODMO fits its modes there) get one call of it
+    with no iterations at the end, timed apart as ``finish_seconds``.
+    """
+    cls = get_method(method)
+    checkpoint, record_path = folder / f"{method}.pt", folder / f"{method}.json"
+    first = clips[0]
+    signature = {"method": method, "preset": recipe.preset, "changes": recipe.changes, "seed": seed,
+                 "skeleton": first.skeleton, "frames": first.frames, "fps": first.fps,
+                 "actions": list(actions), "clips": len(clips)}
+    record = read_json(record_path)
+    if record.get("signature") == signature and checkpoint.is_file():
+        model = cls.load(checkpoint)
+    else:
+        record = {"signature": signature, "seconds": 0.0, "cpu_seconds": 0.0, "iterations": 0,
+                  "finished": False}
+        model = cls(recipe.config(cls), first.skeleton, list(actions), first.fps, first.frames)
+    record["budget"] = budget
+    remaining = budget - record["seconds"]
+    record["reused"] = remaining <= 0 and record["finished"]
+    if remaining > 0:
+        record["finished"] = False
+        wall, cpu = time.perf_counter(), time.process_time()
+        spent, spent_cpu = record["seconds"], record["cpu_seconds"]
+        last = {"save": wall, "tick": 0.0}
+
+        def note():
+            """Bring the record up to date with the time spent so far."""
+            record["seconds"] = spent + time.perf_counter() - wall
+            record["cpu_seconds"] = spent_cpu + time.process_time() - cpu
+            record["iterations"] = model.iteration
+
+        def on_step():
+            now = time.perf_counter()
+            if now - last["save"] >= checkpoint_every:
+                note()
+                model.save(checkpoint)
+                write_json(record_path, record)
+                last["save"] = now
+            if on_tick and now - last["tick"] >= 1.0:
+                on_tick(f"{spent + now - wall:.0f}/{budget:g} s, {model.iteration} it")
+                last["tick"] = now
+
+        with deadline(model, remaining, on_step):
+            model.fit(clips, UNBOUNDED, seed=seed, progress=False)
+        note()
+        model.save(checkpoint)
+        write_json(record_path, record)
+    if not record["finished"]:
+        if type(model).fit is not Method.fit:
+            start = time.perf_counter()
+            model.fit(clips, 0, seed=seed, progress=False)
+            record["finish_seconds"] = time.perf_counter() - start
+            model.save(checkpoint)
+        record["finished"] = True
+        record.pop("evaluation", None)
+        write_json(record_path, record)
+    record["parameters"] = model.n_parameters
+    return model, record
+
+
+def per_class_accuracy(classifier: ActionClassifier, motions) -> dict[str, float]:
+    """Return the classifier's accuracy on ``motions`` per action, and over all as ``accuracy``."""
+    motions = list(motions)
+    hits = classifier.predict(motions) == classifier.labels_of(motions)
+    actions = np.array([m.action for m in motions])
+    out = {action: float(hits[actions == action].mean()) for action in classifier.actions
+           if (actions == action).any()}
+    out["accuracy"] = float(hits.mean())
+    return out
+
+
+def prepare_classifier(setting: Setting, folder: Path, iters: int, preset: str, seed: int,
+                       data_root=None, actions=None) -> tuple[ActionClassifier, dict]:
+    """Return the setting's classifier (trained on its training subjects, or loaded) and its record."""
+    path, record_path = folder / "classifier.pt", folder / "classifier.json"
+    signature = {"dataset": setting.dataset, "train": setting.train_subjects,
+                 "test": setting.test_subjects, "iters": iters, "preset": preset, "seed": seed,
+                 "actions": actions}
+    record = read_json(record_path)
+    if record.get("signature") == json.loads(json.dumps(signature)) and path.is_file():
+        return ActionClassifier.load(path), record
+    start = time.perf_counter()
+    model = train_classifier(setting.dataset, path, data_root=data_root,
+                             subjects=setting.train_subjects, test_subjects=setting.test_subjects,
+                             actions=actions, iters=iters, preset=preset, seed=seed, progress=False)
+    record = {"signature": signature, "seconds": time.perf_counter() - start}
+    write_json(record_path, record)
+    return model, record
+
+
+def machine() -> dict:
+    """Return what the numbers were measured on: CPU, cores, GPU, versions, load."""
+    model = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return {
+        "cpu": model, "cores": cores,
+        "gpu": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
+        "python": platform.python_version(), "torch": torch.__version__, "numpy": np.__version__,
+        "load": os.getloadavg()[0] if hasattr(os, "getloadavg") else None,
+    }
+
+
+def run_benchmark(datasets: Sequence[str], budget: float, work: str | Path, *,
+                  methods: Sequence[str] | None = None, presets: dict[str, str] | None = None,
+                  repeats: int = 20, seed: int = 0, n: int = 100, subjects=None,
+                  test_subjects=None, actions=None, classifier_iters: int = 500,
+                  classifier_preset: str = "paper", data_root=None, checkpoint_every: float = 15.0,
+                  progress: bool = True, log: Callable[[str], None] | None = None) -> dict:
+    """Benchmark ``methods`` (default: all) on each dataset; return the results (JSON-ready).
+
+    Also written to ``work/results.json``; :func:`generation.benchmark_report.render`
+    turns them into Markdown.
+    """
+    methods = list(methods or list_methods())
+    unknown = [name for name in methods if name not in list_methods()]
+    if unknown:
+        raise BenchmarkError(f"unknown method {', '.join(map(repr, unknown))}; choose from "
+                             f"{', '.join(list_methods())}")
+    if not budget > 0 or repeats < 1 or n < 2:
+        raise BenchmarkError(f"budget must be positive, repeats at least 1 and n at least 2; "
+                             f"got {budget}, {repeats}, {n}")
+    work = Path(work)
+    settings = [setting_for(name, subjects, test_subjects) for name in datasets]
+    started = datetime.now(timezone.utc)
+    clock = time.perf_counter()
+    result = {"started": started.isoformat(timespec="seconds"), "machine": machine(),
+              "budget": budget, "repeats": repeats, "seed": seed, "n": n,
+              "classifier_iters": classifier_iters, "classifier_preset": classifier_preset,
+              "methods": methods, "settings": []}
+    bar = tqdm(total=len(settings) * (1 + len(methods)), desc="benchmark", unit="step",
+               disable=not progress, dynamic_ncols=True)
+
+    def say(message: str) -> None:
+        if log:
+            with tqdm.external_write_mode():
+                log(message)
+
+    try:
+        with one_thread():
+            for setting in settings:
+                result["settings"].append(_run_setting(
+                    setting, methods, presets, budget, work / setting.dataset, repeats, seed, n,
+                    actions, classifier_iters, classifier_preset, data_root, checkpoint_every,
+                    bar, say))
+    finally:
+        bar.close()
+    result["wall_seconds"] = time.perf_counter() - clock
+    result["load_at_end"] = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
+    write_json(work / "results.json", result)
+    return result
+
+
+def _run_setting(setting, methods, presets, budget, folder, repeats, seed, n, actions,
+                 classifier_iters, classifier_preset, data_root, checkpoint_every, bar, say) -> dict:
+    """Return one setting's results: data, classifier, Real column and every method."""
+    name = setting.dataset
+    bar.set_description(f"{name}: classifier")
+    data = get_dataset(name, data_root)
+    classifier, clf_record = prepare_classifier(setting, folder, classifier_iters, classifier_preset,
+                                                seed, data_root, actions)
+    clips = data.clips(actions=classifier.actions)
+    train, test = classifier.split.divide(clips)
+    if not train or not test:
+        raise BenchmarkError(f"dataset {name!r} gave {len(train)} training and {len(test)} "
+                             f"held-out clips ({classifier.split.describe()})")
+    out = {
+        "dataset": name, "skeleton": data.skeleton, "frames": classifier.frames,
+        "fps": classifier.fps, "actions": list(classifier.actions), "metrics": list(setting.metrics),
+        "tables": list(setting.tables), "split": classifier.split.to_dict(),
+        "split_text": classifier.split.describe(), "n_train": len(train), "n_test": len(test),
+        "classifier": {
+            "preset": classifier_preset, "hidden": classifier.config.hidden,
+            "layers": classifier.config.layers, "iterations": classifier.iteration,
+            "seconds": clf_record.get("seconds"), "test_accuracy": classifier.test_accuracy,
+            "train_accuracy": classifier.train_accuracy,
+            "per_class": per_class_accuracy(classifier, test),
+        },
+        "real": None, "methods": {},
+    }
+    bar.update(1)
+    say(f"{name}: classifier ({classifier.iteration} iterations): accuracy "
+        f"{classifier.test_accuracy:.3f} on {len(test)} held-out clips ({classifier.split.describe()})")
+    for method in methods:
+        bar.set_description(f"{name}: {method}")
+        entry = _run_method(method, setting, data, classifier, train, presets, budget, folder,
+                            repeats, seed, n, checkpoint_every, bar)
+        out["methods"][method] = entry
+        if out["real"] is None and entry.get("real"):
+            out["real"] = entry["real"]
+        bar.update(1)
+        say(_summary_line(name, method, entry))
+    return out
+
+
+def _run_method(method, setting, data, classifier, train, presets, budget, folder, repeats,
+                seed, n, checkpoint_every, bar) -> dict:
+    """Train, sample and evaluate one method; errors are recorded, not raised."""
+    recipe = recipe_for(method, presets)
+    entry = {"recipe": recipe.describe()}
+    try:
+        model, record = train_within_budget(
+            method, train, classifier.actions, budget, folder, recipe, seed, checkpoint_every,
+            on_tick=lambda text: bar.set_postfix_str(text, refresh=True))
+    except (MethodError, ValueError, RuntimeError) as exc:
+        entry["error"] = f"training failed: {exc}"
+        return entry
+    entry.update({key: record.get(key) for key in
+                  ("seconds", "cpu_seconds", "iterations", "finish_seconds", "parameters",
+                   "reused")})
+    bar.set_postfix_str("sampling and evaluating", refresh=True)
+    signature = {"iteration": model.iteration, "n": n, "repeats": repeats, "seed": seed,
+                 "metrics": list(setting.metrics), "classifier": classifier.iteration,
+                 "split": classifier.split.to_dict()}
+    cached = record.get("evaluation")
+    if cached and cached.get("signature") == json.loads(json.dumps(signature)):
+        entry.update(cached["values"])
+        return entry
+    try:
+        start = time.perf_counter()
+        motions = model.sample([action for action in classifier.actions for _ in range(n)], seed=seed)
+        npz.save(folder / f"{method}.npz", motions)
+        values = evaluate(data, motions, classifier, setting.metrics, repeats, seed)
+        found = {
+            "metrics": {key: {"mean": row["mean"], "ci": row["ci"]}
+                        for key, row in values["metrics"].items()},
+            "real": {key: {"mean": row["real"]["mean"], "ci": row["real"]["ci"]}
+                     for key, row in values["metrics"].items() if row["real"]},
+            "per_class": per_class_accuracy(classifier, motions),
+            "evaluate_seconds": time.perf_counter() - start,
+        }
+    except (MethodError, EvaluationError, ClassifierError, MotionError) as exc:
+        entry["error"] = f"sampling or evaluation failed: {exc}"
+        return entry
+    record["evaluation"] = {"signature": signature, "values": found}
+    write_json(folder / f"{method}.json", record)
+    entry.update(found)
+    return entry
+
+
+def _summary_line(dataset: str, method: str, entry: dict) -> str:
+    if entry.get("error"):
+        return f"{dataset} {method}: {entry['error']}"
+    values = ", ".join(f"{key} {row['mean']:.4g}" for key, row in entry["metrics"].items()
+                       if row["mean"] is not None)
+    return (f"{dataset} {method} [{entry['recipe']}]: {entry['iterations']} iterations in "
+            f"{entry['seconds']:.0f} s; {values}")

@@ -1,0 +1,359 @@
+"""Turn the results of :func:`generation.benchmark.run_benchmark` into ``docs/RESULTS.md``.
+
+Per data setting: how the data was split and the classifier trained, the methods'
+training within the budget, our numbers (mean ± 95 % CI) with the Real values beside
+and the papers' numbers in their own columns, and a paragraph on where and why we fall
+short of the papers.
+"""
+
+from __future__ import annotations
+
+import math
+from datetime import datetime
+
+from generation.paper_numbers import TABLES, PaperTable
+
+NAMES = {"mmd_avg": "MMD_avg ↓", "mmd_seq": "MMD_seq ↓", "accuracy": "accuracy ↑",
+         "fid": "FID ↓", "diversity": "diversity →", "multimodality": "multimodality →"}
+SHORT = {"004_table_1": "004 T1", "003_table_1": "003 T1", "004_table_2": "004 T2",
+         "000_table_1": "A2M (HumanAct12)"}
+DESCRIPTIONS = {
+    "h36m2d": (
+        "Human3.6M in 2D: the setting of seeds 003 and 004",
+        "15 joints (`h36m15_2d`, hip dropped) projected onto camera 55011271, clips of {frames} "
+        "frames at {fps:.2f} Hz (our takes are at 25 fps and are resampled; the papers took "
+        "every 3rd frame of the 50 Hz data), the papers' {classes} classes.",
+    ),
+    "h36m": (
+        "Human3.6M in 3D: our choice of setting for Action2Motion's metrics",
+        "17 joints (`h36m17`, metres), clips of {frames} frames at {fps:g} fps, all {classes} "
+        "Human3.6M actions. Action2Motion evaluated on HumanAct12, NTU-RGB-D and CMU MoCap, not "
+        "on Human3.6M; we chose this setting because that is the 3D data we have. Its HumanAct12 "
+        "numbers are shown for reference only: **another dataset** (12 classes, 24 SMPL "
+        "joints), another classifier and so another feature scale, so compare each method's "
+        "gap to Real, not the values.",
+    ),
+    "demo": (
+        "Synthetic demo data (a smoke test, not a result)",
+        "Procedural motions of `h36m17`, {frames} frames at {fps:g} fps, {classes} actions; "
+        "the paper columns are of another dataset and shown only to exercise the table.",
+    ),
+}
+
+
+def render(result: dict, command: str) -> str:
+    """Return the Markdown of a benchmark run, produced by ``command``."""
+    lines = ["# Results: our methods measured against the seed papers' tables", ""]
+    lines += _provenance(result, command)
+    for setting in result["settings"]:
+        lines += _setting(result, setting)
+    lines += _shortfalls(result)
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def _provenance(result: dict, command: str) -> list[str]:
+    info = result["machine"]
+    gpu = info["gpu"] or "no GPU"
+    when = datetime.fromisoformat(result["started"]).strftime("%Y-%m-%d %H:%M UTC")
+    loads = [value for value in (info.get("load"), result.get("load_at_end")) if value is not None]
+    load = (f"; shared with other work (load average {loads[0]:.1f} at the start, "
+            f"{loads[-1]:.1f} at the end)" if loads else "")
+    entries = [entry for setting in result["settings"] for entry in setting["methods"].values()]
+    reused = sum(bool(entry.get("reused")) for entry in entries)
+    earlier = (f" ({reused} of the {len(entries)} trainings were reused from `--work`, where an "
+               f"earlier invocation with the same budget had finished them)" if reused else "")
+    work = {
+        "training": sum(entry.get("seconds") or 0 for entry in entries),
+        "fitting ODMO's modes": sum(entry.get("finish_seconds") or 0 for entry in entries),
+        "sampling and evaluation": sum(entry.get("evaluate_seconds") or 0 for entry in entries),
+        "classifier training": sum(setting["classifier"].get("seconds") or 0
+                                   for setting in result["settings"]),
+    }
+    summed = ", ".join(f"{name} {seconds / 60:.1f} min" for name, seconds in work.items() if seconds)
+    return [
+        f"Written by `benchmark_methods` (`generation/benchmark.py`) on {when}, in "
+        f"{result['wall_seconds'] / 60:.1f} minutes of wall time{earlier}:",
+        "",
+        "```",
+        command,
+        "```",
+        "",
+        f"- Machine: {info['cores']} CPU cores ({info['cpu']}), {gpu}; Python {info['python']}, "
+        f"torch {info['torch']}, one torch thread{load}.",
+        f"- Work behind these numbers, summed over the invocations that made it: {summed}.",
+        f"- Budget: **{result['budget']:g} s of training wall time per method and setting** "
+        f"(one core), checkpointed and resumable; ODMO's mode fitting after training is timed "
+        f"apart. Presets as in the training tables (`demo`: the method's small configuration); "
+        f"their CPU seconds show how much of a core each method got on the shared machine.",
+        f"- Each method draws {result['n']} motions per action (seed {result['seed']}; seed 003 "
+        f"drew 100 per class); metrics are the mean ± 95 % CI over {result['repeats']} repeats "
+        f"(A2M's protocol, `generation/evaluation.py`: motions and real clips drawn with "
+        f"replacement per repeat). **Real** compares held-out clips with training clips, as "
+        f"the papers' \"Real motions\" rows do.",
+        "",
+    ]
+
+
+def _setting(result: dict, setting: dict) -> list[str]:
+    title, data = DESCRIPTIONS.get(setting["dataset"], (f"Dataset {setting['dataset']}", ""))
+    tables = [TABLES[key] for key in setting["tables"]]
+    clf = setting["classifier"]
+    train = setting["split"].get("train_subjects")
+    lines = [f"## {title}", ""]
+    if data:
+        lines.append("- Data: " + data.format(frames=setting["frames"], fps=setting["fps"],
+                                              classes=len(setting["actions"])))
+    lines.append(
+        f"- Split: {'training subjects ' + ', '.join(train) if train else 'the other clips'} "
+        f"({setting['n_train']} clips) for the methods and the classifier; "
+        f"{setting['split_text']} ({setting['n_test']} clips) for evaluation."
+        + (" The papers trained on S1, S5, S6, S7, S8, S9 and tested on S11; our copy of "
+           "Human3.6M has no S11, so S9 is held out instead (one training subject fewer)."
+           if setting["dataset"].startswith("h36m") else "")
+    )
+    lines.append(
+        f"- Classifier: A2M's GRU recogniser ({clf['preset']} preset: {clf['layers']} layers of "
+        f"{clf['hidden']}, 30-d tanh features) trained {clf['iterations']} iterations on the "
+        f"training clips; its own "
+        f"accuracy on the held-out clips is **{clf['test_accuracy']:.3f}** (on the training "
+        f"clips {clf['train_accuracy']:.3f})."
+        + (" Seed 004's classifier has its video discriminator's architecture, so accuracies "
+           "compare in tendency only." if "004_table_2" in setting["tables"] else "")
+    )
+    lines.append("")
+    lines += _training_table(setting)
+    main = [m for m in setting["metrics"] if any(m in t.metrics for t in tables)]
+    extra = [m for m in setting["metrics"] if m not in main]
+    lines += _metric_table(setting, main, [t for t in tables if t.key != "004_table_2"])
+    if any(t.key == "004_table_2" for t in tables):
+        lines += _per_class_table(setting, TABLES["004_table_2"])
+    if extra:
+        lines += [f"Also measured (the papers of this setting report no {', '.join(extra)}):", ""]
+        lines += _metric_table(setting, extra, [])
+    return lines
+
+
+def _training_table(setting: dict) -> list[str]:
+    lines = ["Training within the budget:", "",
+             "| method | preset | parameters | iterations | train (s, wall) | train (s, CPU) "
+             "| after training (s) |",
+             "|---|---|---:|---:|---:|---:|---:|"]
+    for method, entry in setting["methods"].items():
+        if entry.get("seconds") is None:
+            lines.append(f"| `{method}` | {entry['recipe']} | | | | | |")
+            continue
+        finish = entry.get("finish_seconds")
+        lines.append(
+            f"| `{method}` | {entry['recipe']} | {entry['parameters']:,} | {entry['iterations']:,} | "
+            f"{entry['seconds']:.0f} | {entry['cpu_seconds']:.0f} | "
+            f"{'' if finish is None else f'{finish:.0f} (modes)'} |"
+        )
+    return lines + [""]
+
+
+def _cell(row: dict | None, digits: int = 3) -> str:
+    if not row or row.get("mean") is None or not math.isfinite(row["mean"]):
+        return "–"
+    return f"{row['mean']:.{digits}f} ± {row['ci']:.{digits}f}"
+
+
+def _paper_cell(table: PaperTable, method: str | None, metric: str) -> str:
+    row = table.real if method is None else table.row(method)
+    if row is None or metric not in row.values:
+        return ""
+    value, ci = row.values[metric], row.ci.get(metric)
+    return f"{value:.{2 if value >= 10 else 3}f}" + (f" ± {ci:.3f}" if ci is not None else "")
+
+
+def _metric_table(setting: dict, metrics: list[str], tables: list[PaperTable]) -> list[str]:
+    """Return a table with, per metric, our column and one column per paper table reporting it."""
+    columns = []
+    for metric in metrics:
+        columns.append((metric, None))
+        columns += [(metric, table) for table in tables if metric in table.metrics]
+        if metric == "accuracy" and "004_table_2" in setting["tables"]:
+            columns.append((metric, TABLES["004_table_2"]))
+    header = ["method"] + [NAMES.get(m, m) if t is None else SHORT.get(t.key, t.key) for m, t in columns]
+    lines = ["| " + " | ".join(header) + " |", "|---|" + "---:|" * len(columns)]
+    real = setting.get("real") or {}
+    cells = [_cell(real.get(m)) if t is None else _paper_cell(t, None, m) for m, t in columns]
+    lines.append("| **Real** (held-out vs training clips) | " + " | ".join(cells) + " |")
+    for method, entry in setting["methods"].items():
+        ours = entry.get("metrics") or {}
+        if entry.get("error"):
+            cells = [entry["error"].split(":")[0] if t is None else _paper_cell(t, method, m)
+                     for m, t in columns]
+        else:
+            cells = [_cell(ours.get(m)) if t is None else _paper_cell(t, method, m) for m, t in columns]
+        lines.append(f"| `{method}` | " + " | ".join(cells) + " |")
+    lines.append("")
+    others = []
+    for table in tables:
+        missing = [row for row in table.rows if row.method is None]
+        if missing:
+            values = "; ".join(f"{row.label} " + " / ".join(f"{row.values[m]:g}" for m in metrics
+                                                           if m in row.values) for row in missing)
+            others.append(f"{SHORT.get(table.key, table.key)}: {values}")
+    if others:
+        lines += ["Paper rows of methods not implemented here (" + " / ".join(
+            NAMES[m].split(" ")[0] for m in metrics if any(m in t.metrics for t in tables)) + "): "
+            + ". ".join(others) + ".", ""]
+    return lines
+
+
+def _per_class_table(setting: dict, table: PaperTable) -> list[str]:
+    actions = [a for a in table.metrics if a != "accuracy"]
+    lines = ["Accuracy per class (ours: our classifier on our samples; "
+             f"{SHORT[table.key]}: seed 004's classifier on its methods' samples):", "",
+             "| method | " + " | ".join(actions) + " | average |",
+             "|---|" + "---:|" * (len(actions) + 1)]
+    real = setting["classifier"]["per_class"]
+    lines.append("| **Real** (held-out clips) | " + " | ".join(
+        _number(real.get(a)) for a in actions + ["accuracy"]) + " |")
+    for method, entry in setting["methods"].items():
+        ours = entry.get("per_class") or {}
+        cells = [_number(ours.get(action)) for action in actions + ["accuracy"]]
+        lines.append(f"| `{method}` | " + " | ".join(cells) + " |")
+        row = table.row(method)
+        if row:
+            lines.append(f"| {row.label} ({SHORT[table.key]}) | " + " | ".join(
+                f"{row.values[a]:.2f}" for a in actions) + f" | {row.values['accuracy']:.3f} |")
+    return lines + [""]
+
+
+def _number(value) -> str:
+    return "–" if value is None else f"{value:.2f}"
+
+
+def _mean(entry: dict, metric: str) -> float | None:
+    row = (entry.get("metrics") or {}).get(metric)
+    return None if not row or row.get("mean") is None else row["mean"]
+
+
+def _shortfalls(result: dict) -> list[str]:
+    """Return the closing section: where our numbers fall short of the papers', and why."""
+    lines = ["## Where we fall short, and why", ""]
+    iterations = [entry["iterations"] for setting in result["settings"]
+                  for entry in setting["methods"].values() if entry.get("iterations")]
+    span = f"{min(iterations):,}–{max(iterations):,}" if iterations else "few"
+    presets = {entry["recipe"].split(" ")[0] for setting in result["settings"]
+               for entry in setting["methods"].values()}
+    networks = ("reduced (`demo` preset) networks with batches of 32" if presets == {"demo"}
+                else "networks of the presets in the training tables")
+    facts = []
+    for setting in result["settings"]:
+        facts += _setting_facts(setting)
+    if any("cond_gru" in setting["methods"] for setting in result["settings"]):
+        facts.append(
+            "`cond_gru` starts every motion from a real training pose (seed 000's baseline needs "
+            "a first pose), a head start under FID and MMD that the other methods lack."
+        )
+    if facts:
+        lines += [" ".join(facts), ""]
+    lines.append(
+        f"The main reason is training. Each method had {result['budget']:g} s on one CPU core, "
+        f"{span} iterations of {networks}, where the papers "
+        "trained full-size networks on GPUs for tens of thousands of iterations or more: "
+        "Action2Motion reports 40,000 iterations with its Lie algebra representation and "
+        "500,000 without (seed 000, appendix), and the GAN baselines pretrain a frame or pose "
+        "model for 10,000 iterations before sequence training starts (their code; 250–300 in "
+        "our `demo` presets). GANs in particular are far from equilibrium after a "
+        "minute, so their numbers here say more about how fast a method starts to learn than "
+        "about what it can reach. The data differ too: the papers held out S11, which our copy "
+        "of Human3.6M lacks, so we test on S9 and train on one subject fewer; our 2D clips are "
+        "resampled from 25 fps rather than taken every 3rd frame of 50 Hz; and the accuracy and "
+        "feature metrics use our classifier (A2M's GRU), not the papers' (seed 004's is its "
+        "video discriminator), whose accuracy on held-out real clips bounds what generated "
+        "motions can reach. MMD depends on the coordinates' scale and the number of motions "
+        "drawn, so only values measured the same way compare: the Real row gives ours the "
+        "scale the papers' tables lack. In 3D the reference numbers are of HumanAct12, another "
+        "dataset, skeleton and classifier; only the distance of each method from Real and the "
+        "order of the methods carry over."
+    )
+    return lines + [""]
+
+
+def _setting_facts(setting: dict) -> list[str]:
+    """Return sentences comparing a setting's best numbers with the papers' and with Real."""
+    methods = {name: entry for name, entry in setting["methods"].items() if entry.get("metrics")}
+    if not methods:
+        return []
+    real = setting.get("real") or {}
+    dataset = setting["dataset"]
+    facts = []
+    if "004_table_1" in setting["tables"]:
+        table = TABLES["004_table_1"]
+        for metric in ("mmd_avg", "mmd_seq"):
+            scored = {name: _mean(entry, metric) for name, entry in methods.items()
+                      if _mean(entry, metric) is not None}
+            if not scored:
+                continue
+            best = min(scored, key=scored.get)
+            paper_best = min(table.rows, key=lambda row: row.values[metric])
+            real_value = (real.get(metric) or {}).get("mean")
+            facts.append(
+                f"On {dataset} our best {NAMES[metric].split()[0]} is {scored[best]:.3f} "
+                f"(`{best}`), where {paper_best.label} reports {paper_best.values[metric]:g} "
+                f"({table.source})" + (f" and real held-out clips score {real_value:.3f} against "
+                                       f"the training clips." if real_value is not None else ".")
+            )
+        real_avg = (real.get("mmd_avg") or {}).get("mean")
+        floor = min(row.values["mmd_avg"] for row in table.rows)
+        if real_avg is not None and real_avg > floor:
+            facts.append(
+                f"Real held-out clips themselves score above the paper's best method ({real_avg:.3f} "
+                f"against {floor:g}), so absolute values do not carry over: the held-out subject, "
+                f"our units (pixels of camera 55011271) and the number of clips set another floor."
+            )
+        facts.append(_order_sentence(methods, table, "mmd_avg"))
+    if "000_table_1" in setting["tables"]:
+        table = TABLES["000_table_1"]
+        scored = {name: _mean(entry, "fid") for name, entry in methods.items()
+                  if _mean(entry, "fid") is not None}
+        real_fid = (real.get("fid") or {}).get("mean")
+        if scored and real_fid:
+            best = min(scored, key=scored.get)
+            paper = table.row("a2m").values["fid"] / table.real.values["fid"]
+            facts.append(
+                f"On {dataset} our best FID is {scored[best]:.3g} (`{best}`), "
+                f"{scored[best] / real_fid:.1f}× the Real value of {real_fid:.3g}; Action2Motion's "
+                f"FID on HumanAct12 is {paper:.0f}× its Real value."
+            )
+        facts.append(_order_sentence(methods, table, "fid"))
+    real_diversity = (real.get("diversity") or {}).get("mean")
+    collapsed = [name for name, entry in methods.items() if real_diversity and
+                 (_mean(entry, "diversity") or real_diversity) < 0.5 * real_diversity]
+    if collapsed:
+        facts.append(
+            f"On {dataset} " + ", ".join(f"`{name}` ({_mean(methods[name], 'diversity'):.2f})"
+                                          for name in collapsed)
+            + f" {'has' if len(collapsed) == 1 else 'have'} less than half the diversity of real "
+            f"clips ({real_diversity:.2f}): {'its' if len(collapsed) == 1 else 'their'} generator "
+            f"has collapsed to a few motions in the budget."
+        )
+    accuracy = {name: _mean(entry, "accuracy") for name, entry in methods.items()
+                if _mean(entry, "accuracy") is not None}
+    if accuracy:
+        best = max(accuracy, key=accuracy.get)
+        facts.append(
+            f"The most recognisable samples on {dataset} are `{best}`'s, at "
+            f"{accuracy[best]:.3f} accuracy against {setting['classifier']['test_accuracy']:.3f} "
+            f"for real held-out clips."
+        )
+    return [fact for fact in facts if fact]
+
+
+def _order_sentence(methods: dict, table: PaperTable, metric: str) -> str:
+    """Return whether our order of the paper's methods by ``metric`` is the paper's."""
+    shared = [row for row in table.rows
+              if row.method in methods and _mean(methods[row.method], metric) is not None]
+    if len(shared) < 2:
+        return ""
+    paper = [row.method for row in sorted(shared, key=lambda row: row.values[metric])]
+    ours = sorted(paper, key=lambda name: _mean(methods[name], metric))
+    label = NAMES[metric].split()[0]
+    if ours == paper:
+        return (f"By {label} our order of the methods {table.source} reports is the paper's "
+                f"({' < '.join(ours)}).")
+    return (f"By {label} the order differs from {table.source}: ours {' < '.join(ours)}, "
+            f"the paper's {' < '.join(paper)}.")

@@ -1,0 +1,19 @@
+"""Datasets of real (and one synthetic) motion, in a registry.
+
+``get_dataset("h36m").clips()`` gives fixed-length clips; importing this package
+registers ``demo``, ``h36m``, ``h36m2d`` and ``humanact12``.
+"""
+
+from generation.datasets.base import (
+    Dataset,
+    DatasetError,
+    LoadReport,
+    get_dataset,
+    list_datasets,
+    register_dataset,
+)
+# Importing the dataset modules registers them.
+from generation.datasets import demo, h36m, h36m2d, humanact12  # noqa: F401, E402
+
+__all__ = ["Dataset", "DatasetError", "LoadReport", "get_dataset", "list_datasets",
+           "register_dataset"]

@@ -1,0 +1,198 @@
+"""Evaluate a set of motions against a dataset's real clips: what ``manage.py evaluate`` runs.
+
+This module checks that the motions fit the dataset and the classifier, turns motions
+into arrays (classifier features and predictions included) and hands them to the
+repeat/CI protocol of :mod:`analysis.evaluation`, which works on numpy arrays only.
+
+Real clips are the dataset's clips of the motions' length and frame rate, divided as the
+classifier was trained (held-out subjects or takes; without a classifier, the default
+split of :func:`generation.recognition.make_split`): generated motions are compared with
+the held-out ("test") clips, and the Real column compares those with the training clips.
+Before the metrics on joints (MMD, APD), every motion is moved so that its root starts
+above the origin (height kept), as the methods place their samples.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from analysis import evaluation as protocol
+from analysis.metrics import BANDWIDTHS, MetricError
+from generation.datasets import Dataset, get_dataset
+from generation.motion import Motion
+from generation.recognition import ActionClassifier, ClassifierError, make_split
+from generation.skeletons import get_skeleton
+
+METRICS = protocol.METRICS
+LOWER_IS_BETTER = protocol.LOWER_IS_BETTER
+
+
+# Optional arrays of an interchange file that some metrics need, one entry per motion.
+EXTRAS = ("modes", "end_targets")
+
+
+class EvaluationError(ValueError):
+    """Motions cannot be evaluated as asked (other skeleton, length, dataset or actions)."""
+
+
+def read_extras(path: str | Path) -> dict[str, np.ndarray]:
+    """Return the optional per-motion arrays of an interchange ``.npz`` (``modes``, ``end_targets``)."""
+    with np.load(path, allow_pickle=False) as data:
+        return {key: data[key] for key in EXTRAS if key in data.files}
+
+
+def evaluate(dataset: Dataset | str, motions: Sequence[Motion], classifier: ActionClassifier | None = None,
+             metrics: Sequence[str] | None = None, repeats: int = 20, seed: int = 0, *,
+             modes=None, end_targets=None, data_root=None, diversity_pairs: int = 200,
+             multimodality_pairs: int = 20, bandwidths=BANDWIDTHS) -> dict:
+    """Return every metric's mean, 95 % CI and per-repeat values, with the Real values beside.
+
+    ``motions`` share one skeleton (the dataset's), length and frame rate. ``modes``
+    ``(N,)`` and ``end_targets`` ``(N, D)`` (reached end point: the root's last position
+    minus its first) enable mode homogeneity and dist_e. Metrics needing what is
+    absent (a classifier, modes, targets) are listed under ``skipped`` with the reason.
+    """
+    data = get_dataset(dataset, data_root) if isinstance(dataset, str) else dataset
+    try:
+        metrics = protocol.check_metrics(metrics)
+    except MetricError as exc:
+        raise EvaluationError(str(exc)) from None
+    motions = list(motions)
+    frames, fps = _check_motions(data, motions)
+    actions = sorted({m.action for m in motions})
+    if classifier is not None:
+        _check_classifier(data, classifier, frames, fps, actions)
+        names = classifier.actions
+    else:
+        names = data.actions()
+    clips = data.clips(frames=frames, fps=fps, actions=actions)
+    split = classifier.split if classifier is not None and classifier.split else make_split(data, clips)
+    train, test = split.divide(clips)
+    index = {name: i for i, name in enumerate(names)}
+    sets = {}
+    for key, group in (("generated", motions), ("test", test), ("train", train)):
+        if not group:
+            raise EvaluationError(
+                f"dataset {data.name!r} has no real {key} clips of {frames} frames at {fps:g} fps "
+                f"for {', '.join(actions)} ({split.describe()}); check --data-root and the motions' length"
+            )
+        sets[key] = _motion_set(group, index, classifier, key)
+    sets["generated"].modes = _optional(modes, len(motions), "modes")
+    sets["generated"].end_targets = _optional(end_targets, len(motions), "end_targets")
+    try:
+        result = protocol.run(sets["generated"], sets["test"], sets["train"], metrics, repeats, seed,
+                              diversity_pairs, multimodality_pairs, bandwidths)
+    except MetricError as exc:
+        raise EvaluationError(str(exc)) from None
+    return {
+        "dataset": data.name,
+        "skeleton": data.skeleton,
+        "source": motions[0].source,
+        "n_motions": len(motions),
+        "frames": frames,
+        "fps": fps,
+        "actions": {a: sum(m.action == a for m in motions) for a in actions},
+        "repeats": int(repeats),
+        "seed": int(seed),
+        "real": {"split": split.describe(), "n_test": len(test), "n_train": len(train)},
+        "classifier": None if classifier is None else {
+            "dataset": classifier.dataset, "iterations": classifier.iteration,
+            "test_accuracy": classifier.test_accuracy,
+        },
+        **result,
+    }
+
+
+def _check_motions(data: Dataset, motions: list[Motion]) -> tuple[int, float]:
+    """Return the motions' shared length and frame rate, or raise saying what does not fit."""
+    if not motions:
+        raise EvaluationError("no motions to evaluate")
+    for i, motion in enumerate(motions):
+        if motion.skeleton != data.skeleton:
+            raise EvaluationError(
+                f"motion {i} ({motion.action!r}, source {motion.source!r}) has skeleton "
+                f"{motion.skeleton!r}, but dataset {data.name!r} is {data.skeleton!r}; evaluate "
+                f"against a dataset of skeleton {motion.skeleton!r}"
+            )
+        motion.check_finite()
+    lengths = sorted({m.frames for m in motions})
+    if len(lengths) > 1:
+        raise EvaluationError(
+            f"motions have different lengths ({', '.join(map(str, lengths))} frames); the "
+            f"metrics compare clips of one length: sample them all with the same --frames"
+        )
+    rates = sorted({m.fps for m in motions})
+    if len(rates) > 1:
+        raise EvaluationError(f"motions have different frame rates ({rates}); resample them to one")
+    known = set(data.actions())
+    unknown = sorted({m.action for m in motions} - known)
+    if unknown:
+        raise EvaluationError(
+            f"dataset {data.name!r} has no action {', '.join(map(repr, unknown))}; its actions "
+            f"are {', '.join(data.actions())}: evaluate against the dataset the motions imitate"
+        )
+    return lengths[0], float(rates[0])
+
+
+def _check_classifier(data: Dataset, classifier: ActionClassifier, frames: int, fps: float,
+                      actions: list[str]) -> None:
+    if classifier.skeleton != data.skeleton:
+        raise EvaluationError(
+            f"the classifier reads skeleton {classifier.skeleton!r}, but dataset {data.name!r} is "
+            f"{data.skeleton!r}; pass a classifier trained on {data.name!r}"
+        )
+    if classifier.dataset and classifier.dataset != data.name:
+        raise EvaluationError(
+            f"the classifier was trained on dataset {classifier.dataset!r}, not {data.name!r}; "
+            f"train one on {data.name!r} (manage.py train_classifier --dataset {data.name})"
+        )
+    if classifier.frames != frames:
+        raise EvaluationError(
+            f"the motions have {frames} frames, the classifier reads {classifier.frames}; "
+            f"sample {classifier.frames}-frame motions or train a classifier with --frames {frames}"
+        )
+    if abs(classifier.fps - fps) > 1e-3 * fps:
+        raise EvaluationError(
+            f"the motions are at {fps:g} fps, the classifier at {classifier.fps:g} fps; resample "
+            f"the motions or train a classifier with --fps {fps:g}"
+        )
+    unknown = [a for a in actions if a not in classifier.actions]
+    if unknown:
+        raise EvaluationError(
+            f"the classifier knows no action {', '.join(map(repr, unknown))}; its actions are "
+            f"{', '.join(classifier.actions)}: pass a classifier trained on these actions"
+        )
+
+
+def _motion_set(motions: list[Motion], index: dict, classifier, key: str) -> protocol.MotionSet:
+    """Return motions as arrays: joints from their start above the origin, labels, classifier outputs."""
+    joints = np.stack([m.joints for m in motions]).astype(np.float64)
+    skeleton = get_skeleton(motions[0].skeleton)
+    root = joints[:, :, skeleton.root]
+    start = root[:, 0].copy()
+    start[:, skeleton.up_index] = 0.0
+    features = predictions = None
+    if classifier is not None:
+        try:
+            features, predictions = classifier.features_and_predictions(joints, f"{key} motions")
+        except ClassifierError as exc:
+            raise EvaluationError(str(exc)) from None
+    return protocol.MotionSet(
+        joints=joints - start[:, None, None, :],
+        labels=np.array([index[m.action] for m in motions]),
+        features=features,
+        predictions=predictions,
+        end_points=root[:, -1] - root[:, 0],
+    )
+
+
+def _optional(values, count: int, name: str) -> np.ndarray | None:
+    if values is None:
+        return None
+    values = np.asarray(values)
+    if len(values) != count:
+        raise EvaluationError(f"{name} has {len(values)} entries for {count} motions; give one per motion")
+    return values

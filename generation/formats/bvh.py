@@ -1,0 +1,455 @@
+"""BVH motion capture files (CMU, Mixamo, ...): parse, forward kinematics, map to a skeleton.
+
+A BVH file has two parts:
+
+- ``HIERARCHY``: one ``ROOT`` and nested ``JOINT`` blocks, each with ``OFFSET x y z`` from
+  its parent and ``CHANNELS n ...`` (``Xposition``, ``Yposition``, ``Zposition``,
+  ``Xrotation``, ``Yrotation``, ``Zrotation``, in any order); an ``End Site`` block has
+  only an offset and marks the tip of a chain (the top of the head, a toe tip).
+- ``MOTION``: ``Frames: T``, ``Frame Time: dt`` (seconds), then one line per frame with
+  every channel's value in hierarchy order; rotations in degrees.
+
+Forward kinematics: a joint's transform in its parent's frame is the translation by its
+offset followed by its channels in the order listed (``Zrotation Yrotation Xrotation``
+gives ``R = Rz @ Ry @ Rx``); its world position is the translation of the product of the
+transforms from the root down.
+
+Units: BVH files carry none. ``scale`` is metres per file unit: a number, a unit name of
+:data:`UNITS`, or ``"auto"`` (the default), which picks the unit that makes the rest pose
+(all channels zero) closest to :data:`TYPICAL_HEIGHT` tall, measuring its largest extent
+along any axis (the height, or a T-pose's arm span, which is about the same). CMU's BVH
+conversions keep the ASF length unit, 1/0.45 inch (``"cmu"``, 5.644 cm): a CMU subject
+is about 25 units tall. The guess cannot tell a child in inches from an adult in CMU
+units; pass ``scale`` when the body's size matters.
+
+Axes: BVH is y up by convention; pass ``up`` for files that are not. :func:`to_skeleton`
+rotates the joints onto the project skeleton's up axis (h36m17 is z up, humanact12 y up).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from generation.formats.npz import FormatError
+from generation.motion import Motion
+from generation.skeletons import get_skeleton
+
+UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "cmu": 0.0254 / 0.45}
+TYPICAL_HEIGHT = 1.7  # metres
+CHANNELS = {f"{axis}{kind}": (kind, i) for i, axis in enumerate("XYZ")
+            for kind in ("position", "rotation")}
+END_SUFFIX = "_End"  # an End Site is named after its joint: Head -> Head_End
+
+# Built-in maps from BVH joint names to project joints, tried in order; the first whose
+# every joint the file has is used. Names are compared ignoring case and a namespace
+# prefix ("mixamorig:Hips" is "Hips").
+_LEGS_H36M = {"RHip": "RightUpLeg", "RKnee": "RightLeg", "RFoot": "RightFoot",
+              "LHip": "LeftUpLeg", "LKnee": "LeftLeg", "LFoot": "LeftFoot"}
+_ARMS_H36M = {"LShoulder": "LeftArm", "LElbow": "LeftForeArm", "LWrist": "LeftHand",
+              "RShoulder": "RightArm", "RElbow": "RightForeArm", "RWrist": "RightHand"}
+_LIMBS_SMPL = {"left_hip": "LeftUpLeg", "right_hip": "RightUpLeg", "left_knee": "LeftLeg",
+               "right_knee": "RightLeg", "left_ankle": "LeftFoot", "right_ankle": "RightFoot",
+               "left_foot": "LeftToeBase", "right_foot": "RightToeBase",
+               "left_collar": "LeftShoulder", "right_collar": "RightShoulder",
+               "left_shoulder": "LeftArm", "right_shoulder": "RightArm",
+               "left_elbow": "LeftForeArm", "right_elbow": "RightForeArm",
+               "left_wrist": "LeftHand", "right_wrist": "RightHand"}
+JOINT_MAPS: dict[str, dict[str, dict[str, str]]] = {
+    "h36m17": {
+        # CMU's Neck starts where Spine1 ends, between the shoulders; Head is the skull's
+        # base and its End Site the top of the head.
+        "cmu": {"Hip": "Hips", "Spine": "Spine", "Thorax": "Neck", "Neck/Nose": "Head",
+                "Head": "Head" + END_SUFFIX, **_LEGS_H36M, **_ARMS_H36M},
+        "mixamo": {"Hip": "Hips", "Spine": "Spine1", "Thorax": "Neck", "Neck/Nose": "Head",
+                   "Head": "HeadTop_End", **_LEGS_H36M, **_ARMS_H36M},
+    },
+    "humanact12": {
+        # CMU's spine has two joints below the neck; its Neck1 (mid-neck) stands in for
+        # SMPL's spine3 so that no bone has zero length.
+        "cmu": {"pelvis": "Hips", "spine1": "Spine", "spine2": "Spine1", "spine3": "Neck1",
+                "neck": "Head", "head": "Head" + END_SUFFIX, "left_hand": "LeftHandIndex1",
+                "right_hand": "RightHandIndex1", **_LIMBS_SMPL},
+        "mixamo": {"pelvis": "Hips", "spine1": "Spine", "spine2": "Spine1", "spine3": "Spine2",
+                   "neck": "Neck", "head": "Head", "left_hand": "LeftHandMiddle1",
+                   "right_hand": "RightHandMiddle1", **_LIMBS_SMPL},
+    },
+}
+
+
+class BvhError(FormatError):
+    """A BVH file is unreadable, malformed, or cannot be mapped onto a skeleton."""
+
+
+@dataclass(frozen=True, eq=False)
+class BvhMotion:
+    """World joint positions of one BVH file.
+
+    ``joint_names`` and ``parents`` (``-1`` for the root) list the ROOT and JOINTs and
+    the End Sites (named ``<joint>_End``, indices in ``end_sites``) in file order;
+    ``offsets`` ``(J, 3)`` and ``positions`` ``(T, J, 3)`` are in metres, in the file's
+    axes (``up`` names the vertical one); ``scale`` is the metres per file unit used.
+    """
+
+    joint_names: tuple[str, ...]
+    parents: tuple[int, ...]
+    offsets: np.ndarray
+    positions: np.ndarray
+    fps: float
+    scale: float
+    up: str = "y"
+    end_sites: tuple[int, ...] = ()
+    path: str = ""
+
+    @property
+    def frames(self) -> int:
+        return self.positions.shape[0]
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joint_names)
+
+
+@dataclass
+class _Joint:
+    name: str
+    parent: int
+    line: int
+    offset: np.ndarray | None = None
+    channels: tuple[tuple[str, int], ...] = ()
+    end_site: bool = False
+
+
+def load(path: str | Path, scale: float | str = "auto", up: str = "y") -> BvhMotion:
+    """Read a BVH file and return its joints' world positions in metres (see module doc)."""
+    path = Path(path)
+    if up not in ("x", "y", "z"):
+        raise BvhError(f"up must be 'x', 'y' or 'z'; got {up!r}")
+    if not path.is_file():
+        raise BvhError(f"BVH file {path} does not exist")
+    text = path.read_text(encoding="utf-8", errors="replace")
+    split = re.search(r"^\s*MOTION\s*$", text, flags=re.MULTILINE | re.IGNORECASE)
+    if split is None:
+        raise BvhError(f"{path}: no MOTION section; a BVH file is HIERARCHY ... then MOTION ...")
+    joints = _parse_hierarchy(text[:split.start()], path)
+    first_line = text.count("\n", 0, split.end()) + 1
+    values, frame_time = _parse_motion(text[split.end():], joints, path, first_line)
+    parents = [j.parent for j in joints]
+    offsets = np.array([j.offset for j in joints], dtype=np.float64)
+    metres = _scale(scale, rest_pose(offsets, parents), path)
+    positions = _forward_kinematics(joints, values) * metres
+    return BvhMotion(
+        joint_names=tuple(j.name for j in joints),
+        parents=tuple(parents),
+        offsets=(offsets * metres).astype(np.float32),
+        positions=positions.astype(np.float32),
+        fps=_fps(frame_time),
+        scale=metres,
+        up=up,
+        end_sites=tuple(i for i, j in enumerate(joints) if j.end_site),
+        path=str(path),
+    )
+
+
+def _parse_hierarchy(text: str, path: Path) -> list[_Joint]:
+    """Return the joints of the HIERARCHY section, parents before children."""
+    tokens = [(word, number) for number, line in enumerate(text.splitlines(), 1)
+              for word in line.split()]
+    if not tokens or tokens[0][0].upper() != "HIERARCHY":
+        raise BvhError(f"{path}: does not start with HIERARCHY; is it a BVH file?")
+    joints: list[_Joint] = []
+    open_blocks: list[int] = []
+    opening: int | None = None  # a joint named but whose '{' is still to come
+    pos, closed = 1, False
+
+    def fail(message: str, line: int) -> BvhError:
+        return BvhError(f"{path}, line {line}: {message}")
+
+    while pos < len(tokens):
+        word, line = tokens[pos]
+        key = word.upper()
+        if closed:
+            raise fail(f"{word!r} after the ROOT's block; only one ROOT is supported", line)
+        if opening is not None and word != "{":
+            raise fail(f"expected '{{' after {joints[opening].name!r}; got {word!r}", line)
+        if key in ("ROOT", "JOINT"):
+            if pos + 1 >= len(tokens):
+                raise fail(f"{key} without a name", line)
+            if key == "ROOT" and open_blocks:
+                raise fail("ROOT inside another joint; only one ROOT is supported", line)
+            if key == "JOINT" and (not open_blocks or joints[open_blocks[-1]].end_site):
+                raise fail("JOINT outside a ROOT or JOINT block", line)
+            parent = open_blocks[-1] if open_blocks else -1
+            joints.append(_Joint(tokens[pos + 1][0], parent, line))
+            opening, pos = len(joints) - 1, pos + 2
+        elif key == "END":
+            if (pos + 1 >= len(tokens) or tokens[pos + 1][0].upper() != "SITE" or not open_blocks
+                    or joints[open_blocks[-1]].end_site):
+                raise fail("'End' must be 'End Site' inside a ROOT or JOINT block", line)
+            owner = joints[open_blocks[-1]]
+            joints.append(_Joint(owner.name + END_SUFFIX, open_blocks[-1], line, end_site=True))
+            opening, pos = len(joints) - 1, pos + 2
+        elif word == "{":
+            open_blocks.append(opening)
+            opening, pos = None, pos + 1
+        elif word == "}":
+            if not open_blocks:
+                raise fail("'}' without an open block", line)
+            joint = joints[open_blocks.pop()]
+            if joint.offset is None:
+                raise fail(f"{joint.name!r} (line {joint.line}) has no OFFSET", line)
+            closed, pos = not open_blocks, pos + 1
+        elif key == "OFFSET":
+            if not open_blocks:
+                raise fail("OFFSET outside a joint", line)
+            joints[open_blocks[-1]].offset = _numbers(tokens[pos + 1:pos + 4], 3, "OFFSET", path)
+            pos += 4
+        elif key == "CHANNELS":
+            pos = _parse_channels(tokens, pos, joints[open_blocks[-1]] if open_blocks else None,
+                                  path)
+        else:
+            raise fail(f"unexpected {word!r}; expected ROOT, JOINT, End Site, OFFSET, "
+                       "CHANNELS, '{' or '}'", line)
+    if not joints:
+        raise BvhError(f"{path}: HIERARCHY has no ROOT")
+    if open_blocks or opening is not None:
+        raise BvhError(f"{path}: HIERARCHY ends inside {joints[-1].name!r}; a '}}' is missing")
+    return joints
+
+
+def _parse_channels(tokens, pos: int, joint: _Joint | None, path: Path) -> int:
+    """Store a CHANNELS line on its joint; return the position after it."""
+    line = tokens[pos][1]
+    if joint is None or joint.end_site:
+        raise BvhError(f"{path}, line {line}: CHANNELS outside a ROOT or JOINT")
+    try:
+        count = int(tokens[pos + 1][0])
+    except (IndexError, ValueError):
+        raise BvhError(f"{path}, line {line}: CHANNELS needs a count, e.g. CHANNELS 3 "
+                       "Zrotation Xrotation Yrotation") from None
+    names = [word for word, _ in tokens[pos + 2:pos + 2 + count]]
+    lookup = {name.lower(): value for name, value in CHANNELS.items()}
+    unknown = [name for name in names if name.lower() not in lookup]
+    if len(names) != count or unknown:
+        raise BvhError(
+            f"{path}, line {line}: CHANNELS {count} of {joint.name!r} lists {names}; "
+            f"channels are {', '.join(CHANNELS)}"
+        )
+    joint.channels = tuple(lookup[name.lower()] for name in names)
+    return pos + 2 + count
+
+
+def _numbers(tokens, count: int, what: str, path: Path) -> np.ndarray:
+    line = tokens[0][1] if tokens else "?"
+    try:
+        if len(tokens) != count:
+            raise ValueError
+        return np.array([float(word) for word, _ in tokens])
+    except ValueError:
+        raise BvhError(f"{path}, line {line}: {what} needs {count} numbers") from None
+
+
+def _parse_motion(text: str, joints: list[_Joint], path: Path, line: int):
+    """Return the channel values ``(T, C)`` and the frame time of the MOTION section."""
+    match = re.match(r"\s*Frames:\s*(\d+)\s+Frame\s+Time:\s*(\S+)", text, flags=re.IGNORECASE)
+    if match is None:
+        raise BvhError(f"{path}, line {line}: MOTION must be followed by 'Frames: T' and "
+                       "'Frame Time: seconds'")
+    frames = int(match.group(1))
+    try:
+        frame_time = float(match.group(2))
+    except ValueError:
+        frame_time = -1.0
+    if frame_time <= 0 or frames < 1:
+        raise BvhError(f"{path}: Frames {frames} and Frame Time {match.group(2)}; both must "
+                       "be positive")
+    channels = sum(len(j.channels) for j in joints)
+    words = text[match.end():].split()
+    try:
+        values = np.array(words, dtype=np.float64)
+    except ValueError:
+        bad = next(w for w in words if not _is_number(w))
+        raise BvhError(f"{path}: MOTION holds {bad!r}, which is not a number") from None
+    if values.size != frames * channels:
+        raise BvhError(
+            f"{path}: MOTION holds {values.size} values; expected Frames ({frames}) x "
+            f"channels in HIERARCHY ({channels}) = {frames * channels}"
+        )
+    return values.reshape(frames, channels), frame_time
+
+
+def _is_number(word: str) -> bool:
+    try:
+        float(word)
+    except ValueError:
+        return False
+    return True
+
+
+def _fps(frame_time: float) -> float:
+    """Return the frame rate; rates within 0.1% of a whole number are rounded to it
+    (files store 1/120 s as 0.008333)."""
+    fps = 1.0 / frame_time
+    return float(round(fps)) if abs(fps - round(fps)) < 1e-3 * fps else round(fps, 6)
+
+
+def rest_pose(offsets: np.ndarray, parents) -> np.ndarray:
+    """Return the joint positions ``(J, 3)`` with every channel zero (parents come first)."""
+    positions = np.zeros_like(offsets, dtype=np.float64)
+    for joint, parent in enumerate(parents):
+        positions[joint] = offsets[joint] + (positions[parent] if parent >= 0 else 0.0)
+    return positions
+
+
+def guess_scale(rest: np.ndarray) -> float:
+    """Return the metres per unit of :data:`UNITS` that make a rest pose ``(J, 3)`` closest
+    to :data:`TYPICAL_HEIGHT` in its largest extent."""
+    size = float(np.ptp(rest, axis=0).max()) if len(rest) else 0.0
+    if size <= 0:
+        raise ValueError("the rest pose has no extent")
+    return min(UNITS.values(), key=lambda unit: abs(np.log(size * unit / TYPICAL_HEIGHT)))
+
+
+def _scale(scale: float | str, rest: np.ndarray, path: Path) -> float:
+    """Return metres per file unit from a number, a unit name or ``"auto"``."""
+    if isinstance(scale, str):
+        if scale == "auto":
+            try:
+                return guess_scale(rest)
+            except ValueError:
+                raise BvhError(f"{path}: every OFFSET is zero, so the unit cannot be "
+                               f"guessed; pass scale (one of {', '.join(UNITS)} or metres "
+                               "per unit)") from None
+        if scale in UNITS:
+            return UNITS[scale]
+        try:
+            scale = float(scale)
+        except ValueError:
+            raise BvhError(f"scale {scale!r}: give metres per unit, 'auto' or one of "
+                           f"{', '.join(UNITS)}") from None
+    if not scale > 0:
+        raise BvhError(f"scale must be positive metres per unit; got {scale!r}")
+    return float(scale)
+
+
+def _rotations(axis: int, degrees: np.ndarray) -> np.ndarray:
+    """Return rotations ``(T, 3, 3)`` about axis 0, 1 or 2 by angles ``(T,)`` in degrees."""
+    angle = np.radians(degrees)
+    cos, sin = np.cos(angle), np.sin(angle)
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]  # the plane the rotation turns, right-handed
+    matrices = np.zeros((len(angle), 3, 3))
+    matrices[:, axis, axis] = 1.0
+    matrices[:, i, i] = cos
+    matrices[:, j, j] = cos
+    matrices[:, i, j] = -sin
+    matrices[:, j, i] = sin
+    return matrices
+
+
+def _forward_kinematics(joints: list[_Joint], values: np.ndarray) -> np.ndarray:
+    """Return world positions ``(T, J, 3)`` (file units) from channel values ``(T, C)``."""
+    frames = values.shape[0]
+    world = np.empty((len(joints), frames, 4, 4))
+    column = 0
+    for index, joint in enumerate(joints):
+        local = np.tile(np.eye(4), (frames, 1, 1))
+        local[:, :3, 3] = joint.offset
+        for kind, axis in joint.channels:
+            step = np.tile(np.eye(4), (frames, 1, 1))
+            if kind == "position":
+                step[:, axis, 3] = values[:, column]
+            else:
+                step[:, :3, :3] = _rotations(axis, values[:, column])
+            local = local @ step
+            column += 1
+        world[index] = local if joint.parent < 0 else world[joint.parent] @ local
+    return world[:, :, :3, 3].transpose(1, 0, 2)
+
+
+def up_rotation(source: str, target: str) -> np.ndarray:
+    """Return the rotation ``(3, 3)`` taking axis ``source`` onto ``target``.
+
+    Axes are ``"x"``, ``"y"``, ``"z"``, optionally signed (``"-y"``); the rotation turns
+    by 90 degrees about the axis perpendicular to both (y up -> z up: ``(x, y, z) ->
+    (x, -z, y)``), by 180 degrees about the first other axis for opposite axes.
+    """
+    def unit(axis: str) -> np.ndarray:
+        vector = np.zeros(3)
+        vector["xyz".index(axis[-1])] = -1.0 if axis.startswith("-") else 1.0
+        return vector
+
+    a, b = unit(source), unit(target)
+    if np.allclose(a, b):
+        return np.eye(3)
+    if np.allclose(a, -b):
+        flip = np.zeros(3)
+        flip[(int(np.argmax(np.abs(a))) + 1) % 3] = 1.0
+        return 2.0 * np.outer(flip, flip) - np.eye(3)
+    cross = np.cross(a, b)
+    skew = np.array([[0, -cross[2], cross[1]], [cross[2], 0, -cross[0]],
+                     [-cross[1], cross[0], 0]])
+    return np.eye(3) + skew + skew @ skew
+
+
+def _plain(name: str) -> str:
+    """Return a joint name without a namespace prefix, lower case: 'mixamorig:Hips' -> 'hips'."""
+    return name.rsplit(":", 1)[-1].lower()
+
+
+def joint_map(bvh: BvhMotion, skeleton_name: str,
+              mapping: dict[str, str] | None = None) -> dict[str, int]:
+    """Return, per joint of the skeleton, the index of the BVH joint that stands for it.
+
+    ``mapping`` ``{skeleton joint: BVH joint}`` overrides or completes the built-in maps
+    of :data:`JOINT_MAPS`; the built-in map that leaves fewest joints unmapped is used.
+    """
+    skeleton = get_skeleton(skeleton_name)
+    mapping = dict(mapping or {})
+    unknown = sorted(set(mapping) - set(skeleton.joint_names))
+    if unknown:
+        raise BvhError(f"mapping names {', '.join(unknown)}, which are not joints of "
+                       f"{skeleton.name}; its joints are {', '.join(skeleton.joint_names)}")
+    exact = {name: i for i, name in reversed(list(enumerate(bvh.joint_names)))}
+    plain = {_plain(name): i for i, name in reversed(list(enumerate(bvh.joint_names)))}
+
+    def find(name: str) -> int | None:
+        return exact.get(name, plain.get(_plain(name)))
+
+    candidates = [{**built_in, **mapping}
+                  for built_in in JOINT_MAPS.get(skeleton.name, {}).values()] or [mapping]
+    best = min(candidates, key=lambda names: sum(
+        find(names.get(joint, "")) is None for joint in skeleton.joint_names))
+    missing = [joint for joint in skeleton.joint_names if find(best.get(joint, "")) is None]
+    if missing:
+        wanted = ", ".join(f"{joint} (from {best[joint]!r})" if joint in best else joint
+                           for joint in missing)
+        example = f"{missing[0]}=<BVH joint>"
+        raise BvhError(
+            f"{bvh.path}: cannot map these {skeleton.name} joints: {wanted}. The file's "
+            f"joints are: {', '.join(bvh.joint_names)}. Pass a mapping from {skeleton.name} "
+            f"joint to BVH joint, e.g. mapping={{{missing[0]!r}: '<BVH joint>'}} "
+            f"(import_motions: --joint-map '{example}')"
+        )
+    return {joint: find(best[joint]) for joint in skeleton.joint_names}
+
+
+def to_skeleton(bvh: BvhMotion, skeleton_name: str, mapping: dict[str, str] | None = None,
+                action: str = "unlabelled", source: str = "real") -> Motion:
+    """Return the BVH's joints that stand for a project skeleton's, on its up axis.
+
+    ``joints`` ``(T, J, 3)`` metres; ``meta`` keeps the file and the BVH joint of each
+    skeleton joint. See :func:`joint_map` for ``mapping``.
+    """
+    skeleton = get_skeleton(skeleton_name)
+    if skeleton.dims != 3:
+        raise BvhError(f"skeleton {skeleton.name!r} is {skeleton.dims}D; a BVH file maps onto "
+                       "a 3D skeleton")
+    indices = joint_map(bvh, skeleton.name, mapping)
+    rotation = up_rotation(bvh.up, skeleton.up).astype(np.float32)
+    joints = bvh.positions[:, [indices[name] for name in skeleton.joint_names]] @ rotation.T
+    meta = {"file": bvh.path, "scale": bvh.scale,
+            "bvh_joints": {name: bvh.joint_names[i] for name, i in indices.items()}}
+    return Motion(joints, skeleton.name, bvh.fps, action, source, meta=meta)

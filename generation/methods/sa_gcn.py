@@ -1,0 +1,344 @@
+"""SA-GCN (seed 004): a graph convolutional generator sparsified by self-attention, two critics.
+
+Generator (Sec. 3.1-3.2), per motion of T frames:
+
+1. per step, noise ``z_t`` and the embedded class ``E(y)`` -> RNN -> ``o_t``; residual
+   cumulative sum ``c_t = c_{t-1} + o_t`` (``c_0 = o_0``);
+2. three linear layers map ``c_t`` to a frame ``h_t`` of ``F = J * D`` numbers;
+3. the SA-GC layer: causal scaled dot-product self-attention over frames gives
+   ``S_mask`` (lower-triangular, Eq. 4-5) and ``H_in = S V``. Each row keeps its own frame
+   and its top ``k = 5`` past frames by score ("6 elements in each row"; the code takes
+   the top 5 of the row, its own frame included); the sequence graph is
+   ``Ã_s = S_mask ⊙ Ã``: frame t's skeleton ``Ā = A + I`` weighted ``s_tt``, and joint j
+   of frame t linked to joint j of each kept past frame t' with weight ``s_tt'`` (Eq. 6);
+4. five graph convolutions ``H' = D⁻¹ Ã_s H W`` (Eq. 7), widths 32, 64, 64, 128, 128,
+   residual connections 1 -> 3 and 3 -> 5, then a linear output per joint.
+
+The graph is never built as the dense ``NT × NT`` matrix: ``Ã_s = diag(s_tt) ⊗ Ā +
+P ⊗ I`` with ``P`` (``T × T``) holding the ≤ k kept past scores of each frame, so a
+graph convolution multiplies each frame by ``Ā`` (``J × J``) and mixes frames by ``P``,
+then divides by the node degrees. (Gathering the k past frames instead computes
+less but moves more memory; on a CPU it was several times slower.)
+
+Training (Sec. 3.1.3, 4.2): a conditional GAN (binary cross-entropy) with a video
+discriminator ``D_V(x, y)`` on whole motions and a frame discriminator ``D_F`` on
+``k_frame = 20`` random frames with the label; Adam lr 2e-4, betas (0.5, 0.999),
+batch 100 (the code: 20). Soft labels ``y = Σ λ_k y_k`` give mixed actions (``mix``).
+
+Choices where the paper is silent, documented here ([code]: the authors' code):
+
+- a node carries its D coordinates (``H_in`` is ``T × J × D``); the code instead runs
+  the x and y coordinates as two graphs of one feature per node;
+- sizes from the code: label embedding ``Linear(C -> 20)``, noise 30, input layer to 60,
+  GRU of 100 units; the three linear layers are ``(100 + C) -> 512 -> 1024 -> F`` with
+  ReLU between (the code feeds the class row beside ``c_t``); ReLU after each graph
+  convolution (the code: none); residual branches are linear projections; Eq. 7 as
+  written (the code adds a learned dense ``NT × NT`` map after each convolution);
+- one attention head with ``Q, K, V = W H`` of width F and no residual (Eq. 3-4; the code
+  uses 3 heads and a gated residual);
+- the discriminators follow the code: per frame ``F -> 1024 -> 1024``, the label
+  joined, ``-> 1024 -> 128`` (LeakyReLU 0.2); D_V then a temporal convolution (width 3)
+  to one score per frame and a linear layer over the T frames; D_F a score per frame
+  and a linear layer over its k frames (with a linear skip from the pose, as the code);
+- frames for D_F are drawn with replacement per motion; one update of each
+  discriminator, then one of the generator, per iteration; ``real_label`` is the
+  target of real clips (1; the code smooths it to 0.9).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import torch
+from torch import nn
+
+from generation.methods.base import Method, MethodConfig, register_method
+from generation.methods.common import one_hot
+from generation.methods.seq_gan_common import (
+    SoftLabelSampling,
+    adam,
+    bce,
+    class_rows,
+    place_poses,
+    pose_statistics,
+    pose_vectors,
+    random_frames,
+)
+from generation.skeletons import Skeleton, get_skeleton
+
+BETAS = (0.5, 0.999)
+
+
+@dataclass
+class SAGCNConfig(MethodConfig):
+    """SA-GCN hyper-parameters (Sec. 4.2 and the authors' code)."""
+
+    PRESETS: ClassVar[dict[str, dict]] = {
+        "paper": {},
+        "code": {"batch_size": 20, "real_label": 0.9},
+        "demo": {"batch_size": 32, "linear_width": 128, "gc_width": 16, "d_hidden": 256,
+                 "d_features": 64, "lr": 5e-4},
+        "tiny": {"batch_size": 8, "noise": 4, "label_embed": 4, "rnn_input": 8, "hidden": 8,
+                 "linear_width": 8, "gc_width": 4, "d_hidden": 16, "d_features": 8,
+                 "frame_k": 4},
+    }
+
+    batch_size: int = 100
+    noise: int = 30  # size of z_t
+    label_embed: int = 20
+    rnn_input: int = 60
+    hidden: int = 100  # GRU units
+    linear_width: int = 512  # the three linear layers: width, 2 * width, F
+    top_k: int = 5  # past frames kept per frame
+    gc_width: int = 32  # graph convolutions: w, 2w, 2w, 4w, 4w
+    d_hidden: int = 1024
+    d_features: int = 128
+    frame_k: int = 20  # frames shown to the frame discriminator
+    lr: float = 2e-4
+    real_label: float = 1.0
+
+    def validate(self) -> None:
+        super().validate()
+        if min(self.noise, self.label_embed, self.rnn_input, self.hidden, self.linear_width,
+               self.gc_width, self.d_hidden, self.d_features, self.frame_k) < 1:
+            raise ValueError("SAGCNConfig sizes must be >= 1")
+        if not 0.0 < self.real_label <= 1.0:
+            raise ValueError(f"SAGCNConfig.real_label must be in (0, 1]; got {self.real_label}")
+
+
+def skeleton_adjacency(skeleton: Skeleton) -> torch.Tensor:
+    """Return ``Ā = A + I`` ``(J, J)`` of a skeleton's bones."""
+    adjacency = torch.eye(skeleton.n_joints)
+    for parent, child in skeleton.bones:
+        adjacency[parent, child] = adjacency[child, parent] = 1.0
+    return adjacency
+
+
+def temporal_neighbours(scores: torch.Tensor, k: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """Return the top-``k`` strictly past frames of each frame and their scores.
+
+    ``scores`` ``(B, T, T)`` is the causal attention ``S_mask``. Returns ``index`` and
+    ``weight`` ``(B, T, min(k, T - 1))``; a frame with fewer past frames than ``k``
+    keeps them all and pads with weight 0.
+    """
+    size, frames = scores.shape[:2]
+    k = min(k, frames - 1)
+    past = torch.ones(frames, frames, dtype=torch.bool).tril(-1)
+    if k <= 0:
+        empty = scores.new_zeros(size, frames, 0)
+        return empty.long(), empty
+    # Scores lie in [0, 1]; -1 ranks the present and future last.
+    _, index = scores.masked_fill(~past, -1.0).topk(k, dim=-1, sorted=False)
+    valid = index < torch.arange(frames)[:, None]
+    weight = torch.where(valid, scores.gather(-1, index), torch.zeros(()))
+    return torch.where(valid, index, torch.zeros((), dtype=index.dtype)), weight
+
+
+class CausalSelfAttention(nn.Module):
+    """Scaled dot-product attention over frames, each frame seeing itself and its past."""
+
+    def __init__(self, features: int):
+        super().__init__()
+        self.query = nn.Linear(features, features)
+        self.key = nn.Linear(features, features)
+        self.value = nn.Linear(features, features)
+
+    def forward(self, frames: torch.Tensor):
+        """Return ``S_mask`` ``(B, T, T)`` and ``H_in = S V`` ``(B, T, F)`` of frames ``(B, T, F)``."""
+        length, width = frames.shape[1:]
+        logits = self.query(frames) @ self.key(frames).transpose(1, 2) / width ** 0.5
+        future = torch.ones(length, length, dtype=torch.bool).triu(1)
+        scores = logits.masked_fill(future, float("-inf")).softmax(dim=-1)
+        return scores, scores @ self.value(frames)
+
+
+class SequenceGraph:
+    """The normalised sequence graph ``D⁻¹ Ã_s`` of a batch, in Kronecker-factored form.
+
+    ``Ã_s = diag(s_tt) ⊗ Ā + P ⊗ I``, where ``P`` ``(B, T, T)`` holds each frame's kept
+    past scores (at most ``k`` per row); the ``NT × NT`` matrix is never formed.
+    """
+
+    def __init__(self, scores: torch.Tensor, adjacency: torch.Tensor, k: int):
+        index, weight = temporal_neighbours(scores, k)
+        self.adjacency = adjacency
+        # Padding entries point at frame 0 with weight 0; adding keeps real links intact.
+        self.past = torch.zeros_like(scores).scatter_add(-1, index, weight)
+        own = scores.diagonal(dim1=1, dim2=2)[..., None]  # s_tt, (B, T, 1)
+        degree = own * adjacency.sum(-1) + weight.sum(-1, keepdim=True)  # (B, T, J)
+        degree = degree.clamp_min(1e-12)  # an underflowed row keeps a zero, not a NaN
+        self.own = (own / degree)[..., None]  # (B, T, J, 1)
+        self.inverse_degree = (1 / degree)[..., None]
+
+    def aggregate(self, nodes: torch.Tensor) -> torch.Tensor:
+        """Return ``D⁻¹ Ã_s H`` for node features ``H`` ``(B, T, J, F)``."""
+        spatial = self.adjacency @ nodes
+        temporal = (self.past @ nodes.flatten(2)).view_as(nodes)
+        return self.own * spatial + self.inverse_degree * temporal
+
+
+class SAGCNGenerator(nn.Module):
+    """(noise, class) -> GRU -> cumulative sum -> 3 linear -> SA-GC layer -> poses."""
+
+    def __init__(self, skeleton: Skeleton, classes: int, cfg: SAGCNConfig):
+        super().__init__()
+        self.joints, self.dims = skeleton.n_joints, skeleton.dims
+        self.top_k = cfg.top_k
+        pose = self.joints * self.dims
+        self.register_buffer("adjacency", skeleton_adjacency(skeleton))
+        self.embed = nn.Linear(classes, cfg.label_embed)
+        self.inputs = nn.Linear(cfg.label_embed + cfg.noise, cfg.rnn_input)
+        self.rnn = nn.GRU(cfg.rnn_input, cfg.hidden, batch_first=True)
+        width = cfg.linear_width
+        self.linears = nn.Sequential(
+            nn.Linear(cfg.hidden + classes, width), nn.ReLU(),
+            nn.Linear(width, 2 * width), nn.ReLU(), nn.Linear(2 * width, pose),
+        )
+        self.attention = CausalSelfAttention(pose)
+        w = cfg.gc_width
+        widths = [self.dims, w, 2 * w, 2 * w, 4 * w, 4 * w]
+        self.convolutions = nn.ModuleList(nn.Linear(a, b) for a, b in zip(widths[:-1], widths[1:]))
+        self.skip_1_3 = nn.Linear(widths[1], widths[3], bias=False)
+        self.skip_3_5 = nn.Linear(widths[3], widths[5], bias=False)
+        self.output = nn.Linear(widths[5], self.dims)
+
+    def frames(self, classes: torch.Tensor, noise: torch.Tensor) -> torch.Tensor:
+        """Return the input frames ``H`` ``(B, T, F)`` of the SA-GC layer."""
+        steps = noise.shape[1]
+        label = self.embed(classes)[:, None].expand(-1, steps, -1)
+        residuals = self.rnn(self.inputs(torch.cat([label, noise], dim=-1)))[0]
+        cumulative = residuals.cumsum(dim=1)
+        return self.linears(torch.cat([cumulative, classes[:, None].expand(-1, steps, -1)], -1))
+
+    def forward(self, classes: torch.Tensor, noise: torch.Tensor) -> torch.Tensor:
+        """Return poses ``(B, T, F)`` of class rows ``(B, C)`` and noise ``(B, T, noise)``."""
+        scores, nodes = self.attention(self.frames(classes, noise))
+        graph = SequenceGraph(scores, self.adjacency, self.top_k)
+        hidden = nodes.unflatten(-1, (self.joints, self.dims))
+        outputs = []
+        for i, layer in enumerate(self.convolutions):
+            # Rows of D⁻¹Ã_s sum to 1, so aggregation commutes with W and its bias:
+            # aggregate the narrower side.
+            if layer.in_features < layer.out_features:
+                hidden = torch.relu(layer(graph.aggregate(hidden)))
+            else:
+                hidden = torch.relu(graph.aggregate(layer(hidden)))
+            if i == 2:
+                hidden = hidden + self.skip_1_3(outputs[0])
+            elif i == 4:
+                hidden = hidden + self.skip_3_5(outputs[2])
+            outputs.append(hidden)
+        return self.output(hidden).flatten(2)
+
+
+def frame_mlp(pose: int, classes: int, hidden: int, features: int):
+    """Return the per-frame layers of the code's discriminators: before and after the label."""
+    slope = 0.2
+    before = nn.Sequential(nn.Linear(pose, hidden), nn.LeakyReLU(slope),
+                           nn.Linear(hidden, hidden), nn.LeakyReLU(slope))
+    after = nn.Sequential(nn.Linear(hidden + classes, hidden), nn.LeakyReLU(slope),
+                          nn.Linear(hidden, features), nn.LeakyReLU(slope))
+    return before, after
+
+
+class VideoDiscriminator(nn.Module):
+    """D_V(x, y): per-frame MLP with the label, temporal convolution, linear over T frames."""
+
+    def __init__(self, pose: int, classes: int, frames: int, hidden: int, features: int):
+        super().__init__()
+        self.before, self.after = frame_mlp(pose, classes, hidden, features)
+        self.temporal = nn.Conv1d(features, 1, 3, padding=1)
+        self.score = nn.Linear(frames, 1)
+
+    def forward(self, poses: torch.Tensor, classes: torch.Tensor) -> torch.Tensor:
+        label = classes[:, None].expand(-1, poses.shape[1], -1)
+        per_frame = self.after(torch.cat([self.before(poses), label], dim=-1))
+        return self.score(self.temporal(per_frame.transpose(1, 2))[:, 0]).squeeze(-1)
+
+
+class FrameDiscriminator(nn.Module):
+    """D_F(frames, y): per-frame MLP (with a linear skip) and label, linear over the k frames."""
+
+    def __init__(self, pose: int, classes: int, count: int, hidden: int, features: int):
+        super().__init__()
+        self.before, self.after = frame_mlp(pose, classes, hidden, features)
+        self.skip = nn.Linear(pose, hidden)
+        self.per_frame = nn.Linear(features, 1)
+        self.score = nn.Linear(count, 1)
+
+    def forward(self, frames: torch.Tensor, classes: torch.Tensor) -> torch.Tensor:
+        label = classes[:, None].expand(-1, frames.shape[1], -1)
+        features = self.before(frames) + self.skip(frames)
+        per_frame = self.per_frame(self.after(torch.cat([features, label], dim=-1)))[..., 0]
+        return self.score(per_frame).squeeze(-1)
+
+
+@register_method("sa_gcn")
+class SAGCN(SoftLabelSampling, Method):
+    """SA-GCN: GRU of residuals, causal attention sparsifying a skeleton-sequence graph, GCN."""
+
+    Config = SAGCNConfig
+    # Node features are (B, T, J, 128): small chunks stay in cache (measured: 1,000
+    # motions of 60 frames take 14 s in one chunk of 1,024 and 3.5 s in chunks of 32).
+    sample_chunk = 32
+
+    def build(self):
+        skeleton = get_skeleton(self.skeleton)
+        cfg, classes = self.config, len(self.actions)
+        pose = skeleton.n_joints * skeleton.dims
+        return {
+            "generator": SAGCNGenerator(skeleton, classes, cfg),
+            "video_discriminator": VideoDiscriminator(pose, classes, self.frames, cfg.d_hidden,
+                                                      cfg.d_features),
+            "frame_discriminator": FrameDiscriminator(pose, classes, cfg.frame_k, cfg.d_hidden,
+                                                      cfg.d_features),
+        }
+
+    def build_optimizers(self):
+        lr = self.config.lr
+        return {key: adam([net], lr, BETAS) for key, net in self.networks.items()}
+
+    def prepare(self, clips):
+        return pose_statistics(self, clips)
+
+    def encode(self, clips):
+        return {"pose": pose_vectors(self, clips),
+                "label": self.action_indices([clip.action for clip in clips])}
+
+    def _generate(self, classes: torch.Tensor, frames: int, generator: torch.Generator):
+        noise = torch.randn(len(classes), frames, self.config.noise, generator=generator)
+        return self.networks["generator"](classes, noise)
+
+    def train_step(self, batch, generator):
+        cfg = self.config
+        real = batch["pose"]
+        classes = one_hot(batch["label"], len(self.actions))
+        video, frame = self.networks["video_discriminator"], self.networks["frame_discriminator"]
+        fake = self._generate(classes, real.shape[1], generator)
+        real_frames = random_frames(real, cfg.frame_k, generator)
+        fake_frames = random_frames(fake, cfg.frame_k, generator)
+
+        dv_loss = bce(video(real, classes), cfg.real_label) + bce(video(fake.detach(), classes), 0.0)
+        df_loss = (bce(frame(real_frames, classes), cfg.real_label)
+                   + bce(frame(fake_frames.detach(), classes), 0.0))
+        for key, loss in (("video_discriminator", dv_loss), ("frame_discriminator", df_loss)):
+            self.optimizers[key].zero_grad()
+            loss.backward()
+            self.optimizers[key].step()
+
+        for net in (video, frame):
+            net.requires_grad_(False)
+        g_loss = (bce(video(fake, classes), cfg.real_label)
+                  + bce(frame(fake_frames, classes), cfg.real_label))
+        self.optimizers["generator"].zero_grad()
+        g_loss.backward()
+        self.optimizers["generator"].step()
+        for net in (video, frame):
+            net.requires_grad_(True)
+        return {"d_video": dv_loss.item(), "d_frame": df_loss.item(), "g": g_loss.item()}
+
+    def generate(self, labels, frames, generator, mix=None):
+        """Sample motions; ``mix`` (action -> weight) replaces every label by that soft label."""
+        classes = class_rows(self, labels, mix)
+        return place_poses(self, self._generate(classes, frames, generator))

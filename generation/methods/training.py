@@ -1,0 +1,53 @@
+"""Train a method on a registered dataset and checkpoint it: what ``manage.py train`` runs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from generation.datasets import DatasetError, get_dataset
+from generation.methods.base import Method, MethodError
+from generation.methods import get_method
+from generation.sampling import choose, choose_subjects
+
+
+def train_on_dataset(method: str, dataset: str, out: str | Path, *, data_root=None,
+                     subjects=None, actions=None, iters: int = 1000, preset: str = "paper",
+                     seed: int = 0, frames: int | None = None, fps: float | None = None,
+                     resume: bool = False, progress: bool = True,
+                     save_every: int = 500) -> Method:
+    """Train ``method`` on clips of ``dataset`` up to ``iters`` iterations in all; save to ``out``.
+
+    With ``resume`` and an existing ``out``, training continues from that checkpoint
+    (its config, actions, frames and fps win). A checkpoint is also written every
+    ``save_every`` iterations, so an interrupted run can resume.
+    """
+    cls = get_method(method)
+    data = get_dataset(dataset, data_root)
+    out = Path(out)
+    subjects = choose_subjects(data, subjects)
+    if resume and out.exists():
+        model = cls.load(out, skeleton=data.skeleton)
+        wanted = choose(actions, model.actions, "action", f"checkpoint {out}") if actions else model.actions
+        if wanted != model.actions:
+            raise MethodError(
+                f"checkpoint {out} was trained on actions {', '.join(model.actions)}; "
+                f"resume with those (drop --actions) or start afresh without --resume"
+            )
+        frames, fps = model.frames, model.fps
+    else:
+        actions = choose(actions, data.actions(), "action", f"dataset {dataset!r}")
+        frames = frames or data.clip_frames
+        model = None
+    clips = data.clips(frames=frames, fps=fps, subjects=subjects,
+                       actions=model.actions if model else actions)
+    if not clips:
+        raise DatasetError(
+            f"dataset {dataset!r} gave no clips of {frames} frames for these actions and "
+            f"subjects; check --data-root, --subjects, --actions and --frames"
+        )
+    if model is None:
+        model = cls(cls.Config.preset(preset), data.skeleton, actions, clips[0].fps, frames)
+    model.fit(clips, max(iters - model.iteration, 0), seed=seed, progress=progress,
+              save_to=out, save_every=save_every)
+    model.save(out)
+    return model

@@ -1,0 +1,500 @@
+"""The action classifier behind the feature metrics (seed 000, Sec. 4.2.1).
+
+Action2Motion "train[s] a standard RNN action recognition classifier for each dataset,
+and use[s] its final layer as the motion feature extractor"; its released classifier is
+a 2-layer GRU of 128 units whose last output goes through a 30-unit tanh layer (the
+features) and a linear layer to the classes. The paper gives no training settings; we
+take Adam at 1e-3 with batches of 128.
+
+Poses enter as joint positions relative to the root in each frame, plus the root's path
+from its first position on the floor (height kept), each value standardised by the
+training clips' mean and standard deviation, which travel with the checkpoint together
+with the config, actions, skeleton, clip length and frame rate, and the held-out split
+with the accuracy measured on it.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+from typing import ClassVar, Sequence
+
+import numpy as np
+import torch
+from torch import nn
+from tqdm import tqdm
+
+from generation.datasets import DatasetError, get_dataset
+from generation.motion import Motion
+from generation.sampling import choose, choose_subjects, split_names
+from generation.skeletons import get_skeleton
+
+FEATURES = 30  # A2M's feature layer
+CHECKPOINT_FORMAT = 1
+KIND = "action_classifier"
+TEST_FRACTION = 0.2  # held-out share of subjects, or of takes without subjects
+INFERENCE_BATCH = 512
+
+
+@contextmanager
+def one_thread():
+    """Run torch on one thread, then restore the setting.
+
+    A GRU step is a small matrix product: a second thread gains little, and when other
+    processes share the cores, torch's waiting threads make it several times slower.
+    """
+    previous = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
+
+
+class ClassifierError(ValueError):
+    """The classifier cannot use its input (other skeleton, length, actions) or its checkpoint is bad."""
+
+
+@dataclass
+class ClassifierConfig:
+    """Classifier hyper-parameters; ``paper`` is A2M's network, ``tiny`` is for tests."""
+
+    PRESETS: ClassVar[dict[str, dict]] = {
+        "paper": {},
+        "tiny": {"hidden": 16, "layers": 1, "batch_size": 16, "lr": 3e-3},
+    }
+
+    hidden: int = 128
+    layers: int = 2
+    batch_size: int = 128
+    lr: float = 1e-3
+
+    def __post_init__(self):
+        for item in fields(self):
+            value = getattr(self, item.name)
+            number = isinstance(value, (int, float)) and not isinstance(value, bool)
+            if not number or not math.isfinite(value) or value <= 0:
+                raise ValueError(f"ClassifierConfig.{item.name} must be a positive number; got {value!r}")
+
+    @classmethod
+    def preset(cls, name: str) -> "ClassifierConfig":
+        """Return the config of a named preset."""
+        if name not in cls.PRESETS:
+            raise ValueError(f"unknown preset {name!r}; choose one of: {', '.join(sorted(cls.PRESETS))}")
+        return cls(**cls.PRESETS[name])
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+class GRURecogniser(nn.Module):
+    """poses ``(B, T, F)`` -> GRU -> last output -> 30-d tanh (features) -> class logits."""
+
+    def __init__(self, pose: int, hidden: int, layers: int, classes: int):
+        super().__init__()
+        self.gru = nn.GRU(pose, hidden, num_layers=layers, batch_first=True)
+        self.feature = nn.Linear(hidden, FEATURES)
+        self.output = nn.Linear(FEATURES, classes)
+
+    def features(self, poses: torch.Tensor) -> torch.Tensor:
+        outputs, _ = self.gru(poses)
+        return torch.tanh(self.feature(outputs[:, -1]))
+
+    def forward(self, poses: torch.Tensor) -> torch.Tensor:
+        return self.output(self.features(poses))
+
+
+@dataclass(frozen=True)
+class Split:
+    """Which clips of a dataset are held out: whole subjects, or whole takes when it has none.
+
+    ``train_subjects`` ``None`` means every subject not held out.
+    """
+
+    test_subjects: tuple[str, ...] | None = None
+    train_subjects: tuple[str, ...] | None = None
+    test_takes: tuple[str, ...] | None = None
+
+    def is_test(self, clip: Motion) -> bool:
+        if self.test_subjects is not None:
+            return clip.meta.get("subject") in self.test_subjects
+        return _take_key(clip) in (self.test_takes or ())
+
+    def is_train(self, clip: Motion) -> bool:
+        if self.is_test(clip):
+            return False
+        return self.train_subjects is None or clip.meta.get("subject") in self.train_subjects
+
+    def divide(self, clips: Sequence[Motion]) -> tuple[list[Motion], list[Motion]]:
+        """Return the training clips and the held-out clips."""
+        return [c for c in clips if self.is_train(c)], [c for c in clips if self.is_test(c)]
+
+    def describe(self) -> str:
+        if self.test_subjects is not None:
+            return f"held-out subjects {', '.join(self.test_subjects)}"
+        return f"{len(self.test_takes or ())} held-out takes"
+
+    def to_dict(self) -> dict:
+        return {key: None if value is None else list(value) for key, value in asdict(self).items()}
+
+    @classmethod
+    def from_dict(cls, values: dict) -> "Split":
+        return cls(**{key: None if values.get(key) is None else tuple(values[key])
+                      for key in ("test_subjects", "train_subjects", "test_takes")})
+
+
+def _take_key(clip: Motion) -> str:
+    return f"{clip.action}/{clip.meta.get('subject')}/{clip.meta.get('take')}"
+
+
+def make_split(dataset, clips: Sequence[Motion], test_subjects=None, subjects=None,
+               seed: int = 0) -> Split:
+    """Return the held-out split of ``clips`` of ``dataset``.
+
+    With subjects: ``test_subjects`` (default: the last fifth of the dataset's subjects,
+    at least one; for Human3.6M S9 and S11, the usual protocol) are held out and
+    ``subjects`` (default: the others) train. Without: a seeded fifth of each action's
+    takes (at least one when it has two or more), so no take feeds both sides.
+    """
+    if dataset.subjects is not None:
+        last = math.ceil(TEST_FRACTION * len(dataset.subjects))
+        test = choose_subjects(dataset, test_subjects) or list(dataset.subjects[-last:])
+        train = choose_subjects(dataset, subjects)
+        overlap = sorted(set(train or ()) & set(test))
+        if overlap:
+            raise ClassifierError(
+                f"subjects {', '.join(overlap)} are both trained on and held out; "
+                f"--subjects and --test-subjects must not overlap"
+            )
+        return Split(test_subjects=tuple(test), train_subjects=None if train is None else tuple(train))
+    if split_names(test_subjects) or split_names(subjects):
+        raise ClassifierError(
+            f"dataset {dataset.name!r} has no subjects; drop --subjects and --test-subjects "
+            f"(a seeded {TEST_FRACTION:.0%} of its takes is held out)"
+        )
+    rng = np.random.default_rng(seed)
+    held_out = []
+    for action in sorted({clip.action for clip in clips}):
+        takes = sorted({_take_key(clip) for clip in clips if clip.action == action})
+        count = max(1, round(TEST_FRACTION * len(takes))) if len(takes) > 1 else 0
+        held_out.extend(takes[i] for i in sorted(rng.choice(len(takes), size=count, replace=False)))
+    return Split(test_takes=tuple(held_out))
+
+
+class ActionClassifier:
+    """A GRU action recogniser whose 30-d tanh layer gives the motion features."""
+
+    def __init__(self, config: ClassifierConfig | None, skeleton: str, actions: Sequence[str],
+                 fps: float, frames: int):
+        self.config = config or ClassifierConfig()
+        self.skeleton = get_skeleton(skeleton).name
+        if isinstance(actions, str) or len(actions) < 2 or len(set(actions)) != len(actions):
+            raise ClassifierError(f"a classifier needs at least two distinct actions; got {actions!r}")
+        self.actions = list(actions)
+        self.fps = float(fps)
+        self.frames = int(frames)
+        skel = get_skeleton(skeleton)
+        self.pose_size = (skel.n_joints + 1) * skel.dims
+        self.mean: np.ndarray | None = None
+        self.std: np.ndarray | None = None
+        self.iteration = 0
+        self.seed: int | None = None
+        self.loss: float | None = None
+        # Set when trained on a dataset (train_classifier) and kept in the checkpoint.
+        self.dataset: str | None = None
+        self.split: Split | None = None
+        self.test_accuracy: float | None = None
+        self.train_accuracy: float | None = None
+        self.n_train = self.n_test = 0
+        self._build(0)
+
+    def __repr__(self):
+        return (f"<ActionClassifier on {self.skeleton}: {len(self.actions)} actions, "
+                f"{self.frames} frames at {self.fps:g} fps, {self.iteration} iterations>")
+
+    def _build(self, seed: int) -> None:
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(seed)
+            self.network = GRURecogniser(self.pose_size, self.config.hidden, self.config.layers,
+                                         len(self.actions))
+        self.optimizer = torch.optim.Adam(self.network.parameters(), lr=self.config.lr)
+
+    # Inputs.
+
+    def joints_of(self, motions, what: str = "motions") -> np.ndarray:
+        """Return checked joints ``(N, frames, J, D)`` of a list of :class:`Motion` or an array."""
+        skeleton = get_skeleton(self.skeleton)
+        if isinstance(motions, np.ndarray):
+            joints = motions
+        else:
+            motions = list(motions)
+            for i, motion in enumerate(motions):
+                where = f"{what}[{i}] ({motion.action!r}, source {motion.source!r})"
+                if motion.skeleton != self.skeleton:
+                    raise ClassifierError(
+                        f"{where} has skeleton {motion.skeleton!r}; this classifier reads "
+                        f"{self.skeleton!r}: use a classifier trained on that skeleton's dataset"
+                    )
+                if abs(motion.fps - self.fps) > 1e-3 * self.fps:
+                    raise ClassifierError(
+                        f"{where} is at {motion.fps:g} fps; this classifier reads {self.fps:g} fps: "
+                        f"resample the motions (generation.ops.resample) or train a classifier "
+                        f"at their rate"
+                    )
+                if motion.frames != self.frames:
+                    raise ClassifierError(
+                        f"{where} has {motion.frames} frames; this classifier reads clips of "
+                        f"{self.frames} frames: sample motions of {self.frames} frames or train a "
+                        f"classifier with --frames {motion.frames}"
+                    )
+            if not motions:
+                raise ClassifierError(f"no {what} given")
+            joints = np.stack([m.joints for m in motions])
+        if joints.ndim != 4 or joints.shape[2:] != (skeleton.n_joints, skeleton.dims):
+            raise ClassifierError(
+                f"{what} must be (N, T, {skeleton.n_joints}, {skeleton.dims}) joints of "
+                f"{self.skeleton!r}; got {joints.shape}"
+            )
+        if joints.shape[1] != self.frames:
+            raise ClassifierError(
+                f"{what} have {joints.shape[1]} frames; this classifier reads clips of "
+                f"{self.frames} frames: sample motions of {self.frames} frames or train a "
+                f"classifier with --frames {joints.shape[1]}"
+            )
+        if not np.isfinite(joints).all():
+            raise ClassifierError(f"{what} have non-finite joint coordinates; drop or repair them")
+        return np.asarray(joints, dtype=np.float64)
+
+    def pose_features(self, joints: np.ndarray) -> np.ndarray:
+        """Return unnormalised inputs ``(N, T, pose_size)``: root-relative joints and the root's path."""
+        skeleton = get_skeleton(self.skeleton)
+        root = joints[:, :, skeleton.root]
+        start = root[:, :1].copy()
+        start[..., skeleton.up_index] = 0.0  # keep the height above the floor
+        local = joints - root[:, :, None]
+        count, frames = joints.shape[:2]
+        return np.concatenate([local.reshape(count, frames, -1), root - start], axis=-1)
+
+    def encode(self, motions, what: str = "motions") -> torch.Tensor:
+        """Return standardised network inputs ``(N, T, pose_size)`` float32."""
+        if self.mean is None:
+            raise ClassifierError("this classifier has not been trained; call fit or load a checkpoint")
+        poses = (self.pose_features(self.joints_of(motions, what)) - self.mean) / self.std
+        return torch.from_numpy(poses.astype(np.float32))
+
+    def labels_of(self, motions: Sequence[Motion]) -> np.ndarray:
+        """Return the action indices ``(N,)`` of motions; actions the classifier lacks are an error."""
+        index = {action: i for i, action in enumerate(self.actions)}
+        unknown = sorted({m.action for m in motions if m.action not in index})
+        if unknown:
+            raise ClassifierError(
+                f"this classifier knows no action {', '.join(map(repr, unknown))}; its actions "
+                f"are {', '.join(self.actions)}: use a classifier trained on the motions' dataset"
+            )
+        return np.array([index[m.action] for m in motions], dtype=np.int64)
+
+    # Training.
+
+    def fit(self, clips: Sequence[Motion], iters: int, seed: int = 0, progress: bool = True) -> float:
+        """Train for ``iters`` iterations on ``clips`` with cross-entropy; return the last loss.
+
+        A fresh classifier takes its input statistics from ``clips`` and is initialised from
+        ``seed``; iteration ``i`` draws its batch from a generator seeded by ``(seed, i)``.
+        """
+        if int(iters) != iters or iters < 0:
+            raise ClassifierError(f"iters must be a non-negative integer; got {iters!r}")
+        clips = list(clips)
+        if not clips:
+            raise ClassifierError("no training clips; check the dataset, subjects and actions")
+        labels = torch.from_numpy(self.labels_of(clips))
+        if self.mean is None:
+            self._build(int(seed))
+            poses = self.pose_features(self.joints_of(clips, "training clips"))
+            flat = poses.reshape(-1, poses.shape[-1])
+            self.mean = flat.mean(0)
+            std = flat.std(0)
+            # Root-relative root coordinates are always 0: give them a floor, not a 1/0.
+            self.std = np.maximum(std, 1e-3 * max(float(std.max()), 1e-12))
+        self.seed = int(seed)
+        inputs = self.encode(clips, "training clips")
+        loss_fn = nn.CrossEntropyLoss()
+        bar = tqdm(total=int(iters), desc=f"classifier {self.skeleton}", unit="it",
+                   disable=not progress, dynamic_ncols=True)
+        self.network.train()
+        try:
+            with one_thread():
+                for _ in range(int(iters)):
+                    hits = self._step(inputs, labels, loss_fn)
+                    bar.set_postfix({"loss": f"{self.loss:.4g}", "acc": f"{hits:.2f}"}, refresh=False)
+                    bar.update(1)
+        finally:
+            bar.close()
+            self.network.eval()
+        return self.loss if self.loss is not None else float("nan")
+
+    def _step(self, inputs: torch.Tensor, labels: torch.Tensor, loss_fn) -> float:
+        """Run one optimisation step on a seeded batch; return the batch accuracy."""
+        generator = torch.Generator().manual_seed((self.seed * 1_000_003 + self.iteration) % 2**63)
+        size = self.config.batch_size
+        if len(inputs) >= size:
+            batch = torch.randperm(len(inputs), generator=generator)[:size]
+        else:
+            batch = torch.randint(len(inputs), (size,), generator=generator)
+        logits = self.network(inputs[batch])
+        loss = loss_fn(logits, labels[batch])
+        self.optimizer.zero_grad()
+        loss.backward()
+        self.optimizer.step()
+        self.iteration += 1
+        self.loss = loss.item()
+        return float((logits.argmax(1) == labels[batch]).float().mean())
+
+    # Inference.
+
+    def _outputs(self, motions, what: str) -> tuple[np.ndarray, np.ndarray]:
+        inputs = self.encode(motions, what)
+        features, logits = [], []
+        self.network.eval()
+        with torch.no_grad(), one_thread():
+            for start in range(0, len(inputs), INFERENCE_BATCH):
+                feats = self.network.features(inputs[start:start + INFERENCE_BATCH])
+                features.append(feats.numpy())
+                logits.append(self.network.output(feats).numpy())
+        if not features:
+            return np.zeros((0, FEATURES)), np.zeros((0, len(self.actions)))
+        return np.concatenate(features).astype(np.float64), np.concatenate(logits)
+
+    def features(self, motions, what: str = "motions") -> np.ndarray:
+        """Return the 30-d tanh features ``(N, 30)`` of motions (list of Motion or joints array)."""
+        return self._outputs(motions, what)[0]
+
+    def predict(self, motions, what: str = "motions") -> np.ndarray:
+        """Return the predicted action indices ``(N,)`` (into :attr:`actions`)."""
+        return self._outputs(motions, what)[1].argmax(1)
+
+    def features_and_predictions(self, motions, what: str = "motions") -> tuple[np.ndarray, np.ndarray]:
+        """Return :meth:`features` and :meth:`predict` from one pass."""
+        features, logits = self._outputs(motions, what)
+        return features, logits.argmax(1)
+
+    def accuracy(self, motions: Sequence[Motion], what: str = "motions") -> float:
+        """Return the share of motions whose action is predicted."""
+        motions = list(motions)
+        if not motions:
+            raise ClassifierError(f"no {what} to measure accuracy on")
+        return float(np.mean(self.predict(motions, what) == self.labels_of(motions)))
+
+    # Checkpoints.
+
+    def to_checkpoint(self) -> dict:
+        return {
+            "format": CHECKPOINT_FORMAT,
+            "kind": KIND,
+            "config": self.config.to_dict(),
+            "skeleton": self.skeleton,
+            "actions": list(self.actions),
+            "fps": self.fps,
+            "frames": self.frames,
+            "mean": torch.from_numpy(np.asarray(self.mean)),
+            "std": torch.from_numpy(np.asarray(self.std)),
+            "network": self.network.state_dict(),
+            "iteration": self.iteration,
+            "seed": self.seed,
+            "loss": self.loss,
+            "dataset": self.dataset,
+            "split": self.split.to_dict() if self.split else None,
+            "test_accuracy": self.test_accuracy,
+            "train_accuracy": self.train_accuracy,
+            "n_train": self.n_train,
+            "n_test": self.n_test,
+        }
+
+    def save(self, path: str | Path) -> Path:
+        """Write the checkpoint (weights, config, input statistics, split, accuracy) to ``path``."""
+        if self.mean is None:
+            raise ClassifierError("this classifier has not been trained; there is nothing to save")
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        partial = path.with_name(path.name + ".partial")  # never leave a truncated file
+        torch.save(self.to_checkpoint(), partial)
+        os.replace(partial, path)
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> "ActionClassifier":
+        """Return the classifier saved at ``path``."""
+        path = Path(path)
+        if not path.is_file():
+            raise ClassifierError(
+                f"classifier checkpoint {path} does not exist; train one with manage.py train_classifier"
+            )
+        try:
+            checkpoint = torch.load(path, map_location="cpu", weights_only=True)
+        except Exception as exc:  # torch raises many types for truncated or foreign files
+            raise ClassifierError(
+                f"{path} is not a readable checkpoint ({type(exc).__name__}); train the classifier again"
+            ) from None
+        if not isinstance(checkpoint, dict) or checkpoint.get("kind") != KIND:
+            raise ClassifierError(
+                f"{path} is not an action classifier checkpoint (a method checkpoint?); pass the "
+                f"file written by manage.py train_classifier"
+            )
+        if checkpoint.get("format") != CHECKPOINT_FORMAT:
+            raise ClassifierError(
+                f"{path} is in format {checkpoint.get('format')!r}; this version reads {CHECKPOINT_FORMAT}"
+            )
+        try:
+            model = cls(ClassifierConfig(**checkpoint["config"]), checkpoint["skeleton"],
+                        checkpoint["actions"], checkpoint["fps"], checkpoint["frames"])
+            model.network.load_state_dict(checkpoint["network"])
+        except (KeyError, TypeError, ValueError, RuntimeError) as exc:
+            raise ClassifierError(
+                f"{path} holds an unusable classifier ({str(exc).splitlines()[0]}); train it again"
+            ) from None
+        model.mean = checkpoint["mean"].numpy()
+        model.std = checkpoint["std"].numpy()
+        model.iteration = int(checkpoint["iteration"])
+        model.seed, model.loss = checkpoint.get("seed"), checkpoint.get("loss")
+        model.dataset = checkpoint.get("dataset")
+        model.split = Split.from_dict(checkpoint["split"]) if checkpoint.get("split") else None
+        model.test_accuracy = checkpoint.get("test_accuracy")
+        model.train_accuracy = checkpoint.get("train_accuracy")
+        model.n_train, model.n_test = checkpoint.get("n_train", 0), checkpoint.get("n_test", 0)
+        model.network.eval()
+        return model
+
+
+def train_classifier(dataset: str, out: str | Path, *, data_root=None, subjects=None,
+                     test_subjects=None, actions=None, frames: int | None = None,
+                     fps: float | None = None, iters: int = 2000, preset: str = "paper",
+                     seed: int = 0, progress: bool = True) -> ActionClassifier:
+    """Train a classifier on ``dataset``'s training clips, measure it on held-out clips, save to ``out``.
+
+    See :func:`make_split` for what is held out. What ``manage.py train_classifier`` runs.
+    """
+    data = get_dataset(dataset, data_root)
+    actions = choose(actions, data.actions(), "action", f"dataset {dataset!r}")
+    frames = frames or data.clip_frames
+    clips = data.clips(frames=frames, fps=fps, actions=actions)
+    split = make_split(data, clips, test_subjects=test_subjects, subjects=subjects, seed=seed)
+    train, test = split.divide(clips)
+    if not train or not test:
+        raise DatasetError(
+            f"dataset {dataset!r} gave {len(train)} training and {len(test)} held-out clips of "
+            f"{frames} frames ({split.describe()}); both sides need clips: check --data-root, "
+            f"--subjects, --test-subjects and --frames"
+        )
+    missing = sorted(set(actions) - {clip.action for clip in train})
+    if missing:
+        raise DatasetError(f"no training clips of {', '.join(missing)}; pick other --subjects or actions")
+    model = ActionClassifier(ClassifierConfig.preset(preset), data.skeleton, actions, clips[0].fps, frames)
+    model.fit(train, iters, seed=seed, progress=progress)
+    model.dataset, model.split = data.name, split
+    model.n_train, model.n_test = len(train), len(test)
+    model.train_accuracy = model.accuracy(train, "training clips")
+    model.test_accuracy = model.accuracy(test, "held-out clips")
+    model.save(out)
+    return model

@@ -1,0 +1,114 @@
+"""benchmark_methods at a tiny scale; modes and end targets from ODMO through the .npz to evaluate."""
+
+import json
+
+import numpy as np
+import torch
+from django.core.management import call_command
+
+from generation.benchmark import Recipe, train_within_budget
+from generation.datasets import get_dataset
+from generation.formats import npz
+from generation.methods import get_method
+from generation.paper_numbers import A2M_TABLE_1, SA_GCN_TABLE_2
+from tests.conftest import make_motion
+
+torch.set_num_threads(1)
+
+TINY = ["--budget", "1", "--repeats", "2", "--n", "3", "--classifier-iters", "5",
+        "--classifier-preset", "tiny"]
+
+
+def benchmark(tmp_path, *args):
+    out = tmp_path / "RESULTS.md"
+    call_command("benchmark_methods", *args, *TINY, "--work", str(tmp_path / "work"),
+                 "--out", str(out), verbosity=0)
+    return out.read_text()
+
+
+def test_paper_numbers_are_the_tables():
+    assert A2M_TABLE_1.row("a2m").values["fid"] == 2.458 and A2M_TABLE_1.real.values["accuracy"] == 0.997
+    for row in SA_GCN_TABLE_2.rows:  # averages of the unrounded per-class values
+        classes = [value for key, value in row.values.items() if key != "accuracy"]
+        assert len(classes) == 10 and abs(np.mean(classes) - row.values["accuracy"]) < 0.006
+
+
+def test_command_writes_results_beside_a2m_and_reuses_its_work(tmp_path):
+    text = benchmark(tmp_path, "--dataset", "demo", "--methods", "cond_gru,a2m_xyz",
+                     "--presets", "cond_gru=tiny,a2m_xyz=tiny")
+    assert "python manage.py benchmark_methods --dataset demo --budget 1" in text
+    assert "no GPU" in text and "Where we fall short" in text
+    assert "| **Real** (held-out vs training clips) |" in text and "0.092 ± 0.007" in text
+    row = next(line for line in text.splitlines() if line.startswith("| `cond_gru` |") and "±" in line)
+    assert "40.61 ± 0.144" in row and len(row.split("|")) == 11  # 4 metrics, ours and A2M's
+    record = json.loads((tmp_path / "work" / "demo" / "cond_gru.json").read_text())
+    assert record["finished"] and record["seconds"] >= 1 and record["iterations"] > 0
+    checkpoint = tmp_path / "work" / "demo" / "cond_gru.pt"
+    written = checkpoint.stat().st_mtime_ns
+    assert benchmark(tmp_path, "--dataset", "demo", "--methods", "cond_gru,a2m_xyz",
+                     "--presets", "cond_gru=tiny,a2m_xyz=tiny").count("`cond_gru`") >= 2
+    assert checkpoint.stat().st_mtime_ns == written  # the same budget reuses the checkpoint
+
+
+def test_command_on_h36m2d_compares_with_seeds_003_and_004(tmp_path, h36m_root):
+    text = benchmark(tmp_path, "--dataset", "h36m2d", "--data-root", str(h36m_root),
+                     "--methods", "skeleton_vae,sa_gcn", "--presets", "skeleton_vae=tiny,sa_gcn=tiny",
+                     "--subjects", "S1")
+    assert "S11" in text and "held-out subjects S9" in text
+    header = next(line for line in text.splitlines() if line.startswith("| method | MMD_avg"))
+    assert header.split(" | ")[1:] == ["MMD_avg ↓", "004 T1", "003 T1", "MMD_seq ↓", "004 T1",
+                                       "003 T1", "accuracy ↑", "004 T2 |"]
+    sa_gcn = next(line for line in text.splitlines() if line.startswith("| `sa_gcn` |") and "0.146" in line)
+    assert "0.134" in sa_gcn and "0.593" in sa_gcn and sa_gcn.count("±") == 3
+    assert "| SA-GCN (004 T2) | 0.42 |" in text and "FID ↓" in text
+
+
+def test_training_resumes_to_a_larger_budget(tmp_path):
+    clips = get_dataset("demo").clips(frames=12, max_per_take=1, actions=["walk", "run"])
+    recipe = Recipe("tiny")
+    model, first = train_within_budget("cond_gru", clips, ["walk", "run"], 0.3, tmp_path, recipe)
+    done = first["iterations"]
+    assert model.iteration == done > 0 and first["seconds"] >= 0.3
+    model, second = train_within_budget("cond_gru", clips, ["walk", "run"], 0.6, tmp_path, recipe)
+    assert model.iteration == second["iterations"] > done and second["seconds"] >= 0.6
+
+
+def test_npz_round_trips_modes_and_end_targets(tmp_path):
+    motions = [make_motion(frames=6, seed=i) for i in range(3)]
+    for i, motion in enumerate(motions):
+        motion.meta.update(mode=i % 2, end=np.array([0.1 * i, 0.2, 0.0]))
+    path = npz.save(tmp_path / "m.npz", motions)
+    with np.load(path) as data:
+        assert data["modes"].tolist() == [0, 1, 0] and data["end_targets"].shape == (3, 3)
+    loaded = npz.load(path)
+    assert [m.meta["mode"] for m in loaded] == [0, 1, 0]
+    assert np.allclose(np.stack([m.meta["end"] for m in loaded]), [[0, 0.2, 0], [0.1, 0.2, 0], [0.2, 0.2, 0]])
+    del motions[1].meta["mode"]
+    with np.load(npz.save(tmp_path / "n.npz", motions)) as data:
+        assert "modes" not in data.files and "end_targets" in data.files
+
+
+def test_evaluate_measures_modes_and_end_targets_of_an_odmo_file(tmp_path):
+    actions, frames = ["walk", "wave"], 12
+    cls = get_method("odmo")
+    model = cls(cls.Config.preset("tiny"), "h36m17", actions, 25.0, frames)
+    model.fit(get_dataset("demo").clips(frames=frames, max_per_take=2, actions=actions), 20,
+              progress=False)
+    checkpoint = model.save(tmp_path / "odmo.pt")
+    motions_path, result_path = tmp_path / "odmo.npz", tmp_path / "result.json"
+    call_command("sample", "odmo", "--checkpoint", str(checkpoint), "--action", "walk,wave",
+                 "--n", "4", "--end", "0.5,0.2", "--out", str(motions_path), verbosity=0)
+    with np.load(motions_path) as data:
+        modes, targets = data["modes"], data["end_targets"]
+    assert modes.shape == (8,) and targets.shape == (8, 3) and np.allclose(targets[:, :2], [0.5, 0.2])
+    call_command("evaluate", "--dataset", "demo", "--motions", str(motions_path), "--metrics",
+                 "mode_homogeneity,dist_e", "--repeats", "2", "--json", str(result_path), verbosity=0)
+    result = json.loads(result_path.read_text())
+    assert not result["skipped"]
+    assert result["metrics"]["dist_e"]["mean"] >= 0
+    assert np.isfinite(result["metrics"]["mode_homogeneity"]["mean"])
+    chosen = tmp_path / "mode.npz"
+    call_command("sample", "odmo", "--checkpoint", str(checkpoint), "--action", "walk", "--n", "3",
+                 "--mode", "0", "--out", str(chosen), verbosity=0)
+    with np.load(chosen) as data:
+        assert data["modes"].tolist() == [0, 0, 0] and "end_targets" not in data.files

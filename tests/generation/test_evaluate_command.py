@@ -1,0 +1,129 @@
+"""The train_classifier and evaluate commands on the demo dataset, and their errors."""
+
+import io
+import json
+
+import numpy as np
+import pytest
+import torch
+from django.core.management import CommandError, call_command
+
+from generation.datasets import get_dataset
+from generation.evaluation import METRICS
+from generation.formats import npz
+from generation.recognition import ActionClassifier
+from generation.sampling import sample_real
+from tests.conftest import make_motion
+
+torch.set_num_threads(1)
+
+FRAMES = 20
+
+
+@pytest.fixture(scope="module")
+def workdir(tmp_path_factory):
+    return tmp_path_factory.mktemp("evaluate")
+
+
+@pytest.fixture(scope="module")
+def trained(workdir):
+    """Return the checkpoint of a tiny classifier trained by the command, and what it printed."""
+    path, output = workdir / "clf.pt", io.StringIO()
+    call_command("train_classifier", "--dataset", "demo", "--frames", str(FRAMES), "--iters", "10",
+                 "--preset", "tiny", "--out", str(path), stdout=output, verbosity=0)
+    return path, output.getvalue()
+
+
+@pytest.fixture(scope="module")
+def classifier(trained):
+    return trained[0]
+
+
+def write_motions(path, motions, **extras):
+    """Write an interchange file, with optional per-motion arrays beside the required ones."""
+    npz.save(path, motions)
+    if extras:
+        with np.load(path) as data:
+            arrays = {key: data[key] for key in data.files}
+        np.savez_compressed(path, **arrays, **extras)
+    return path
+
+
+@pytest.fixture(scope="module")
+def real_motions(workdir):
+    motions = sample_real(get_dataset("demo"), None, 3, frames=FRAMES, seed=1)
+    rng = np.random.default_rng(0)
+    return write_motions(workdir / "real.npz", motions, modes=np.arange(len(motions)) % 2,
+                         end_targets=rng.normal(size=(len(motions), 3)))
+
+
+def test_train_classifier_reports_and_stores_held_out_accuracy(trained):
+    path, printed = trained
+    model = ActionClassifier.load(path)
+    assert model.frames == FRAMES and model.dataset == "demo"
+    assert model.test_accuracy is not None and model.n_test > 0
+    assert f"test accuracy {model.test_accuracy:.3f} on {model.n_test} held-out clips" in printed
+
+
+def test_evaluate_writes_every_metric_with_mean_and_ci(classifier, real_motions, workdir, capsys):
+    out = workdir / "result.json"
+    call_command("evaluate", "--dataset", "demo", "--motions", str(real_motions), "--classifier",
+                 str(classifier), "--repeats", "3", "--json", str(out))
+    result = json.loads(out.read_text())
+    assert set(result["metrics"]) == set(METRICS) and not result["skipped"]
+    for name, row in result["metrics"].items():
+        assert isinstance(row["mean"], float) and row["ci"] >= 0 and len(row["values"]) == 3, name
+        if name not in ("mode_homogeneity", "dist_e"):
+            assert isinstance(row["real"]["mean"], float) and row["real"]["ci"] >= 0, name
+    assert result["n_motions"] == 24 and result["repeats"] == 3
+    printed = capsys.readouterr().out
+    assert "mmd_avg" in printed and "±" in printed and str(out) in printed
+
+
+def test_evaluate_without_classifier_skips_feature_metrics(real_motions, workdir, capsys):
+    out = workdir / "no_classifier.json"
+    call_command("evaluate", "--dataset", "demo", "--motions", str(real_motions),
+                 "--metrics", "fid,mmd_seq,n_apd", "--repeats", "2", "--json", str(out))
+    result = json.loads(out.read_text())
+    assert set(result["metrics"]) == {"mmd_seq", "n_apd"}
+    assert "classifier" in result["skipped"]["fid"]
+    assert "skipped fid" in capsys.readouterr().out
+
+
+def test_evaluate_rejects_motions_of_another_skeleton(classifier, workdir):
+    path = write_motions(workdir / "other.npz", [make_motion(frames=FRAMES, skeleton="humanact12", seed=i)
+                                                 for i in range(3)])
+    with pytest.raises(CommandError, match="skeleton 'humanact12', but dataset 'demo' is 'h36m17'"):
+        call_command("evaluate", "--dataset", "demo", "--motions", str(path), "--classifier",
+                     str(classifier), "--json", str(workdir / "x.json"))
+
+
+def test_evaluate_rejects_motions_of_another_length(classifier, workdir):
+    motions = sample_real(get_dataset("demo"), "walk,run", 2, frames=30, seed=0)
+    path = write_motions(workdir / "long.npz", motions)
+    with pytest.raises(CommandError, match="30 frames, the classifier reads 20"):
+        call_command("evaluate", "--dataset", "demo", "--motions", str(path), "--classifier",
+                     str(classifier), "--json", str(workdir / "x.json"))
+
+
+def test_evaluate_rejects_actions_the_classifier_does_not_know(workdir):
+    narrow = workdir / "narrow.pt"
+    call_command("train_classifier", "--dataset", "demo", "--actions", "walk,run", "--frames",
+                 str(FRAMES), "--iters", "2", "--preset", "tiny", "--out", str(narrow), verbosity=0)
+    motions = sample_real(get_dataset("demo"), "walk,jump", 2, frames=FRAMES, seed=0)
+    path = write_motions(workdir / "jump.npz", motions)
+    with pytest.raises(CommandError, match="classifier knows no action 'jump'"):
+        call_command("evaluate", "--dataset", "demo", "--motions", str(path), "--classifier",
+                     str(narrow), "--json", str(workdir / "x.json"))
+
+
+def test_evaluate_and_train_classifier_report_bad_arguments(real_motions, workdir):
+    with pytest.raises(CommandError, match="unknown metric 'fidd'"):
+        call_command("evaluate", "--dataset", "demo", "--motions", str(real_motions),
+                     "--metrics", "fidd", "--json", str(workdir / "x.json"))
+    with pytest.raises(CommandError, match="does not exist"):
+        call_command("evaluate", "--dataset", "demo", "--motions", str(workdir / "none.npz"),
+                     "--json", str(workdir / "x.json"))
+    with pytest.raises(CommandError, match="has no subjects"):
+        call_command("train_classifier", "--dataset", "demo", "--test-subjects", "S1",
+                     "--out", str(workdir / "x.pt"), verbosity=0)

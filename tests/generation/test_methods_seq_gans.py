@@ -1,0 +1,187 @@
+"""The baselines of seeds 003/004: SkeletonVAE, SkeletonGAN, c-SkeletonGAN and SA-GCN."""
+
+import numpy as np
+import pytest
+import torch
+from django.core.management import call_command
+
+from generation.datasets import get_dataset
+from generation.formats import npz
+from generation.methods import MethodError, get_method
+from generation.methods.sa_gcn import (
+    CausalSelfAttention,
+    SequenceGraph,
+    skeleton_adjacency,
+    temporal_neighbours,
+)
+from generation.skeletons import get_skeleton
+from tests.conftest import make_motion
+
+torch.set_num_threads(1)
+
+ACTIONS = ["walk", "wave", "jump"]
+FRAMES = 12
+METHODS = ["skeleton_vae", "skeleton_gan", "c_skeleton_gan", "sa_gcn"]
+MIXING = ["c_skeleton_gan", "sa_gcn"]
+
+
+@pytest.fixture(scope="module")
+def clips():
+    return get_dataset("demo").clips(frames=FRAMES, max_per_take=1, actions=ACTIONS)
+
+
+def build(name, skeleton="h36m17", actions=ACTIONS, fps=25.0, frames=FRAMES, **changes):
+    cls = get_method(name)
+    return cls(cls.Config(**{**cls.Config.PRESETS["tiny"], **changes}), skeleton, actions, fps, frames)
+
+
+_TRAINED = {}
+
+
+@pytest.fixture
+def trained(request, clips):
+    """Return a model trained past its pretraining (if any), once per method."""
+    if request.param not in _TRAINED:
+        model = build(request.param)
+        model.fit(clips, iters=4, seed=0, progress=False)
+        _TRAINED[request.param] = model
+    return _TRAINED[request.param]
+
+
+def joints(motions):
+    return np.stack([m.joints for m in motions])
+
+
+def test_sa_gcn_attention_is_causal_and_keeps_the_top_5_past_frames():
+    torch.manual_seed(0)
+    scores, _ = CausalSelfAttention(6)(torch.randn(3, 9, 6))
+    assert torch.all(scores.triu(1) == 0) and torch.allclose(scores.sum(-1), torch.ones(3, 9))
+    index, weight = temporal_neighbours(scores, 5)
+    assert index.shape == (3, 9, 5)
+    for b in range(3):
+        for t in range(9):
+            kept = sorted(index[b, t][weight[b, t] > 0].tolist())
+            assert len(kept) == min(t, 5) and all(s < t for s in kept)
+            best = scores[b, t, :t].argsort(descending=True)[:5]
+            assert kept == sorted(best.tolist())
+
+
+def test_sa_gcn_sparse_graph_equals_the_dense_sequence_graph():
+    """D⁻¹ Ã_s H computed sparsely equals Eq. 6-7 with the full NT x NT matrix."""
+    torch.manual_seed(1)
+    skeleton = get_skeleton("h36m15_2d")
+    adjacency = skeleton_adjacency(skeleton)
+    joints, frames, k = skeleton.n_joints, 8, 3
+    scores, _ = CausalSelfAttention(4)(torch.randn(2, frames, 4))
+    nodes = torch.randn(2, frames, joints, 5)
+    sparse = SequenceGraph(scores, adjacency, k).aggregate(nodes)
+
+    index, weight = temporal_neighbours(scores, k)
+    for b in range(2):
+        mask = torch.diag(scores[b].diagonal())
+        for t in range(frames):
+            mask[t].index_put_((index[b, t],), weight[b, t], accumulate=True)
+        # Ã_s = S_mask ⊙ Ã: Ā on the diagonal blocks, I off the diagonal.
+        dense = torch.kron(torch.diag(mask.diagonal()), adjacency) + torch.kron(
+            mask - torch.diag(mask.diagonal()), torch.eye(joints))
+        normalised = dense / dense.sum(-1, keepdim=True)
+        expected = (normalised @ nodes[b].reshape(frames * joints, -1)).reshape(frames, joints, -1)
+        assert torch.allclose(sparse[b], expected, atol=1e-5)
+
+
+def test_sa_gcn_adjacency_follows_the_bones():
+    skeleton = get_skeleton("h36m17")
+    adjacency = skeleton_adjacency(skeleton)
+    assert torch.equal(adjacency, adjacency.T) and torch.all(adjacency.diagonal() == 1)
+    assert int(adjacency.sum()) == skeleton.n_joints + 2 * len(skeleton.bones)
+
+
+@pytest.mark.parametrize("trained", MIXING, indirect=True)
+def test_mixed_labels(trained):
+    walk = joints(trained.sample(["walk"] * 3, seed=5))
+    wave = joints(trained.sample(["wave"] * 3, seed=5))
+    mixed = trained.sample(["walk"] * 3, seed=5, mix={"walk": 0.5, "wave": 0.5})
+    assert [m.action for m in mixed] == ["walk+wave"] * 3
+    assert mixed[0].meta["mix"] == {"walk": 0.5, "wave": 0.5}
+    assert not np.allclose(joints(mixed), walk) and not np.allclose(joints(mixed), wave)
+    again = trained.sample(["jump"] * 3, seed=5, mix={"walk": 2, "wave": 2})
+    assert np.array_equal(joints(mixed), joints(again))  # normalised, and the label is replaced
+    pure = trained.sample(["wave"] * 3, seed=5, mix={"walk": 1.0})
+    assert np.array_equal(joints(pure), walk) and pure[0].action == "walk"
+
+
+@pytest.mark.parametrize("trained", MIXING, indirect=True)
+@pytest.mark.parametrize("mix, message", [
+    ({"walk": 0.5, "moonwalk": 0.5}, "'moonwalk'.*its actions are walk, wave, jump"),
+    ({"walk": -0.5, "wave": 1.5}, "weight of 'walk' must be a finite non-negative"),
+    ({"walk": float("nan")}, "weight of 'walk'"),
+    ({"walk": "lots"}, "weight of 'walk'"),
+    ({"walk": 0, "wave": 0}, "must not all be 0"),
+    ({}, "mix must map action names to weights"),
+    ("walk", "mix must map action names to weights"),
+])
+def test_invalid_mixes_are_clear_errors(trained, mix, message):
+    with pytest.raises(MethodError, match=message):
+        trained.sample(["walk"], mix=mix)
+
+
+@pytest.mark.parametrize("name", ["skeleton_vae", "skeleton_gan"])
+def test_baselines_take_no_mix(name, clips):
+    model = build(name)
+    model.fit(clips, iters=1, progress=False)
+    with pytest.raises(MethodError, match="does not take the sampling option"):
+        model.sample(["walk"], mix={"walk": 1.0})
+
+
+@pytest.mark.parametrize("name", METHODS)
+def test_training_changes_the_losses(name, clips):
+    model = build(name)
+    model.fit(clips, iters=3, seed=0, progress=False)  # past tiny pretraining (2 iterations)
+    first = model.losses
+    after = model.fit(clips, iters=2, seed=0, progress=False)
+    assert first.keys() == after.keys() and first != after
+    assert all(np.isfinite(v) for v in after.values())
+
+
+@pytest.mark.parametrize("name", ["skeleton_gan", "c_skeleton_gan"])
+def test_frame_decoder_is_pretrained_then_frozen(name, clips):
+    model = build(name)
+    model.fit(clips, iters=0, seed=0, progress=False)
+
+    def state():
+        decoder = next(iter(model.networks.values()))  # the frame decoder comes first
+        return {k: v.clone() for k, v in decoder.state_dict().items()}
+
+    start = state()
+    model.fit(clips, iters=2, seed=0, progress=False)
+    pretrained = state()
+    assert any(not torch.equal(start[k], pretrained[k]) for k in start)
+    model.fit(clips, iters=2, seed=0, progress=False)
+    assert all(torch.equal(pretrained[k], v) for k, v in state().items())
+
+
+def test_c_skeleton_gan_trains_with_data_labels_too(clips):
+    model = build("c_skeleton_gan", real_label="data")
+    losses = model.fit(clips, iters=3, seed=0, progress=False)
+    assert set(losses) == {"d", "g", "omega", "ce"}
+
+
+@pytest.mark.parametrize("name", METHODS)
+def test_2d_skeleton_with_ten_classes(name):
+    actions = [f"class{i}" for i in range(10)]
+    motions = [make_motion(frames=10, seed=i, skeleton="h36m15_2d", action=actions[i % 10],
+                           fps=50 / 3) for i in range(20)]
+    model = build(name, skeleton="h36m15_2d", actions=actions, fps=50 / 3, frames=10)
+    model.fit(motions, iters=3, seed=0, progress=False)
+    sampled = joints(model.sample(actions, frames=14, seed=0))
+    assert sampled.shape == (10, 14, 15, 2) and np.isfinite(sampled).all()
+
+
+def test_sample_command_mixes_actions(clips, tmp_path):
+    model = build("sa_gcn")
+    model.fit(clips, iters=1, progress=False)
+    checkpoint = model.save(tmp_path / "sa_gcn.pt")
+    out = tmp_path / "mixed.npz"
+    call_command("sample", "sa_gcn", "--checkpoint", str(checkpoint), "--action", "walk",
+                 "--n", "2", "--mix", "walk=0.5,jump=0.5", "--out", str(out))
+    assert [m.action for m in npz.load(out)] == ["walk+jump"] * 2
