@@ -1,0 +1,355 @@
+"""Render motions to videos and posters named by content, one framing for a whole set."""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import os
+from contextlib import ExitStack
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from generation.motion import Motion, MotionError
+from generation.skeletons import get_skeleton
+from rendering.framing import Framing
+from rendering.styles import Style, get_style
+from rendering.video import ENCODER, FORMATS, VideoWriter, file_hash, save_poster
+
+SIDECAR = "renders.json"
+
+
+class RenderError(ValueError):
+    """A motion cannot be rendered (no frames, wrong shape, non-finite joints, ...)."""
+
+
+@dataclass(frozen=True)
+class RenderedClip:
+    """One rendered motion: where its files are and what they hold."""
+
+    index: int
+    video: Path
+    poster: Path
+    video_hash: str
+    motion_hash: str
+    frames: int
+    fps: float
+    duration: float
+    size: tuple[int, int]
+    extras: dict[str, Path] = field(default_factory=dict)  # format -> file, beside the mp4
+
+
+@dataclass
+class RenderReport:
+    """The clips rendered (in input order) and the ``(index, message)`` of those that failed."""
+
+    clips: list[RenderedClip] = field(default_factory=list)
+    failures: list[tuple[int, str]] = field(default_factory=list)
+    framing: Framing | None = None
+    sidecar: Path | None = None
+
+
+def resample(motion: Motion, fps: float) -> Motion:
+    """Return the motion at another frame rate, interpolating linearly in time."""
+    if fps == motion.fps or motion.frames < 2:
+        return motion.with_joints(motion.joints, fps=fps)
+    count = int(np.floor((motion.frames - 1) * fps / motion.fps + 1e-6)) + 1
+    times = np.arange(count) * (motion.fps / fps)
+    low = np.minimum(np.floor(times).astype(int), motion.frames - 1)
+    high = np.minimum(low + 1, motion.frames - 1)
+    weight = (times - low)[:, None, None]
+    joints = motion.joints[low] * (1 - weight) + motion.joints[high] * weight
+    return motion.with_joints(joints.astype(np.float32), fps=fps)
+
+
+def check(motion: Motion, style: type[Style]) -> None:
+    """Raise :class:`RenderError` unless a style can draw the motion."""
+    try:
+        skeleton = get_skeleton(motion.skeleton)
+    except KeyError as exc:
+        raise RenderError(exc.args[0]) from None
+    joints = np.asarray(motion.joints)
+    if joints.ndim != 3 or joints.shape[1:] != (skeleton.n_joints, skeleton.dims):
+        raise RenderError(
+            f"joints of shape {joints.shape} do not fit skeleton {skeleton.name!r} "
+            f"({skeleton.n_joints} joints in {skeleton.dims}D)"
+        )
+    if joints.shape[0] == 0:
+        raise RenderError("the motion has no frames; nothing to render")
+    if skeleton.dims != style.dims:
+        raise RenderError(
+            f"style {style.name!r} draws {style.dims}D skeletons; this motion is "
+            f"{skeleton.dims}D ({skeleton.name!r})"
+        )
+    try:
+        motion.check_finite()
+    except MotionError as exc:
+        raise RenderError(str(exc)) from None
+
+
+def _dimensions(size) -> tuple[int, int]:
+    width, height = (size, size) if np.isscalar(size) else size
+    width, height = int(width), int(height)
+    if width <= 0 or height <= 0 or width % 2 or height % 2:
+        raise ValueError(
+            f"video sizes must be positive and even (H.264, yuv420p); got {width}x{height}"
+        )
+    return width, height
+
+
+def _formats(formats) -> tuple[str, ...]:
+    """Return the video formats to write, checked: mp4 first, each known, none twice."""
+    formats = (formats,) if isinstance(formats, str) else tuple(formats)
+    unknown = sorted(set(formats) - set(FORMATS))
+    if unknown:
+        raise ValueError(f"unknown video formats {unknown}; choose from {', '.join(FORMATS)}")
+    if "mp4" not in formats:
+        raise ValueError("formats must include 'mp4': every clip has one, and is named by it")
+    return ("mp4",) + tuple(dict.fromkeys(f for f in formats if f != "mp4"))
+
+
+def _encode(style: Style, motion: Motion, videos: list[Path], poster: Path) -> int:
+    """Stream a motion's frames into every video, save its middle frame; return the count."""
+    middle = (motion.frames - 1) // 2
+    with ExitStack() as stack:
+        writers = [
+            stack.enter_context(VideoWriter(video, style.width, style.height, motion.fps))
+            for video in videos
+        ]
+        for number, frame in enumerate(style.frames(motion)):
+            for writer in writers:
+                writer.write(frame)
+            if number == middle:
+                save_poster(poster, frame)
+    return writers[0].frames
+
+
+def render_motion(
+    motion: Motion,
+    path: str | Path,
+    style: str = "stick",
+    framing: Framing | None = None,
+    size=480,
+    fps: float | None = None,
+    formats=("mp4",),
+) -> RenderedClip:
+    """Render one motion to the mp4 ``path`` and a poster beside it (same name, ``.png``).
+
+    Without ``framing`` the clip is framed alone; pass a set's framing to match it.
+    ``formats`` may add ``"webm"`` and ``"gif"``, written beside the mp4.
+    """
+    style_class = get_style(style)
+    width, height = _dimensions(size)
+    formats = _formats(formats)
+    check(motion, style_class)
+    framing = framing or Framing.from_motions(
+        [motion], aspect=width / height, pad=style_class.pad
+    )
+    path = Path(path)
+    videos = [path] + [path.with_suffix(f".{f}") for f in formats[1:]]
+    with style_class(framing, width, height) as drawer:
+        return _render_file(drawer, 0, motion, fps, videos, path.with_suffix(".png"))
+
+
+def _render_file(drawer: Style, index, motion: Motion, fps, videos: list[Path], poster: Path):
+    """Render into ``videos`` (the mp4 first) and ``poster``; describe the result."""
+    timed = resample(motion, fps) if fps else motion
+    frames = _encode(drawer, timed, videos, poster)
+    video = videos[0]
+    return RenderedClip(
+        index=index,
+        video=video,
+        poster=poster,
+        video_hash=file_hash(video),
+        motion_hash=motion.content_hash(),
+        frames=frames,
+        fps=float(timed.fps),
+        duration=frames / float(timed.fps),
+        size=(drawer.width, drawer.height),
+        extras={video.suffix[1:]: video for video in videos[1:]},
+    )
+
+
+def _render_hashed(drawer: Style, index: int, motion: Motion, fps, out_dir: Path,
+                   formats: tuple[str, ...]) -> RenderedClip:
+    """Render into temporary files, then name them all by the mp4's hash."""
+    stem = out_dir / f".rendering-{os.getpid()}-{index}"
+    videos = [stem.with_suffix(f".{f}") for f in formats]
+    poster = stem.with_suffix(".png")
+    try:
+        clip = _render_file(drawer, index, motion, fps, videos, poster)
+        named = {path: out_dir / f"{clip.video_hash}{path.suffix}" for path in videos + [poster]}
+        for temporary, final in named.items():
+            os.replace(temporary, final)
+    finally:
+        for path in videos + [poster]:
+            path.unlink(missing_ok=True)
+    extras = {kind: named[path] for kind, path in clip.extras.items()}
+    return replace(clip, video=named[videos[0]], poster=named[poster], extras=extras)
+
+
+def _attempt(drawer: Style, index: int, motion: Motion, fps, out_dir: Path, formats):
+    """Return a rendered clip, or ``(index, message)`` if it failed."""
+    try:
+        return _render_hashed(drawer, index, motion, fps, out_dir, formats)
+    except Exception as exc:  # one bad clip must not stop the set
+        return index, f"{type(exc).__name__}: {exc}"
+
+
+_WORKER: dict = {}
+
+
+def _start_worker(style: str, framing: Framing, width: int, height: int) -> None:
+    _WORKER["drawer"] = get_style(style)(framing, width, height)
+
+
+def _work(index: int, motion: Motion, fps, out_dir: Path, formats):
+    return _attempt(_WORKER["drawer"], index, motion, fps, out_dir, formats)
+
+
+def render_set(
+    motions: list[Motion],
+    out_dir: str | Path,
+    style: str = "stick",
+    size=480,
+    fps: float | None = None,
+    workers: int = 1,
+    progress: bool = True,
+    framing: Framing | None = None,
+    follow: bool = False,
+    formats=("mp4",),
+) -> RenderReport:
+    """Render every motion in one framing to ``out_dir/<hash>.mp4`` and ``<hash>.png``.
+
+    Clips that cannot be rendered are listed in ``failures``; the rest still render.
+    ``fps`` resamples every clip to one rate (``None`` keeps each motion's own).
+    ``framing`` reuses another set's framing; otherwise one is fitted to these motions
+    (``follow``: the camera tracks each root horizontally). ``out_dir/renders.json``
+    records what was rendered from what, for the researcher only: never serve it.
+    ``formats`` may add ``"webm"`` (VP9) and ``"gif"``, as ``<hash>.webm`` and
+    ``<hash>.gif`` beside the mp4. ``workers > 1`` spawns processes, so a calling
+    script needs the ``if __name__ == "__main__":`` guard.
+    """
+    style_class = get_style(style)
+    width, height = _dimensions(size)
+    formats = _formats(formats)
+    if fps is not None and not fps > 0:
+        raise ValueError(f"fps must be positive; got {fps!r}")
+    out_dir = Path(out_dir)
+    report = RenderReport()
+    failed: dict[int, str] = {}
+    ready = []
+    for index, motion in enumerate(motions):
+        try:
+            check(motion, style_class)
+            ready.append(index)
+        except RenderError as exc:
+            failed[index] = str(exc)
+    folder_problem = _unwritable(out_dir)
+    if folder_problem:
+        failed.update({index: folder_problem for index in ready})
+        ready = []
+    if ready:
+        report.framing = framing or Framing.from_motions(
+            [motions[i] for i in ready], aspect=width / height, follow=follow, pad=style_class.pad
+        )
+
+    results = []
+    bar = tqdm(total=len(ready), unit="clip", desc="rendering", disable=not progress)
+    if ready and (workers <= 1 or len(ready) == 1):
+        with style_class(report.framing, width, height) as drawer:
+            for index in ready:
+                results.append(_attempt(drawer, index, motions[index], fps, out_dir, formats))
+                bar.update()
+    elif ready:
+        results = _render_parallel(
+            motions, ready, style, report.framing, (width, height), fps, out_dir, workers, bar,
+            formats,
+        )
+    bar.close()
+
+    for result in results:
+        if isinstance(result, RenderedClip):
+            report.clips.append(result)
+        else:
+            failed[result[0]] = result[1]
+    report.clips.sort(key=lambda clip: clip.index)
+    report.failures = sorted(failed.items())
+    if not folder_problem:
+        report.sidecar = _write_sidecar(
+            out_dir, report, motions, style, (width, height), fps, formats
+        )
+    return report
+
+
+def _render_parallel(motions, ready, style, framing, size, fps, out_dir, workers, bar, formats):
+    # Spawned, not forked: the caller may hold threads (torch, Django) a fork would copy.
+    context = multiprocessing.get_context("spawn")
+    results = []
+    with ProcessPoolExecutor(
+        max_workers=min(workers, len(ready)),
+        mp_context=context,
+        initializer=_start_worker,
+        initargs=(style, framing, *size),
+    ) as pool:
+        futures = {
+            pool.submit(_work, index, motions[index], fps, out_dir, formats): index
+            for index in ready
+        }
+        for future in as_completed(futures):
+            try:
+                results.append(future.result())
+            except Exception as exc:  # a worker died; its clip fails, the others go on
+                results.append((futures[future], f"{type(exc).__name__}: {exc}"))
+            bar.update()
+    return results
+
+
+def _unwritable(out_dir: Path) -> str | None:
+    """Return why files cannot be written to ``out_dir``, or ``None`` if they can."""
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        probe = out_dir / f".rendering-probe-{os.getpid()}"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        return f"cannot write to the output folder {out_dir}: {exc.strerror or exc}"
+    return None
+
+
+def _write_sidecar(out_dir: Path, report: RenderReport, motions, style, size, fps,
+                   formats=("mp4",)) -> Path:
+    """Record what was rendered from what; names the sources, so never serve it."""
+    entries = [
+        {
+            "index": clip.index,
+            "video": clip.video.name,
+            "poster": clip.poster.name,
+            "video_hash": clip.video_hash,
+            "motion_hash": clip.motion_hash,
+            "action": motions[clip.index].action,
+            "source": motions[clip.index].source,
+            "skeleton": motions[clip.index].skeleton,
+            "frames": clip.frames,
+            "fps": clip.fps,
+            "duration": clip.duration,
+            "extras": {kind: path.name for kind, path in clip.extras.items()},
+        }
+        for clip in report.clips
+    ]
+    record = {
+        "style": style,
+        "size": list(size),
+        "fps": fps,
+        "encoder": ENCODER,
+        "formats": list(formats),
+        "framing": report.framing.as_dict() if report.framing else None,
+        "clips": entries,
+        "failures": [{"index": i, "message": message} for i, message in report.failures],
+    }
+    path = out_dir / SIDECAR
+    path.write_text(json.dumps(record, indent=2) + "\n")
+    return path

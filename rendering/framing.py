@@ -1,0 +1,234 @@
+"""One framing for a whole stimulus set, so clips differ in nothing but the motion.
+
+Every clip is first *placed* in a z-up world the same way: turned so it starts facing
+one direction, centred on its mean root position and stood on the floor (z = 0). The
+camera's look-at, distance and the figure scale then come from the extent of all placed
+clips together.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from generation.motion import Motion
+from generation.skeletons import Skeleton, get_skeleton
+from rendering.camera import Camera
+
+# Rotations taking a skeleton's axes to z-up; all proper, so left stays left.
+_TO_Z_UP = {
+    "z": np.eye(3),
+    "y": np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]),
+    "-y": np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]),
+}
+GROUNDS = ("clip", "set")
+SHADOW_SLANT = 0.35  # how far a shadow falls sideways per unit of height
+PAD = 0.07  # room kept around joints for the parts drawn on them, per figure height
+
+
+def to_z_up(joints: np.ndarray, skeleton: Skeleton) -> np.ndarray:
+    """Return joints ``(T, J, D)`` as ``(T, J, 3)`` with z up (2D: the x-z plane)."""
+    joints = np.asarray(joints, dtype=np.float64)
+    if skeleton.dims == 2:
+        across = joints[..., 1 - skeleton.up_index]
+        up = skeleton.up_sign * joints[..., skeleton.up_index]
+        return np.stack([across, np.zeros_like(across), up], axis=-1)
+    try:
+        return joints @ _TO_Z_UP[skeleton.up].T
+    except KeyError:
+        raise ValueError(
+            f"skeleton {skeleton.name!r} has an unsupported up axis {skeleton.up!r}"
+        ) from None
+
+
+def heading(joints: np.ndarray, skeleton: Skeleton) -> float | None:
+    """Return the direction (degrees about z) a z-up pose ``(J, 3)`` faces, if it shows."""
+    root = skeleton.root
+    left = [j for j in skeleton.left if skeleton.parents[j] == root] or list(skeleton.left)
+    right = [j for j in skeleton.right if skeleton.parents[j] == root] or list(skeleton.right)
+    if not left or not right:
+        return None
+    across = joints[left].mean(axis=0) - joints[right].mean(axis=0)
+    forward = np.cross(across, [0.0, 0.0, 1.0])
+    if math.hypot(forward[0], forward[1]) < 1e-9:
+        return None
+    return math.degrees(math.atan2(forward[1], forward[0]))
+
+
+@dataclass(frozen=True)
+class Framing:
+    """The camera and placement shared by every clip of a set (build with ``from_motions``).
+
+    ``target`` is the look-at point, ``distance`` the eye's distance from it (for an
+    orthographic view, the distance whose perspective view would show the same width),
+    ``height`` the figures' typical height (sets limb thickness and floor tiles).
+    ``facing`` turns each clip to start facing that direction (``None`` keeps it);
+    ``ground`` is ``"clip"`` (each clip's lowest point on the floor) or ``"set"`` (one
+    floor, ``floor``, for all, so constant floating or sinking shows). ``follow`` moves
+    the look-at with the smoothed root horizontally.
+    """
+
+    dims: int
+    target: tuple[float, float, float]
+    distance: float
+    height: float
+    azimuth: float = -50.0
+    elevation: float = 12.0
+    fov: float = 35.0
+    aspect: float = 1.0
+    facing: float | None = -90.0
+    recentre: bool = True
+    ground: str = "clip"
+    floor: float = 0.0
+    follow: bool = False
+
+    @classmethod
+    def from_motions(
+        cls,
+        motions: list[Motion],
+        *,
+        aspect: float = 1.0,
+        follow: bool = False,
+        ground: str = "clip",
+        margin: float = 0.05,
+        pad: float = PAD,
+        **view,
+    ) -> "Framing":
+        """Fit one framing around all motions (all 3D or all 2D).
+
+        ``view`` may set ``azimuth``, ``elevation``, ``fov`` (degrees), ``facing`` and
+        ``recentre``; ``margin`` is the share of the half-frame kept free at the edges,
+        ``pad`` the room kept around every joint, per figure height (a style's ``pad``).
+        """
+        if not motions:
+            raise ValueError("cannot frame an empty set of motions")
+        dims = {get_skeleton(m.skeleton).dims for m in motions}
+        if len(dims) != 1:
+            raise ValueError("a set to frame together must be all 3D or all 2D motions")
+        if ground not in GROUNDS:
+            raise ValueError(f"ground must be one of {GROUNDS}; got {ground!r}")
+        dims = dims.pop()
+        if dims == 2:
+            view = {"azimuth": -90.0, "elevation": 0.0, "facing": None, **view}
+        probe = cls(dims, (0.0,) * 3, 1.0, 1.0, aspect=aspect, ground=ground, follow=follow, **view)
+        floor = 0.0
+        if ground == "set":
+            floor = min(float(probe._placed_xy(m)[..., 2].min()) for m in motions)
+        probe = probe._with(floor=floor)
+
+        points, extents = [], []
+        for motion in motions:
+            placed = probe.place(motion)
+            extents.append(placed[..., 2].max(axis=1) - placed[..., 2].min(axis=1))
+            relative = placed - probe.targets(motion, placed)[:, None, :] * [1, 1, 0]
+            points.append(relative.reshape(-1, 3))
+            if dims == 3:  # the shadow on the floor must stay in view too
+                points.append(probe.shadows(relative).reshape(-1, 3))
+        points = np.concatenate(points)
+        height = float(np.percentile(np.concatenate(extents), 90)) or 1.0
+        probe = probe._with(height=height)
+        centre, pad = (points.min(axis=0) + points.max(axis=0)) / 2, pad * height
+        for _ in range(4):  # perspective shifts the picture off the look-at; re-aim
+            distance = probe._fit(points - centre, margin, pad)
+            centre = centre + probe._off_centre(points - centre, distance, pad)
+        distance = probe._fit(points - centre, margin, pad)
+        return probe._with(target=tuple(float(c) for c in centre), distance=distance)
+
+    def _with(self, **changes) -> "Framing":
+        return type(self)(**{**asdict(self), **changes})
+
+    def _axes(self) -> np.ndarray:
+        """Return the camera's right, down and forward axes as rows."""
+        return Camera.look_at((0, 0, 0), self.azimuth, self.elevation, 1.0, self.fov, 2, 2).rotation
+
+    def _fit(self, points: np.ndarray, margin: float, pad: float) -> float:
+        """Return the smallest distance that keeps every point, padded, inside the margin."""
+        right, down, forward = self._axes()
+        tan_y = math.tan(math.radians(self.fov) / 2) * (1 - margin)
+        tan_x = tan_y * self.aspect
+        sideways = (np.abs(points @ right) + pad) / tan_x
+        across = np.maximum(sideways, (np.abs(points @ down) + pad) / tan_y)
+        if self.orthographic:
+            return float(across.max()) or 1.0
+        towards = -(points @ forward)
+        return float(max((towards + across).max(), (towards + 0.2 * self.height).max()))
+
+    def _off_centre(self, points: np.ndarray, distance: float, pad: float) -> np.ndarray:
+        """Return the move of the look-at that centres the picture of padded points."""
+        right, down, forward = self._axes()
+        depth = distance if self.orthographic else distance + points @ forward
+        shift = np.zeros(3)
+        for axis in (right, down):
+            slope, reach = points @ axis / depth, pad / depth
+            shift += axis * distance * ((slope + reach).max() + (slope - reach).min()) / 2
+        return shift
+
+    @property
+    def orthographic(self) -> bool:
+        return self.dims == 2
+
+    def _placed_xy(self, motion: Motion) -> np.ndarray:
+        """Return the joints z-up, turned and centred, but not yet stood on the floor."""
+        skeleton = get_skeleton(motion.skeleton)
+        joints = to_z_up(motion.joints, skeleton)
+        if self.recentre:
+            joints[..., :2] -= joints[:, skeleton.root, :2].mean(axis=0)
+        if self.facing is not None and len(joints):
+            start = heading(joints[0], skeleton)
+            if start is not None:
+                angle = math.radians(self.facing - start)
+                cos, sin = math.cos(angle), math.sin(angle)
+                turn = np.array([[cos, -sin, 0.0], [sin, cos, 0.0], [0.0, 0.0, 1.0]])
+                joints = joints @ turn.T
+        return joints
+
+    def place(self, motion: Motion) -> np.ndarray:
+        """Return the motion's joints as placed in this framing's world, ``(T, J, 3)``."""
+        joints = self._placed_xy(motion)
+        if self.ground == "clip":
+            joints[..., 2] -= joints[..., 2].min() if joints.size else 0.0
+        else:
+            joints[..., 2] -= self.floor
+        return joints
+
+    def shadows(self, placed: np.ndarray) -> np.ndarray:
+        """Return where placed points ``(..., 3)`` cast their shadows on the floor.
+
+        The light is above, a little left of and behind the camera, so shadows fall
+        right and towards the viewer, apart from the feet when these float.
+        """
+        right, _, forward = self._axes()
+        fall = 0.8 * right[:2] - 0.6 * forward[:2]
+        fall = np.append(fall / np.linalg.norm(fall) * SHADOW_SLANT, 0.0)
+        return placed * [1.0, 1.0, 0.0] + placed[..., 2:3] * fall
+
+    def targets(self, motion: Motion, placed: np.ndarray) -> np.ndarray:
+        """Return the look-at point of each frame, ``(T, 3)``."""
+        targets = np.tile(np.asarray(self.target, dtype=np.float64), (len(placed), 1))
+        if self.follow and len(placed):
+            root = placed[:, get_skeleton(motion.skeleton).root, :2]
+            window = max(1, int(round(motion.fps)))  # one second smooths the stride's sway
+            padded = np.pad(root, ((window // 2, window - 1 - window // 2), (0, 0)), mode="edge")
+            kernel = np.ones(window) / window
+            targets[:, 0] += np.convolve(padded[:, 0], kernel, mode="valid")
+            targets[:, 1] += np.convolve(padded[:, 1], kernel, mode="valid")
+        return targets
+
+    def camera(self, width: int, height: int, target=None) -> Camera:
+        """Return the camera for an image of this size looking at ``target`` (default: ours)."""
+        return Camera.look_at(
+            self.target if target is None else target,
+            self.azimuth,
+            self.elevation,
+            self.distance,
+            self.fov,
+            width,
+            height,
+            orthographic=self.orthographic,
+        )
+
+    def as_dict(self) -> dict:
+        """Return the framing as plain data (for the researcher's sidecar)."""
+        return asdict(self)

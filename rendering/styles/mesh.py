@@ -1,0 +1,175 @@
+"""Body meshes: a smooth SMPL-like body around the skeleton, lit, on the shared floor.
+
+The body (see :mod:`rendering.body`) is drawn offscreen by pyrender through EGL and laid
+over the same backdrop and soft floor shadow as the stick figures, in the set's framing.
+Every clip gets the same neutral body colour; left limbs are a shade warmer and right
+ones a shade cooler, just enough to tell the sides apart.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+from PIL import Image, ImageChops, ImageDraw, ImageFilter
+
+from generation.motion import Motion
+from generation.skeletons import get_skeleton
+from rendering import palette
+from rendering.backdrop import Backdrop
+from rendering.body import Body
+from rendering.framing import Framing
+from rendering.stage import Stage
+from rendering.styles.base import Style, register_style
+
+BODY = np.array([168.0, 172.0, 182.0])  # a cool light grey, sRGB
+TINT = 0.16  # how far left and right limbs lean towards the palette's warm and cool
+AMBIENT = 0.3
+KEY, FILL, RIM = 2.2, 1.4, 0.6  # directional light intensities
+SHADOW_SHRINK = 2  # the shadow is drawn this much smaller, then blurred and stretched
+
+
+def _linear(srgb: np.ndarray) -> np.ndarray:
+    """Return linear-light values of sRGB colours in [0, 255] (pyrender shades linearly)."""
+    c = np.asarray(srgb, dtype=float) / 255.0
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def body_colours(sides: np.ndarray) -> np.ndarray:
+    """Return each vertex's linear RGBA colour from its side (``left``/``right``/``centre``)."""
+    tinted = {
+        "left": BODY + (palette.LEFT - BODY) * TINT,
+        "right": BODY + (palette.RIGHT - BODY) * TINT,
+        "centre": BODY,
+    }
+    colours = np.array([_linear(tinted[side]) for side in sides])
+    return np.concatenate([colours, np.ones((len(sides), 1))], axis=1)
+
+
+def composite(backdrop: np.ndarray, rgba: np.ndarray, box) -> np.ndarray:
+    """Lay the premultiplied window ``rgba`` over ``backdrop`` at ``box`` (left, top, ...)."""
+    left, top, right, bottom = box
+    part = np.s_[top:bottom, left:right]
+    over = rgba.astype(np.uint16)
+    under = backdrop[part].astype(np.uint16)
+    mixed = over[..., :3] + (under * (255 - over[..., 3:4]) + 127) // 255
+    backdrop[part] = np.minimum(mixed, 255).astype(np.uint8)
+    return backdrop
+
+
+@register_style("mesh")
+class MeshStyle(Style):
+    """Smooth lit bodies on the checker floor; needs EGL (pyrender) but no GPU."""
+
+    dims = 3
+    pad = 0.12  # an SMPL head reaches this far above its head joint, per figure height
+
+    def __init__(self, framing: Framing, width: int, height: int):
+        super().__init__(framing, width, height)
+        self._backdrop = Backdrop(framing, width, height)
+        self._still = None
+        self._stage: Stage | None = None
+        self._shown = None
+
+    def frames(self, motion: Motion) -> Iterator[np.ndarray]:
+        skeleton = get_skeleton(motion.skeleton)
+        if skeleton.dims != 3:
+            raise ValueError(
+                f"the mesh style draws 3D skeletons; {skeleton.name!r} is {skeleton.dims}D"
+            )
+        placed = self.framing.place(motion)
+        targets = self.framing.targets(motion, placed)
+        body = Body(skeleton, placed)
+        placed = placed + [0.0, 0.0, self._lift(body, placed)]
+        for pose, target in zip(placed, targets):
+            stage = self._stage_for(body)  # per frame: clips of a grid take turns
+            vertices, normals, centres, radii = body.pose(pose)
+            camera = self.framing.camera(self.width, self.height, target)
+            frame = self._scenery(target)
+            self._cast_shadow(frame, camera, centres, radii)
+            box = stage.window(camera.project(vertices)[0], self.width, self.height)
+            if box is not None:
+                composite(frame, stage.draw(vertices, normals, camera, box), box)
+            yield frame
+
+    def close(self) -> None:
+        if self._stage is not None:
+            self._stage.close()
+            self._stage = None
+
+    @staticmethod
+    def _lift(body: Body, placed: np.ndarray) -> float:
+        """Return how far to raise a clip so that its soles, not its lowest joint, touch down.
+
+        Measured where the lowest joint is lowest and applied to every frame, so a
+        set's shared floor still shows a clip that floats or sinks.
+        """
+        lowest = int(np.argmin(placed[..., 2].min(axis=1)))
+        vertices = body.pose(placed[lowest])[0]
+        return float(placed[lowest, :, 2].min() - vertices[:, 2].min())
+
+    def _stage_for(self, body: Body) -> Stage:
+        if self._stage is None:
+            framing = self.framing
+            fall = framing.shadows(np.array([0.0, 0.0, 1.0]))  # where a unit height's shadow falls
+            key = np.array([-fall[0], -fall[1], 1.0])
+            right, _, forward = framing.camera(2, 2).rotation
+            # A fill from the camera's upper left models the front; a rim light from
+            # behind on the right separates the far side from the floor.
+            fill = -forward * [1, 1, 0] - right * 0.7 + [0, 0, 0.6]
+            rim = forward * [1, 1, 0] + right * 0.6 + [0, 0, 0.4]
+            self._stage = Stage(
+                near=0.02 * framing.distance, far=10.0 * framing.distance + 10.0 * framing.height,
+                lights=((key, KEY), (fill, FILL), (rim, RIM)), ambient=AMBIENT,
+            )
+        key = (body.skeleton.name, body.n_vertices)
+        if self._shown != key:
+            self._stage.show(body.faces, body_colours(body.sides))
+            self._shown = key
+        return self._stage
+
+    def _scenery(self, target) -> np.ndarray:
+        """Return a fresh copy of the backdrop with the look-at at ``target``."""
+        if self.framing.follow:
+            return self._backdrop.image(target)
+        if self._still is None:
+            self._still = self._backdrop.image()
+        return self._still.copy()
+
+    def _cast_shadow(self, frame: np.ndarray, camera, centres, radii) -> None:
+        """Darken the floor under the body: a soft shadow plus a darker one at contacts.
+
+        Every ring of the body is a disc in the shadow, drawn small, blurred and stretched;
+        parts near the floor add a tighter, darker layer, as the stick figures' do.
+        """
+        height = self.framing.height
+        pixels, depth = camera.project(self.framing.shadows(centres))
+        pixels = pixels / SHADOW_SHRINK
+        reach = camera.pixel_size(depth) * radii / SHADOW_SHRINK
+        unit = height * float(camera.pixel_size(self.framing.distance)) / SHADOW_SHRINK
+        bottom = centres[:, 2] - radii
+        closeness = 1.0 - np.clip(bottom / (0.15 * height), 0.0, 1.0)
+        layers = ((np.full(len(centres), 90.0), 1.0, 0.02), (closeness**2 * 140, 0.9, 0.008))
+
+        border = reach + 3 * 0.02 * unit + 2
+        size = np.array([self.width, self.height]) // SHADOW_SHRINK
+        low = np.maximum(np.floor((pixels - border[:, None]).min(axis=0)), 0).astype(int)
+        high = np.minimum(np.ceil((pixels + border[:, None]).max(axis=0)), size).astype(int)
+        if (high <= low).any():
+            return
+        pixels = pixels - low
+        masks = []
+        for strength, spread, blur in layers:
+            mask = Image.new("L", tuple(high - low), 0)
+            draw = ImageDraw.Draw(mask)
+            for ring in np.argsort(strength, kind="stable"):  # darkest last: it stays on top
+                (x, y), radius, level = pixels[ring], spread * reach[ring], int(strength[ring])
+                if level > 0:
+                    draw.ellipse((x - radius, y - radius, x + radius, y + radius), fill=int(level))
+            masks.append(mask.filter(ImageFilter.GaussianBlur(max(0.5, blur * unit))))
+        mask = ImageChops.add(*masks)
+        stretched = (mask.width * SHADOW_SHRINK, mask.height * SHADOW_SHRINK)
+        mask = mask.resize(stretched, Image.BILINEAR)
+        image = Image.fromarray(frame)
+        image.paste(palette.SHADOW, tuple(int(v) * SHADOW_SHRINK for v in low), mask)
+        frame[...] = np.asarray(image)

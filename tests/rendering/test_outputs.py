@@ -1,0 +1,119 @@
+"""WebM and GIF beside the mp4, grid videos with contact sheets, and memory that stays flat."""
+
+import json
+import tracemalloc
+
+import numpy as np
+import pytest
+from django.core.management import CommandError, call_command
+from PIL import Image
+
+from generation.formats import npz
+from rendering import Framing, get_style, render_grid, render_set
+from rendering.grid import GAP
+from tests.conftest import make_motion
+from tests.rendering.conftest import make_figure
+from tests.rendering.helpers import decode
+
+SIZE = 96
+
+
+@pytest.fixture(scope="module")
+def every_format(tmp_path_factory):
+    out = tmp_path_factory.mktemp("formats")
+    motions = [make_figure(frames=6, speed=1.0)]
+    return out, render_set(motions, out, size=SIZE, progress=False,
+                           formats=("mp4", "webm", "gif"))
+
+
+def test_webm_and_gif_sit_beside_the_mp4_and_decode(every_format):
+    out, report = every_format
+    clip = report.clips[0]
+    assert set(clip.extras) == {"webm", "gif"}
+    _, mp4 = decode(clip.video)
+    for kind, codec in (("webm", "vp9"), ("gif", "gif")):
+        path = clip.extras[kind]
+        assert path == out / f"{clip.video_hash}.{kind}"
+        meta, frames = decode(path)
+        assert meta["codec"].startswith(codec) and frames.shape == (6, SIZE, SIZE, 3)
+        assert np.abs(frames.astype(int) - mp4).mean() < 6, f"the {kind} shows another picture"
+    record = json.loads((out / "renders.json").read_text())
+    assert record["formats"] == ["mp4", "webm", "gif"]
+    assert record["clips"][0]["extras"] == {"webm": f"{clip.video_hash}.webm",
+                                            "gif": f"{clip.video_hash}.gif"}
+    assert not list(out.glob(".rendering-*")), "temporary files were left behind"
+
+
+def test_extra_formats_are_byte_identical_for_the_same_input(every_format, tmp_path):
+    _, report = every_format
+    again = render_set([make_figure(frames=6, speed=1.0)], tmp_path, size=SIZE, progress=False,
+                       formats=("mp4", "webm", "gif"), framing=report.framing)
+    for kind in ("webm", "gif"):
+        assert again.clips[0].extras[kind].read_bytes() == report.clips[0].extras[kind].read_bytes()
+    assert b"encoder" not in report.clips[0].extras["webm"].read_bytes().lower()
+
+
+def test_formats_are_checked(tmp_path):
+    with pytest.raises(ValueError, match="include 'mp4'"):
+        render_set([make_figure(frames=2)], tmp_path, formats=("gif",), progress=False)
+    with pytest.raises(ValueError, match="unknown video formats"):
+        render_set([make_figure(frames=2)], tmp_path, formats=("mp4", "avi"), progress=False)
+
+
+def test_grid_writes_a_labelled_video_and_a_contact_sheet(tmp_path):
+    motions = [make_figure(frames=n, phase=n) for n in (6, 4, 6)]
+    grid = render_grid(motions, ["real", "a2m", "cond_gru"], tmp_path / "grid.mp4", size=64,
+                       moments=3)
+    band = grid.size[1] - 2 * 64 - GAP
+    band //= 2
+    meta, frames = decode(grid.video)
+    assert frames.shape == (6, 2 * 64 + 2 * band + GAP, 2 * 64 + GAP, 3)
+    assert grid.size == (frames.shape[2], frames.shape[1]) and meta["codec"] == "h264"
+    label = frames[0, :band, :64].astype(int)
+    assert (label.sum(axis=-1) < 400).sum() > 10, "no label text drawn"
+    held = np.s_[band:band + 64, 64 + GAP:]  # the second clip is over: its cell holds still
+    assert np.abs(frames[-1][held].astype(int) - frames[-2][held]).mean() < 1
+    assert np.abs(frames[-1][held].astype(int) - frames[1][held]).mean() > 1
+    sheet = Image.open(grid.sheet)
+    assert grid.sheet == tmp_path / "grid.png"
+    assert sheet.size == (3 * 64 + 2 * GAP, 3 * (64 + band) + 2 * GAP)
+
+
+def test_grid_refuses_what_it_cannot_draw(tmp_path):
+    with pytest.raises(ValueError, match="2 labels for 1 motions"):
+        render_grid([make_figure(frames=2)], ["a", "b"], tmp_path / "g.mp4")
+    with pytest.raises(ValueError, match="motion 1"):
+        render_grid([make_figure(frames=2), make_motion(frames=2, skeleton="h36m15_2d")], None,
+                    tmp_path / "g.mp4")
+
+
+def test_render_command_writes_formats_and_a_grid(tmp_path, capsys):
+    clips = npz.save(tmp_path / "m.npz", [make_figure(frames=4), make_figure(frames=4, phase=2)])
+    out, grid = tmp_path / "out", tmp_path / "grid.mp4"
+    call_command("render", str(clips), "--out", str(out), "--size", "64", "--formats", "webm,gif",
+                 "--grid", str(grid), "--grid-size", "48", verbosity=0)
+    for kind in ("mp4", "webm", "gif", "png"):
+        assert len(list(out.glob(f"*.{kind}"))) == 2, kind
+    assert grid.is_file() and grid.with_suffix(".png").is_file()
+    assert "grid of 2 clips" in capsys.readouterr().out
+    with pytest.raises(CommandError, match="unknown --formats"):
+        call_command("render", str(clips), "--out", str(out), "--formats", "avi")
+    with pytest.raises(CommandError, match="--out"):
+        call_command("render", str(clips))
+
+
+@pytest.mark.parametrize("style", ["stick", "mesh"])
+def test_memory_does_not_grow_with_clip_length(style):
+    """Frames stream through: a clip ten times longer needs no more memory."""
+    framing = Framing.from_motions([make_figure(frames=2)], pad=get_style(style).pad)
+    with get_style(style)(framing, 64, 64) as drawer:
+        peaks = []
+        for frames in (8, 80):
+            motion = make_figure(frames=frames, speed=1.0)
+            next(drawer.frames(make_figure(frames=1)))  # caches and GL buffers made first
+            tracemalloc.start()
+            for _ in drawer.frames(motion):
+                pass
+            peaks.append(tracemalloc.get_traced_memory()[1])
+            tracemalloc.stop()
+    assert peaks[1] < peaks[0] + 256 * 1024, peaks
