@@ -1,0 +1,280 @@
+"""Repeated evaluation of a motion set against real data: mean and 95 % CI of each metric.
+
+The protocol follows Action2Motion (seed 000: 20 repeats, 95 % interval) and reports
+"Real" beside each metric, as the seeds' tables do. Each repeat ``r`` draws, with a
+generator seeded by ``(seed, r)``:
+
+- the generated motions, resampled with replacement within each action (a bootstrap that
+  keeps the number per action; A2M generated a fresh set per repeat);
+- as many real test clips per action, with replacement (A2M: "real motions obtained by
+  sampling with replacement from the test set") — FID's reference;
+- for the Real column, a draw of test clips in the same way, compared with a draw of real
+  training clips;
+- the random pairs of diversity and multimodality.
+
+MMD, APD, n-APD and mode homogeneity use the distinct motions of a draw (duplicates
+would bias these pairwise estimates) and compare them with every real clip of the
+action (seed 003: "real test sequences of action class j"). Per-action values are
+averaged over the actions drawn; an action with fewer than 2 distinct motions in a
+draw is left out of that repeat's average.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from analysis import metrics as M
+
+METRICS = (
+    "fid", "accuracy", "diversity", "multimodality", "mmd_avg", "mmd_seq", "apd", "n_apd",
+    "mode_homogeneity", "dist_e",
+)
+# What each metric needs beyond joints and labels, and how to supply it.
+NEEDS = {
+    "fid": ("features", "an action classifier"),
+    "accuracy": ("predictions", "an action classifier"),
+    "diversity": ("features", "an action classifier"),
+    "multimodality": ("features", "an action classifier"),
+    "mode_homogeneity": ("modes", "a mode index per motion (array 'modes' in the motions file)"),
+    "dist_e": ("end_targets", "target end points (array 'end_targets' in the motions file)"),
+}
+# Metrics with no meaning for real data (real clips have no modes or targets).
+GENERATED_ONLY = ("mode_homogeneity", "dist_e")
+LOWER_IS_BETTER = ("fid", "mmd_avg", "mmd_seq", "dist_e")
+
+
+@dataclass
+class MotionSet:
+    """One set of motions as arrays.
+
+    ``joints`` ``(N, T, J, D)``; ``labels`` ``(N,)`` action indices; optional
+    ``features`` ``(N, F)`` and ``predictions`` ``(N,)`` of the action classifier,
+    ``modes`` ``(N,)``, ``end_targets`` and ``end_points`` ``(N, D)`` (reached end of the
+    root, relative to its start).
+    """
+
+    joints: np.ndarray
+    labels: np.ndarray
+    features: np.ndarray | None = None
+    predictions: np.ndarray | None = None
+    modes: np.ndarray | None = None
+    end_targets: np.ndarray | None = None
+    end_points: np.ndarray | None = None
+
+    def __post_init__(self):
+        self.joints = np.asarray(self.joints, dtype=np.float64)
+        self.labels = np.asarray(self.labels)
+        count = len(self.joints)
+        if self.joints.ndim < 3 or count == 0:
+            raise M.MetricError(f"joints must be (N, T, ...) with N >= 1; got {self.joints.shape}")
+        for name in ("labels", "features", "predictions", "modes", "end_targets", "end_points"):
+            value = getattr(self, name)
+            if value is not None and len(value) != count:
+                raise M.MetricError(f"{name} has {len(value)} rows for {count} motions")
+
+    def missing(self, metric: str) -> str | None:
+        """Return what ``metric`` needs that this set lacks, or ``None``."""
+        if metric == "dist_e" and (self.end_targets is None or self.end_points is None):
+            return NEEDS["dist_e"][1]
+        if metric in NEEDS and getattr(self, NEEDS[metric][0]) is None:
+            return NEEDS[metric][1]
+        return None
+
+
+def check_metrics(metrics) -> list[str]:
+    """Return the metric names to compute (default: all), or raise naming the unknown ones."""
+    if metrics is None:
+        return list(METRICS)
+    metrics = [metrics] if isinstance(metrics, str) else list(metrics)
+    unknown = [name for name in metrics if name not in METRICS]
+    if unknown:
+        raise M.MetricError(
+            f"unknown metric {', '.join(map(repr, unknown))}; choose from {', '.join(METRICS)}"
+        )
+    return list(dict.fromkeys(metrics))
+
+
+def run(generated: MotionSet, test: MotionSet, train: MotionSet, metrics=None, repeats: int = 20,
+        seed: int = 0, diversity_pairs: int = 200, multimodality_pairs: int = 20,
+        bandwidths=M.BANDWIDTHS) -> dict:
+    """Evaluate ``generated`` against real ``test`` clips, and ``test`` against ``train`` (Real).
+
+    Returns ``{"metrics": {name: {"mean", "ci", "std", "values", "real"}}, "skipped":
+    {name: reason}}`` where ``real`` is the same summary for real test clips against
+    real training clips (``None`` for metrics of generated sets only).
+    """
+    metrics = check_metrics(metrics)
+    if int(repeats) != repeats or repeats < 1:
+        raise M.MetricError(f"repeats must be a positive integer; got {repeats!r}")
+    skipped = {name: f"needs {generated.missing(name)}" for name in metrics if generated.missing(name)}
+    metrics = [name for name in metrics if name not in skipped]
+    actions = np.unique(generated.labels)
+    for name, real_set in (("test", test), ("train", train)):
+        absent = [str(a) for a in actions if not np.any(real_set.labels == a)]
+        if absent:
+            raise M.MetricError(
+                f"the real {name} clips have no motions of action {', '.join(absent)}; "
+                f"evaluate actions the real data has"
+            )
+        for metric in metrics:
+            if metric not in GENERATED_ONLY and real_set.missing(metric):
+                raise M.MetricError(f"real {name} clips lack what {metric} needs: {real_set.missing(metric)}")
+
+    draws = [_draw(generated, test, train, np.random.default_rng([seed, r])) for r in range(repeats)]
+    values = {name: np.empty(repeats) for name in metrics}
+    real_values = {name: np.empty(repeats) for name in metrics if name not in GENERATED_ONLY}
+    for r, draw in enumerate(draws):
+        rng = np.random.default_rng([seed, r, 1])
+        for name in metrics:
+            if name in _POINTWISE:
+                values[name][r] = _POINTWISE[name](generated, draw["gen"], test, draw["ref"], rng,
+                                                   diversity_pairs, multimodality_pairs)
+                if name in real_values:
+                    real_values[name][r] = _POINTWISE[name](
+                        test, draw["real"], train, draw["real_ref"], rng, diversity_pairs,
+                        multimodality_pairs,
+                    )
+    pairwise = [name for name in metrics if name not in _POINTWISE]
+    if pairwise:
+        gen_draws = [draw["gen"] for draw in draws]
+        real_draws = [draw["real"] for draw in draws]
+        values.update(_pairwise(generated, test, gen_draws, pairwise, bandwidths))
+        real_names = [name for name in pairwise if name in real_values]
+        real_values.update(_pairwise(test, train, real_draws, real_names, bandwidths))
+    return {
+        "metrics": {
+            name: {**_summary(values[name]),
+                   "real": _summary(real_values[name]) if name in real_values else None}
+            for name in metrics
+        },
+        "skipped": skipped,
+    }
+
+
+def _summary(values: np.ndarray) -> dict:
+    finite = values[np.isfinite(values)]
+    if finite.size == 0:
+        return {"mean": None, "ci": None, "std": None, "values": [None] * len(values)}
+    mean, ci = M.mean_ci(finite)
+    return {"mean": mean, "ci": ci, "std": float(finite.std()),
+            "values": [float(v) if np.isfinite(v) else None for v in values]}
+
+
+def _stratified(rng, pool_labels, counts: dict) -> np.ndarray:
+    """Return indices into ``pool_labels``: ``counts[a]`` per action ``a``, with replacement."""
+    return np.concatenate([
+        rng.choice(np.flatnonzero(pool_labels == action), size=count)
+        for action, count in counts.items()
+    ])
+
+
+def _draw(generated, test, train, rng) -> dict:
+    """Return one repeat's indices: generated, its real reference, Real candidate and reference."""
+    actions, sizes = np.unique(generated.labels, return_counts=True)
+    counts = dict(zip(actions, sizes))
+    return {
+        "gen": _stratified(rng, generated.labels, counts),
+        "ref": _stratified(rng, test.labels, counts),
+        "real": _stratified(rng, test.labels, counts),
+        "real_ref": _stratified(rng, train.labels, counts),
+    }
+
+
+def _fid(cand, idx, ref, ref_idx, rng, *_):
+    return M.fid(cand.features[idx], ref.features[ref_idx])
+
+
+def _accuracy(cand, idx, *_):
+    return M.accuracy(cand.predictions[idx], cand.labels[idx])
+
+
+def _diversity(cand, idx, ref, ref_idx, rng, diversity_pairs, _):
+    return M.diversity(cand.features[idx], diversity_pairs, rng)
+
+
+def _multimodality(cand, idx, ref, ref_idx, rng, _, multimodality_pairs):
+    return M.multimodality(cand.features[idx], cand.labels[idx], multimodality_pairs, rng)
+
+
+def _dist_e(cand, idx, *_):
+    return M.dist_e(cand.end_targets[idx], cand.end_points[idx])
+
+
+# Metrics computed on each repeat's draw directly (cheap: features or one value per motion).
+_POINTWISE = {
+    "fid": _fid, "accuracy": _accuracy, "diversity": _diversity,
+    "multimodality": _multimodality, "dist_e": _dist_e,
+}
+
+
+# Kernel values held at once when MMD_avg batches frames (float32: 4 bytes each).
+KERNEL_BUDGET = 8_000_000
+
+
+def _pairwise(cand: MotionSet, ref: MotionSet, draws: list[np.ndarray], names: list[str],
+              bandwidths) -> dict[str, np.ndarray]:
+    """Return per-repeat values ``(R,)`` of the pairwise metrics, action by action.
+
+    For each action, squared distances within the candidate motions, to the reference
+    clips and within those are computed once (per frame for MMD_avg, in batches of
+    frames); each repeat's distinct draw is a 0/1 mask over the candidates.
+    """
+    if not names:
+        return {}
+    per_action = {name: [] for name in names}
+    for action in np.unique(cand.labels):
+        members = np.flatnonzero(cand.labels == action)
+        pool = cand.joints[members]
+        both = np.concatenate([pool, ref.joints[ref.labels == action]])
+        both = both.reshape(len(both), both.shape[1], -1)  # (P + N, T, J * D)
+        size = len(members)
+        masks = np.zeros((len(draws), size))
+        for r, drawn in enumerate(draws):
+            masks[r, np.searchsorted(members, np.intersect1d(drawn, members))] = 1.0
+        if "mmd_avg" in names:
+            per_frame = len(bandwidths) * len(both) ** 2
+            chunk = max(1, KERNEL_BUDGET // per_frame)
+            frames = both.shape[1]
+            frame_mmd = 0.0
+            for start in range(0, frames, chunk):
+                d = M.sq_dists(both[:, start:start + chunk].transpose(1, 0, 2))  # (t, P + N, P + N)
+                blocks = d[:, :size, :size], d[:, :size, size:], d[:, size:, size:]
+                frame_mmd = frame_mmd + M.subset_mmd(*blocks, masks, bandwidths).sum(0)
+            per_action["mmd_avg"].append(np.max(frame_mmd / frames, axis=0))
+        d_seq = M.sq_dists(both.reshape(len(both), -1))
+        d_cand, d_cross, d_ref = d_seq[:size, :size], d_seq[:size, size:], d_seq[size:, size:]
+        if "mmd_seq" in names:
+            values = M.subset_mmd(d_cand, d_cross, d_ref, masks, bandwidths)
+            per_action["mmd_seq"].append(np.max(values, axis=0))
+        dists = np.sqrt(d_cand)
+        apd = M.subset_apd(dists, masks)
+        if "apd" in names:
+            per_action["apd"].append(apd)
+        if "n_apd" in names:
+            real_apd = M.subset_apd(np.sqrt(d_ref), np.ones(len(d_ref)))[0]
+            per_action["n_apd"].append(100.0 * apd / real_apd)
+        if "mode_homogeneity" in names:
+            per_action["mode_homogeneity"].append(_mode_drop(dists, masks, apd, cand.modes[members]))
+    with np.errstate(invalid="ignore"):
+        return {name: _nanmean(np.stack(rows)) for name, rows in per_action.items()}
+
+
+def _mode_drop(dists, masks, apd, modes) -> np.ndarray:
+    """Return ``100 * (APD - mode-APD) / APD`` per repeat for one action (see :func:`M.mode_homogeneity`)."""
+    weighted = np.zeros(len(masks))
+    for mode in np.unique(modes):
+        mode_masks = masks * (modes == mode)
+        mode_apd = np.nan_to_num(M.subset_apd(dists, mode_masks))  # a mode of one: APD 0
+        weighted += mode_masks.sum(1) * mode_apd
+    return 100.0 * (apd - weighted / masks.sum(1)) / apd
+
+
+def _nanmean(rows: np.ndarray) -> np.ndarray:
+    """Return the mean over actions (axis 0), ignoring NaN; all-NaN columns stay NaN."""
+    valid = np.isfinite(rows)
+    counts = valid.sum(0)
+    sums = np.where(valid, rows, 0.0).sum(0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)

@@ -1,0 +1,92 @@
+"""Exclusion rules: which participants and trials the statistics leave out, counted.
+
+Rules, in order:
+
+1. (optional) participants who did not complete the study;
+2. participants who failed more than ``max_failed_catch`` catch trials: all their
+   judgements go;
+3. trials answered faster than ``min_time_factor`` times the length of their longest
+   clip (``time_ms < factor * duration * 1000``): the trial goes. Skipped, with a note,
+   when the table has no clip durations.
+
+Every rule is counted even when exclusions are off, so a report can say what they
+would have removed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+COLUMNS = ["rule", "applied", "participants", "trials", "judgements"]
+
+
+def apply(rows: pd.DataFrame, config) -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
+    """Return the rows kept, the exclusion table and notes.
+
+    ``rows`` holds every trial kind with ``pcode``, ``trial_key``, ``trial_kind``,
+    ``catch_passed`` and, when known, ``time_ms``, ``duration`` and ``completed``. The
+    table counts main-trial judgements (catch and repeat trials never enter the
+    statistics); ``participants`` is how many participants a rule touches.
+    """
+    main = (rows["trial_kind"] == "main").to_numpy() & ~rows["is_catch"].to_numpy()
+    notes = []
+    records = [_count("Main-trial judgements before exclusions", "", rows, main)]
+    keep = np.ones(len(rows), dtype=bool)
+
+    if config.completed_only:
+        if "completed" in rows.columns:
+            flagged = ~rows["completed"].fillna(False).to_numpy(dtype=bool)
+            records.append(_count("Did not complete the study", "yes", rows, main & flagged))
+            keep &= ~flagged
+        else:
+            notes.append("the table has no 'completed' column: all participants were kept")
+
+    failed = rows["catch_passed"].eq(False).fillna(False).to_numpy(dtype=bool)
+    failed_trials = pd.Series(rows["trial_key"].to_numpy()[failed]).groupby(
+        rows["pcode"].to_numpy()[failed]).nunique()
+    failing = failed_trials.index[failed_trials > config.max_failed_catch]
+    flagged = rows["pcode"].isin(failing).to_numpy()
+    label = f"Failed more than {config.max_failed_catch} catch trial(s)"
+    records.append(_count(label, _applied(config), rows, main & flagged))
+    if config.exclusions:
+        keep &= ~flagged
+
+    speed = f"Answered faster than {config.min_time_factor:g} x the clip length"
+    has_duration = "duration" in rows.columns and rows["duration"].notna().any()
+    has_time = "time_ms" in rows.columns and rows["time_ms"].notna().any()
+    if not (has_duration and has_time):
+        missing = "clip durations ('duration')" if not has_duration else "answer times ('time_ms')"
+        notes.append(f"the table has no {missing}: the rule on answering faster than the clip "
+                     f"length was skipped")
+        records.append({"rule": speed, "applied": "skipped (no data)", "participants": 0,
+                        "trials": 0, "judgements": 0})
+    else:
+        duration = pd.to_numeric(rows["duration"], errors="coerce")
+        longest = duration.groupby(rows["trial_key"].to_numpy()).transform("max").to_numpy()
+        time_ms = pd.to_numeric(rows["time_ms"], errors="coerce").to_numpy(dtype=float)
+        with np.errstate(invalid="ignore"):
+            fast = time_ms < config.min_time_factor * longest * 1000.0
+        unknown = int(np.count_nonzero(main & (np.isnan(time_ms) | np.isnan(longest))))
+        if unknown:
+            notes.append(f"{unknown} judgement(s) with no answer time or clip duration were kept")
+        records.append(_count(speed, _applied(config), rows, main & fast & keep))
+        if config.exclusions:
+            keep &= ~fast
+
+    records.append(_count("Analysed", "", rows, main & keep))
+    return rows.loc[keep], pd.DataFrame(records, columns=COLUMNS), notes
+
+
+def _applied(config) -> str:
+    return "yes" if config.exclusions else "no (--no-exclusions)"
+
+
+def _count(rule, applied, rows, mask) -> dict:
+    return {
+        "rule": rule,
+        "applied": applied,
+        "participants": int(pd.unique(rows["pcode"].to_numpy()[mask]).size),
+        "trials": int(pd.unique(rows["trial_key"].to_numpy()[mask]).size),
+        "judgements": int(np.count_nonzero(mask)),
+    }

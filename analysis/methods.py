@@ -1,0 +1,75 @@
+"""The methods paragraph of a report: participants, exclusions, tests, agreement."""
+
+from __future__ import annotations
+
+from analysis.formatting import number
+
+
+def methods_paragraph(result) -> str:
+    """Return a paragraph describing how ``result`` (a ``StudyResult``) was obtained."""
+    counts, config = result.counts, result.config
+    sentences = []
+    actions = f" of {counts['actions']} actions" if counts["actions"] > 1 else ""
+    sentences.append(
+        f"{counts['participants']} participants gave {counts['judgements']} judgements in "
+        f"{counts['trials']} trials{actions}, comparing {len(counts['sources'])} sources "
+        f"({', '.join(counts['sources'])}); {result.design}"
+    )
+    if result.demographics is not None and len(result.demographics) > 1:
+        details = [f"{row.variable}: {row.summary}" for row in result.demographics.iloc[1:].itertuples()]
+        sentences.append("Participants reported " + "; ".join(details))
+    sentences.append(_exclusions(result))
+    sentences.extend(result.analysis.methods)
+    agreement = result.agreement
+    if agreement["n_units"]:
+        interval = ""
+        if agreement["ci_low"] == agreement["ci_low"]:  # not NaN
+            interval = (f" [{number(agreement['ci_low'], 2)}, {number(agreement['ci_high'], 2)}], "
+                        f"{config.confidence:.0%} percentile interval over {config.bootstrap} "
+                        f"bootstrap resamples of units")
+        sentences.append(
+            f"Agreement between participants was measured with Krippendorff's alpha at the "
+            f"{agreement['level']} level over the {agreement['n_units']} units ({agreement['unit']}) "
+            f"judged at least twice: alpha = {number(agreement['alpha'], 3)}{interval}"
+        )
+    for row in result.quality.itertuples():
+        sentences.append(f"Attention: {row.check}: {number(row.value, 3)} ({row.detail}, "
+                         f"{row.participants} participants)")
+    sentences.append(
+        f"All intervals are {config.confidence:.0%}; p-values of families of comparisons are "
+        f"Holm-corrected"
+    )
+    return " ".join(_sentence(s) for s in sentences if s)
+
+
+def _exclusions(result) -> str:
+    table = result.exclusions.set_index("rule")
+    before = table.iloc[0]
+    rules = table.iloc[1:-1]
+    applied = rules.loc[rules["applied"] == "yes"]
+    parts = [f"{row.Index.lower()}: {row.participants} participants, {row.trials} trials, "
+             f"{row.judgements} judgements" for row in applied.itertuples()]
+    text = ""
+    if parts:
+        text = (f"Of {before['judgements']} main-trial judgements from {before['participants']} "
+                f"participants we excluded those of participants and trials that met a rule ("
+                + "; ".join(parts) + ")")
+    elif not result.config.exclusions:
+        flagged = [f"{row.Index.lower()}: {row.judgements} judgements" for row in rules.itertuples()
+                   if row.applied.startswith("no")]
+        text = "No exclusions were applied" + (f" (the rules would have flagged {'; '.join(flagged)})"
+                                               if flagged else "")
+    else:
+        text = "No judgement met an exclusion rule"
+    skipped = rules.loc[rules["applied"].str.startswith("skipped")]
+    if len(skipped):
+        text += ("; the rule on answering faster than the clip length could not be applied because "
+                 "the table has no clip durations or answer times")
+    text += "; catch trials and repeated trials do not enter the statistics"
+    return text
+
+
+def _sentence(text: str) -> str:
+    text = text.strip()
+    text = text[0].upper() + text[1:]
+    return text if text.endswith(".") else text + "."

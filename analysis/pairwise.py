@@ -1,0 +1,240 @@
+"""Pairwise preference: two clips side by side, the better one (or both good, both bad).
+
+Reported: the win rate of each pair of sources over the comparisons one of them won
+(Wilson intervals, binomial test against 50 %, Holm-corrected), Bradley-Terry worths
+with bootstrap intervals (ties left out), and the left/right position bias.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pandas as pd
+
+from analysis import stats, worth
+from analysis.counts import ranked_sources, source_counts
+from analysis.formatting import bootstrap_text, number, p_text
+from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
+from analysis.tables import AnalysisError
+
+CHOICES = ("left", "right", "both_good", "both_bad")
+
+
+@register_analysis("pairwise")
+class Pairwise(StudyAnalysis):
+    """Each trial shows two clips; the participant picks one, or says both good / both bad."""
+
+    answer = "choice"
+    agreement_level = "nominal"
+    required = ("position",)
+    design = ("each trial showed two clips of one action side by side and participants chose the "
+              "better one, or answered that both were good or both bad")
+
+    def answered(self, rows):
+        notes = []
+        choice = rows["choice"].astype("string").str.strip().str.lower()
+        unknown = sorted(set(choice.dropna().unique()) - set(CHOICES))
+        if unknown:
+            raise AnalysisError(f"unknown choice(s) {', '.join(unknown)}; expected {', '.join(CHOICES)}")
+        if choice.isna().any():
+            notes.append(f"{int(choice.isna().sum())} clip(s) of unanswered comparisons were left out")
+        rows = rows.loc[choice.notna().to_numpy()].copy()
+        rows["choice"] = pd.Categorical(choice.dropna(), categories=CHOICES)
+        rows["position"] = pd.to_numeric(rows["position"], errors="coerce")
+        rows = rows.sort_values(["trial_key", "position"], kind="stable")
+        shape = rows.groupby("trial_key")["position"].agg(["size", "min", "max"])
+        good = shape.index[(shape["size"] == 2) & (shape["min"] == 0) & (shape["max"] == 1)]
+        if len(good) < len(shape):
+            notes.append(f"{len(shape) - len(good)} comparison(s) without exactly one left (position 0) "
+                         f"and one right (position 1) clip were left out")
+            rows = rows.loc[rows["trial_key"].isin(good)]
+        return rows, notes
+
+    def judgement_values(self, rows):
+        """Return one value per comparison: its pair of clips (in a fixed order) and the
+        answer relative to that order: 0 the first clip won, 1 the second, 2 both good,
+        3 both bad."""
+        trials = comparisons(rows, sorted(rows["source"].unique()))
+        left, right = trials["left_stimulus"], trials["right_stimulus"]
+        if pd.api.types.is_integer_dtype(left) and pd.api.types.is_integer_dtype(right):
+            left, right = left.to_numpy(np.int64), right.to_numpy(np.int64)
+            # Stimulus ids are database keys: two fit in one integer.
+            unit = np.minimum(left, right) * (1 << 32) + np.maximum(left, right)
+        else:
+            left, right = left.astype(str).to_numpy(object), right.astype(str).to_numpy(object)
+            unit = np.where(left <= right, left + "|" + right, right + "|" + left)
+        first_is_left = left <= right
+        choice = trials["choice"].to_numpy()
+        value = np.where(choice >= 2, choice, np.where(first_is_left, choice, 1 - choice))
+        return pd.DataFrame({"participant": trials["pcode"].to_numpy(), "unit": unit, "value": value})
+
+    def analyse(self, rows, config):
+        names = sorted(rows["source"].unique())
+        trials = comparisons(rows, names)
+        pairs, matrix = win_rates(trials, names, config.confidence)
+        resampled = worth.resample_participants(int(rows["pcode"].max()) + 1, config.bootstrap, config.seed)
+        fitted = bradley_terry(trials, names, config, resampled)
+        sources = source_counts(rows).join(fitted)
+        decided = trials.loc[trials["winner"] >= 0]
+        wins = np.bincount(decided["winner"], minlength=len(names))
+        played = (np.bincount(decided["left"], minlength=len(names))
+                  + np.bincount(decided["right"], minlength=len(names)))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            sources["win_rate"] = pd.Series(wins / played, index=names)
+        sources = ranked_sources(sources)[["score", "ci_low", "ci_high", "win_rate", "n_participants",
+                                           "n_judgements"]]
+        bias = position_bias(trials, config.confidence)
+        ties = int((trials["winner"] < 0).sum())
+        tables = [
+            Table("sources", f"Bradley-Terry worth (log scale, 0 = average source) with "
+                  f"{config.confidence:.0%} bootstrap intervals, and the share of decided "
+                  f"comparisons won", sources),
+            Table("win_rates", f"Win rate of a over b among decided comparisons, {config.confidence:.0%} "
+                  f"Wilson intervals, binomial test against 50 % (Holm)", pairs),
+            Table("position_bias", "Share of decided comparisons won by the left clip",
+                  pd.DataFrame([bias])),
+        ]
+        if "action" in rows.columns and rows["action"].nunique() > 1:
+            tables.append(Table("by_action", "Bradley-Terry worth per action",
+                                self._by_action(rows, trials, names, config, resampled)))
+        methods = [
+            f"For each pair of sources we report the share of decided comparisons (a clip chosen) "
+            f"won by each, with Wilson {config.confidence:.0%} intervals and exact binomial tests "
+            f"against 50 % with Holm's correction; {ties} comparison(s) answered 'both good' or "
+            f"'both bad' count as ties and are left out of win rates and worths",
+            f"a Bradley-Terry worth per source was fitted to the decided comparisons (log scale, "
+            f"centred on 0, with a weak prior of one virtual win and loss per source), "
+            f"{bootstrap_text(config)}",
+            f"position bias: the left clip won {number(bias['share_left'], 3)} "
+            f"[{number(bias['ci_low'], 3)}, {number(bias['ci_high'], 3)}] of "
+            f"{bias['n_decided']} decided comparisons (binomial test against 0.5: "
+            f"{p_text(bias['p'])})",
+        ]
+        plots = [
+            Plot("worth", "Bradley-Terry worth", _worth_plot(sources)),
+            Plot("win_matrix", "Win rate of each source (row) against each other (column)",
+                 _matrix_plot(matrix.loc[sources.index, sources.index])),
+        ]
+        return Analysis(measure="Bradley-Terry worth (log scale)", sources=sources, tables=tables,
+                        plots=plots, methods=methods, tests={"position_bias": bias, "ties": ties})
+
+    def _by_action(self, rows, trials, names, config, resampled):
+        frames = []
+        actions = rows["action"].to_numpy()
+        for action, group in trials.groupby("action", sort=True):
+            present = np.unique(np.concatenate([group["left"], group["right"]]))
+            frame = source_counts(rows.loc[actions == action])
+            if len(present) > 1:
+                frame = frame.join(bradley_terry(group, names, config, resampled, present))
+            frame.insert(0, "action", action)
+            frames.append(frame.reset_index())
+        columns = ["action", "source", "score", "ci_low", "ci_high", "n_participants", "n_judgements"]
+        return pd.concat(frames, ignore_index=True).reindex(columns=columns)
+
+
+def comparisons(rows: pd.DataFrame, names) -> pd.DataFrame:
+    """Return one row per trial, as codes: ``left`` and ``right`` source (index into
+    ``names``), ``left_stimulus``/``right_stimulus`` (ids), ``choice`` (index into ``CHOICES``)
+    and the ``winner``/``loser`` source (-1 for ties), with ``pcode`` and ``action``.
+
+    ``rows`` are sorted by trial and position with two clips per trial (as
+    :meth:`Pairwise.answered` leaves them).
+    """
+    sources = pd.Categorical(rows["source"], categories=names).codes.astype(np.int64)
+    stimuli = rows["stimulus"]
+    choice = pd.Categorical(rows["choice"], categories=CHOICES).codes[0::2].astype(np.int64)
+    left, right = sources[0::2], sources[1::2]
+    frame = pd.DataFrame({
+        "trial_key": rows["trial_key"].to_numpy()[0::2],
+        "pcode": rows["pcode"].to_numpy()[0::2],
+        "left": left,
+        "right": right,
+        "left_stimulus": stimuli.iloc[0::2].to_numpy(),
+        "right_stimulus": stimuli.iloc[1::2].to_numpy(),
+        "choice": choice,
+        "winner": np.select([choice == 0, choice == 1], [left, right], -1),
+        "loser": np.select([choice == 0, choice == 1], [right, left], -1),
+    })
+    if "action" in rows.columns:
+        frame["action"] = rows["action"].to_numpy()[0::2]
+    return frame
+
+
+def win_rates(trials: pd.DataFrame, names, confidence: float = 0.95):
+    """Return the per-pair table and the ``(K, K)`` matrix of row-over-column win rates."""
+    k = len(names)
+    decided = trials.loc[trials["winner"] >= 0]
+    wins = np.bincount(decided["winner"] * k + decided["loser"], minlength=k * k).reshape(k, k)
+    tied = trials.loc[trials["winner"] < 0]
+    pair = np.minimum(tied["left"], tied["right"]) * k + np.maximum(tied["left"], tied["right"])
+    ties = {name: np.bincount(pair[tied["choice"] == CHOICES.index(name)], minlength=k * k).reshape(k, k)
+            for name in ("both_good", "both_bad")}
+    records = []
+    for a, b in itertools.combinations(range(k), 2):
+        won_a, won_b = int(wins[a, b]), int(wins[b, a])
+        n = won_a + won_b
+        low, high = stats.wilson_interval(won_a, n, confidence)
+        records.append({
+            "a": names[a], "b": names[b], "wins_a": won_a, "wins_b": won_b,
+            "both_good": int(ties["both_good"][a, b]), "both_bad": int(ties["both_bad"][a, b]),
+            "win_rate_a": won_a / n if n else np.nan, "ci_low": float(low), "ci_high": float(high),
+            "p": stats.binomial_p(won_a, n, 0.5),
+        })
+    table = pd.DataFrame(records)
+    if len(table):
+        table["p_holm"] = stats.holm(table["p"])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        matrix = pd.DataFrame(wins / (wins + wins.T), index=names, columns=names)
+    return table, matrix
+
+
+def bradley_terry(trials: pd.DataFrame, names, config, resampled=None, present=None) -> pd.DataFrame:
+    """Return ``score`` (log-worth), ``ci_low``, ``ci_high`` per source from decided comparisons.
+
+    ``present`` (source codes) restricts the fit to the sources a subset compared.
+    """
+    present = np.arange(len(names)) if present is None else np.asarray(present)
+    index = pd.Index([names[i] for i in present], name="source")
+    decided = trials.loc[trials["winner"] >= 0]
+    columns = ["score", "ci_low", "ci_high"]
+    if decided.empty:
+        return pd.DataFrame(np.nan, index=index, columns=columns)
+    recode = np.full(len(names), -1)
+    recode[present] = np.arange(len(present))
+    orders = np.stack([recode[decided["winner"]], recode[decided["loser"]]], axis=1)
+    n_participants = None if resampled is None else resampled.shape[1]
+    data = worth.rankings(orders, decided["pcode"].to_numpy(), len(present), n_participants)
+    fitted = worth.bootstrap(data, config.bootstrap, seed=config.seed, confidence=config.confidence,
+                             resampled=resampled)
+    return pd.DataFrame({"score": fitted["theta"], "ci_low": fitted["ci_low"],
+                         "ci_high": fitted["ci_high"]}, index=index)
+
+
+def position_bias(trials: pd.DataFrame, confidence: float = 0.95) -> dict:
+    """Return the share of decided comparisons won by the left clip, its interval and test."""
+    decided = trials["winner"] >= 0
+    left = int((trials["choice"] == CHOICES.index("left")).sum())
+    n = int(decided.sum())
+    low, high = stats.wilson_interval(left, n, confidence)
+    return {"share_left": left / n if n else float("nan"), "ci_low": float(low), "ci_high": float(high),
+            "left": left, "n_decided": n, "p": stats.binomial_p(left, n, 0.5),
+            "n_participants": int(trials.loc[decided, "pcode"].nunique())}
+
+
+def _worth_plot(sources):
+    def draw():
+        from analysis.figures import interval_figure
+
+        return interval_figure(sources, "Bradley-Terry log-worth", reference=0.0)
+
+    return draw
+
+
+def _matrix_plot(matrix):
+    def draw():
+        from analysis.figures import win_matrix_figure
+
+        return win_matrix_figure(matrix)
+
+    return draw

@@ -1,0 +1,104 @@
+"""Realism ratings 1-5: the mean score per source (seed 003, Table 3; seed 004, Table 5).
+
+Means come with Student-t intervals; sources are compared by their rating
+distributions (Kruskal-Wallis across all, Mann-Whitney U between each pair with Holm's
+correction), which respects that the scale is ordinal.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from analysis import stats
+from analysis.counts import ranked_sources, source_counts
+from analysis.formatting import number, p_text
+from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
+from analysis.tables import AnalysisError
+
+SCALE = (1, 5)
+
+
+@register_analysis("rating_standards")
+class RatingStandards(StudyAnalysis):
+    """Each clip is rated 1-5 after scoring standards with example clips (seed 003)."""
+
+    answer = "rating"
+    agreement_level = "ordinal"
+    design = ("each clip was rated from 1 to 5 (higher = more realistic) after participants saw "
+              "five scoring standards, each a description and an example clip")
+
+    def answered(self, rows):
+        ratings = pd.to_numeric(rows["rating"], errors="coerce")
+        notes = []
+        if ratings.isna().any():
+            notes.append(f"{int(ratings.isna().sum())} clip(s) without a rating were left out")
+        low, high = SCALE
+        bad = ratings.notna() & ((ratings % 1 != 0) | (ratings < low) | (ratings > high))
+        if bad.any():
+            raise AnalysisError(f"{int(bad.sum())} rating(s) are not whole numbers from {low} to "
+                                f"{high}, e.g. {ratings[bad].iloc[0]!r}")
+        rows = rows.loc[ratings.notna().to_numpy()].copy()
+        rows["rating"] = ratings.dropna().to_numpy(dtype=np.int64)
+        return rows, notes
+
+    def analyse(self, rows, config):
+        names = sorted(rows["source"].unique())
+        sources = mean_ratings(rows, config.confidence)
+        values, groups = rows["rating"].to_numpy(), rows["source"].to_numpy()
+        omnibus = stats.kruskal_wallis(values, groups, names)
+        posthoc = stats.pairwise_mann_whitney(values, groups, names)
+        sources = ranked_sources(sources)
+        low, high = SCALE
+        distribution = (pd.crosstab(rows["source"], rows["rating"], normalize="index")
+                        .reindex(index=sources.index, columns=range(low, high + 1), fill_value=0.0))
+        distribution.columns = [f"rating_{r}" for r in distribution.columns]
+        distribution["n_judgements"] = sources["n_judgements"]
+        tables = [
+            Table("sources", f"Mean rating ({low}-{high}, higher = more realistic) with "
+                  f"{config.confidence:.0%} t intervals", sources),
+            Table("rating_shares", "Share of each source's clips at each rating", distribution),
+            Table("pairwise_tests", "Mann-Whitney U tests between sources (superiority: chance "
+                  "that a rating of a beats one of b, ties half), Holm-corrected", posthoc),
+        ]
+        if "action" in rows.columns and rows["action"].nunique() > 1:
+            by_action = mean_ratings(rows, config.confidence, by=("action", "source"))
+            tables.append(Table("by_action", "Mean rating per action", by_action.reset_index()))
+        methods = [
+            f"For each source we report the mean rating with a Student-t {config.confidence:.0%} "
+            f"interval over its judgements",
+            f"sources were compared with a Kruskal-Wallis test (H({omnibus['df']}) = "
+            f"{number(omnibus['statistic'], 2)}, {p_text(omnibus['p'])}) and pairwise "
+            f"two-sided Mann-Whitney U tests with Holm's correction, which treat the ratings as ordinal",
+        ]
+        plots = [Plot("mean_rating", "Mean rating", _plot(sources))]
+        return Analysis(measure="mean rating", sources=sources, tables=tables, plots=plots,
+                        methods=methods, tests={"kruskal_wallis": omnibus})
+
+
+@register_analysis("rating_reference")
+class RatingReference(RatingStandards):
+    """Each clip is rated 1-5 next to one real clip of the action (seed 004)."""
+
+    design = ("each clip was rated from 1 to 5 (higher = more realistic) while one real clip of "
+              "the same action was shown as a reference")
+
+
+def mean_ratings(rows: pd.DataFrame, confidence: float = 0.95, by=("source",)) -> pd.DataFrame:
+    """Return ``score`` (mean rating), t ``ci_low``/``ci_high``, ``sd`` and counts per group."""
+    frame = source_counts(rows, by)
+    groups = rows.groupby(list(by), observed=True)["rating"]
+    frame["score"] = groups.mean()
+    frame["sd"] = groups.std(ddof=1)
+    frame["ci_low"], frame["ci_high"] = stats.t_interval(frame["score"], frame["sd"],
+                                                         frame["n_judgements"], confidence)
+    return frame[["score", "ci_low", "ci_high", "sd", "n_participants", "n_judgements"]]
+
+
+def _plot(sources):
+    def draw():
+        from analysis.figures import interval_figure
+
+        return interval_figure(sources, "Mean rating (1-5)", bars=True, limits=SCALE)
+
+    return draw

@@ -1,0 +1,111 @@
+"""The analysis of each study type, in a registry keyed like the survey app's study types.
+
+A study type's analysis subclasses :class:`StudyAnalysis` and registers with
+``@register_analysis("key")``; :func:`analysis.study.analyse` applies the shared steps
+(checks, exclusions, agreement, repeat consistency) and calls it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import pandas as pd
+
+from analysis.tables import AnalysisError
+
+_ANALYSES: dict[str, type] = {}
+
+
+@dataclass
+class Table:
+    """A result table: ``name`` is its file stem, ``title`` its caption."""
+
+    name: str
+    title: str
+    frame: pd.DataFrame
+    note: str = ""
+
+
+@dataclass
+class Plot:
+    """A figure drawn on demand: ``draw()`` returns a matplotlib ``Figure``."""
+
+    name: str
+    title: str
+    draw: Callable
+
+
+@dataclass
+class Analysis:
+    """What a study type's analysis returns.
+
+    ``sources`` is indexed by source, best first, with ``score``, ``ci_low``,
+    ``ci_high``, ``n_participants`` and ``n_judgements``; ``methods`` are sentences for
+    the methods paragraph; ``headline`` are short result sentences.
+    """
+
+    measure: str
+    sources: pd.DataFrame
+    tables: list[Table] = field(default_factory=list)
+    plots: list[Plot] = field(default_factory=list)
+    methods: list[str] = field(default_factory=list)
+    headline: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    tests: dict = field(default_factory=dict)
+
+
+class StudyAnalysis:
+    """How one study type's judgements are checked and analysed.
+
+    ``answer`` is the response column holding the answer; ``agreement_level`` the
+    Krippendorff level matching it; ``design`` a phrase for the methods paragraph.
+    """
+
+    name = ""
+    answer = ""
+    agreement_level = "nominal"
+    design = ""
+
+    def answered(self, rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
+        """Return the rows with a valid answer and notes on those left out."""
+        raise NotImplementedError
+
+    def judgement_values(self, rows: pd.DataFrame) -> pd.DataFrame:
+        """Return ``participant``, ``unit``, ``value``: what was judged and the answer given.
+
+        Agreement compares values of one unit across participants; repeat trials
+        compare them within a participant.
+        """
+        frame = rows[["pcode", "stimulus", self.answer]]
+        return frame.set_axis(["participant", "unit", "value"], axis=1)
+
+    def analyse(self, rows: pd.DataFrame, config) -> Analysis:
+        raise NotImplementedError
+
+
+def register_analysis(name: str):
+    """Register a :class:`StudyAnalysis` subclass under the study type ``name``."""
+
+    def decorator(cls):
+        if name in _ANALYSES:
+            raise ValueError(f"analysis {name!r} is already registered")
+        cls.name = name
+        _ANALYSES[name] = cls
+        return cls
+
+    return decorator
+
+
+def get_analysis(name: str) -> StudyAnalysis:
+    """Return an instance of the analysis registered for study type ``name``."""
+    try:
+        return _ANALYSES[name]()
+    except KeyError:
+        raise AnalysisError(
+            f"no analysis for study type {name!r}; known types: {', '.join(list_analyses())}"
+        ) from None
+
+
+def list_analyses() -> list[str]:
+    return sorted(_ANALYSES)

@@ -1,0 +1,187 @@
+"""Intervals, tests and corrections used by every study type, vectorised over groups.
+
+Each function works on counts or arrays, never on response tables, so that it can be
+checked against numbers computed by hand.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+
+def z_value(confidence: float = 0.95) -> float:
+    """Return the two-sided normal quantile of ``confidence`` (1.96 for 95 %)."""
+    return float(stats.norm.ppf(0.5 + confidence / 2))
+
+
+def wilson_interval(successes, n, confidence: float = 0.95):
+    """Return the Wilson score interval ``(low, high)`` of ``successes`` out of ``n``.
+
+    Arrays broadcast; ``n = 0`` gives NaN.
+    """
+    successes = np.asarray(successes, dtype=float)
+    n = np.asarray(n, dtype=float)
+    z = z_value(confidence)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        share = successes / n
+        centre = (share + z * z / (2 * n)) / (1 + z * z / n)
+        half = z * np.sqrt(share * (1 - share) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return centre - half, centre + half
+
+
+def t_interval(mean, sd, n, confidence: float = 0.95):
+    """Return the Student-t interval ``mean -/+ t(n-1) sd / sqrt(n)``; NaN when ``n < 2``."""
+    mean, sd, n = (np.asarray(v, dtype=float) for v in (mean, sd, n))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        half = stats.t.ppf(0.5 + confidence / 2, np.where(n >= 2, n - 1, np.nan)) * sd / np.sqrt(n)
+    return mean - half, mean + half
+
+
+def percentile_interval(samples: np.ndarray, confidence: float = 0.95, axis: int = 0):
+    """Return the percentile interval of bootstrap ``samples`` along ``axis``."""
+    tail = 100 * (1 - confidence) / 2
+    low, high = np.percentile(samples, [tail, 100 - tail], axis=axis)
+    return low, high
+
+
+def holm(pvalues) -> np.ndarray:
+    """Return Holm's step-down adjusted p-values; NaN entries stay NaN and are not counted."""
+    p = np.asarray(pvalues, dtype=float)
+    adjusted = np.full_like(p, np.nan)
+    valid = np.flatnonzero(np.isfinite(p))
+    if valid.size == 0:
+        return adjusted
+    order = valid[np.argsort(p[valid], kind="stable")]
+    m = order.size
+    steps = (m - np.arange(m)) * p[order]
+    adjusted[order] = np.minimum(np.maximum.accumulate(steps), 1.0)
+    return adjusted
+
+
+def binomial_p(successes: int, n: int, p: float) -> float:
+    """Return the two-sided exact binomial test p-value of ``successes`` in ``n`` against ``p``."""
+    if n == 0 or not np.isfinite(p):
+        return float("nan")
+    return float(stats.binomtest(int(successes), int(n), float(p)).pvalue)
+
+
+def dprime(hits, n_signal, false_alarms, n_noise) -> np.ndarray:
+    """Return d' = z(H) - z(F) with the log-linear correction (Hautus, 1995).
+
+    ``H = (hits + 0.5) / (n_signal + 1)`` and ``F = (false_alarms + 0.5) / (n_noise + 1)``,
+    so rates of 0 or 1 stay finite. Arrays broadcast.
+    """
+    hits, n_signal, false_alarms, n_noise = (
+        np.asarray(v, dtype=float) for v in (hits, n_signal, false_alarms, n_noise)
+    )
+    hit_rate = (hits + 0.5) / (n_signal + 1)
+    false_rate = (false_alarms + 0.5) / (n_noise + 1)
+    return stats.norm.ppf(hit_rate) - stats.norm.ppf(false_rate)
+
+
+def friedman(scores: np.ndarray) -> dict:
+    """Return Friedman's test and Kendall's W for ``scores`` ``(blocks, treatments)``.
+
+    Scores are ranked within each block (ties get average ranks; the statistic is
+    corrected for them). Lower or higher scores rank alike: only the order matters.
+    Returns ``statistic`` (chi-squared), ``df``, ``p``, ``kendall_w``, ``n_blocks``,
+    ``mean_ranks`` ``(treatments,)``.
+    """
+    scores = np.asarray(scores, dtype=float)
+    n, k = scores.shape
+    if n < 2 or k < 2:
+        raise ValueError(f"Friedman's test needs at least 2 blocks and 2 treatments; got {n} x {k}")
+    ranks = stats.rankdata(scores, axis=1)
+    rank_sums = ranks.sum(axis=0)
+    # Each value in a tie group of size t adds t^2 - 1, so a group adds t^3 - t.
+    group_sizes = (scores[:, :, None] == scores[:, None, :]).sum(axis=2)
+    ties = float(np.sum(group_sizes.astype(float) ** 2 - 1))
+    denominator = n * k * (k + 1) / 12 - ties / (12 * (k - 1))
+    spread = np.sum((rank_sums - n * (k + 1) / 2) ** 2)
+    if denominator <= 0:
+        statistic, w = float("nan"), float("nan")
+    else:
+        statistic = float(spread / denominator)
+        w = statistic / (n * (k - 1))
+    p = float(stats.chi2.sf(statistic, k - 1)) if np.isfinite(statistic) else float("nan")
+    return {
+        "statistic": statistic, "df": k - 1, "p": p, "kendall_w": w, "n_blocks": n,
+        "mean_ranks": rank_sums / n,
+    }
+
+
+def pairwise_wilcoxon(scores: np.ndarray, names) -> pd.DataFrame:
+    """Return Wilcoxon signed-rank tests between every pair of columns of ``scores``.
+
+    ``scores`` is ``(blocks, treatments)``, paired by block. Columns: ``a``, ``b``,
+    ``n`` (blocks where they differ), ``median_difference`` (a - b), ``statistic``, ``p``,
+    ``p_holm`` (over all pairs).
+    """
+    rows = []
+    for (i, a), (j, b) in itertools.combinations(enumerate(names), 2):
+        difference = scores[:, i] - scores[:, j]
+        nonzero = int(np.count_nonzero(difference))
+        if nonzero == 0:
+            statistic, p = float("nan"), 1.0
+        else:
+            result = stats.wilcoxon(scores[:, i], scores[:, j], zero_method="wilcox")
+            statistic, p = float(result.statistic), float(result.pvalue)
+        rows.append({"a": a, "b": b, "n": nonzero, "median_difference": float(np.median(difference)),
+                     "statistic": statistic, "p": p})
+    table = pd.DataFrame(rows, columns=["a", "b", "n", "median_difference", "statistic", "p"])
+    table["p_holm"] = holm(table["p"])
+    return table
+
+
+def pairwise_mann_whitney(values: np.ndarray, groups: np.ndarray, names) -> pd.DataFrame:
+    """Return two-sided Mann-Whitney U tests between every pair of groups.
+
+    Columns: ``a``, ``b``, ``n_a``, ``n_b``, ``u`` (of ``a``), ``superiority`` (the
+    probability that a value of ``a`` beats one of ``b``, ties counting half: U / (n_a n_b)),
+    ``p``, ``p_holm`` (over all pairs).
+    """
+    by_group = {name: values[groups == name] for name in names}
+    rows = []
+    for a, b in itertools.combinations(names, 2):
+        x, y = by_group[a], by_group[b]
+        if len(x) == 0 or len(y) == 0:
+            u, p = float("nan"), float("nan")
+        else:
+            result = stats.mannwhitneyu(x, y, alternative="two-sided")
+            u, p = float(result.statistic), float(result.pvalue)
+        rows.append({"a": a, "b": b, "n_a": len(x), "n_b": len(y), "u": u,
+                     "superiority": u / (len(x) * len(y)) if len(x) and len(y) else float("nan"),
+                     "p": p})
+    table = pd.DataFrame(rows, columns=["a", "b", "n_a", "n_b", "u", "superiority", "p"])
+    table["p_holm"] = holm(table["p"])
+    return table
+
+
+def kruskal_wallis(values: np.ndarray, groups: np.ndarray, names) -> dict:
+    """Return the Kruskal-Wallis H test across ``names``: ``statistic``, ``df``, ``p``."""
+    samples = [values[groups == name] for name in names]
+    samples = [s for s in samples if len(s)]
+    if len(samples) < 2 or np.ptp(np.concatenate(samples)) == 0:
+        return {"statistic": float("nan"), "df": len(samples) - 1, "p": float("nan")}
+    result = stats.kruskal(*samples)
+    return {"statistic": float(result.statistic), "df": len(samples) - 1, "p": float(result.pvalue)}
+
+
+def one_sample_t(values: np.ndarray, confidence: float = 0.95) -> dict:
+    """Return the mean of ``values``, its t interval, and the t test against 0."""
+    values = np.asarray(values, dtype=float)
+    n = len(values)
+    mean = float(values.mean()) if n else float("nan")
+    sd = float(values.std(ddof=1)) if n > 1 else float("nan")
+    low, high = t_interval(mean, sd, n, confidence)
+    if n > 1 and sd > 0:
+        result = stats.ttest_1samp(values, 0.0)
+        t, p = float(result.statistic), float(result.pvalue)
+    else:
+        t, p = float("nan"), float("nan")
+    return {"mean": mean, "ci_low": float(low), "ci_high": float(high), "sd": sd, "n": n,
+            "t": t, "p": p}

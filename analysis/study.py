@@ -1,0 +1,315 @@
+"""Analyse a study's response table: checks, exclusions, the study type's statistics,
+agreement between raters, attention checks, and a methods paragraph.
+
+    result = analyse(table)            # table: one row per judgement (analysis.tables)
+    write_report(result, "out/")       # analysis.report
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from analysis import exclusions
+from analysis.agreement import krippendorff_alpha
+from analysis.registry import Analysis, Table, get_analysis
+from analysis.tables import AnalysisError, as_boolean
+# Importing the study types' modules registers their analyses.
+from analysis import fake_or_real, pairwise, ranking, ratings  # noqa: F401
+
+TRIAL_KINDS = ("main", "catch", "repeat")
+
+
+@dataclass(frozen=True)
+class AnalysisConfig:
+    """Choices of an analysis; the report states them."""
+
+    exclusions: bool = True
+    min_time_factor: float = 1.0
+    max_failed_catch: int = 0
+    completed_only: bool = False
+    bootstrap: int = 1000
+    confidence: float = 0.95
+    seed: int = 0
+    real_source: str = "real"
+
+    def __post_init__(self):
+        if not 0 < self.confidence < 1:
+            raise AnalysisError(f"confidence must lie between 0 and 1; got {self.confidence}")
+        if self.min_time_factor < 0:
+            raise AnalysisError(f"min_time_factor must be 0 or more; got {self.min_time_factor}")
+        if self.bootstrap < 0 or self.max_failed_catch < 0:
+            raise AnalysisError("bootstrap and max_failed_catch must be 0 or more")
+
+
+@dataclass
+class StudyResult:
+    """Everything a report needs: the study type's analysis and the shared checks."""
+
+    study: str
+    study_type: str
+    config: AnalysisConfig
+    analysis: Analysis
+    exclusions: pd.DataFrame
+    agreement: dict
+    counts: dict
+    quality: pd.DataFrame
+    demographics: pd.DataFrame | None = None
+    notes: list[str] = field(default_factory=list)
+    design: str = ""
+
+    @property
+    def tables(self) -> list[Table]:
+        """Return every table of the report, the study type's first."""
+        extra = [
+            Table("exclusions", "Exclusions (main-trial judgements)", self.exclusions),
+            Table("agreement", "Inter-rater agreement (Krippendorff's alpha)",
+                  pd.DataFrame([self.agreement])),
+        ]
+        if not self.quality.empty:
+            extra.append(Table("attention", "Attention checks and repeated trials", self.quality))
+        if self.demographics is not None and not self.demographics.empty:
+            extra.append(Table("participants", "Participants", self.demographics))
+        return self.analysis.tables + extra
+
+    def summary(self) -> dict:
+        """Return the content of ``summary.json``: per source score, interval and N, and the order."""
+        sources = self.analysis.sources
+        return {
+            "study": self.study,
+            "study_type": self.study_type,
+            "measure": self.analysis.measure,
+            "confidence": self.config.confidence,
+            "n_participants": self.counts["participants"],
+            "n_judgements": self.counts["judgements"],
+            "order": [str(s) for s in sources.index],
+            "sources": {
+                str(source): {
+                    "score": _number(row["score"]),
+                    "ci": [_number(row["ci_low"]), _number(row["ci_high"])],
+                    "n_participants": int(row["n_participants"]),
+                    "n_judgements": int(row["n_judgements"]),
+                }
+                for source, row in sources.iterrows()
+            },
+            "tests": _jsonable(self.analysis.tests),
+            "agreement": _jsonable(self.agreement),
+            "exclusions": self.exclusions.to_dict("records"),
+            "config": asdict(self.config),
+            "notes": self.notes,
+        }
+
+    def methods(self) -> str:
+        """Return a methods paragraph a paper can adapt."""
+        from analysis.methods import methods_paragraph
+
+        return methods_paragraph(self)
+
+
+def analyse(table: pd.DataFrame, config: AnalysisConfig | None = None,
+            participants: pd.DataFrame | None = None, study_type: str | None = None) -> StudyResult:
+    """Analyse ``table`` (one row per judgement) as its study type asks; see the module doc.
+
+    ``participants`` is the optional per-participant table (demographics);
+    ``study_type`` overrides the table's ``study_type`` column.
+    """
+    config = config or AnalysisConfig()
+    if table is None or len(table) == 0:
+        raise AnalysisError("the study has no judgements yet; nothing to analyse")
+    study_type = study_type or _study_type(table)
+    kind = get_analysis(study_type)
+    rows, notes = _prepare(table, kind)
+    kept, excluded, exclusion_notes = exclusions.apply(rows, config)
+    notes += exclusion_notes
+
+    main = kept.loc[(kept["trial_kind"] == "main").to_numpy() & ~kept["is_catch"].to_numpy()]
+    main, answer_notes = kind.answered(main)
+    notes += answer_notes
+    if main.empty:
+        raise AnalysisError(
+            "no answered main-trial judgements are left after exclusions "
+            f"({_exclusion_text(excluded)}); try --no-exclusions to see them all"
+        )
+    sources = sorted(main["source"].astype(str).unique())
+    if len(sources) < 2:
+        raise AnalysisError(
+            f"only one source ({sources[0]}) was judged: comparing sources needs at least two"
+        )
+    quality = _quality(rows, kept, main, kind)
+    # Number the analysed participants 0..P-1: bootstraps resample exactly these.
+    main = main.assign(pcode=pd.factorize(main["pcode"])[0])
+
+    analysis = kind.analyse(main, config)
+    values = kind.judgement_values(main)
+    unit = "pair of stimuli" if kind.answer == "choice" else "stimulus"
+    agreement = {"answer": kind.answer, "unit": unit,
+                 **krippendorff_alpha(values["unit"], values["value"], kind.agreement_level,
+                                      bootstrap=config.bootstrap, confidence=config.confidence,
+                                      seed=config.seed)}
+    if agreement["n_units"] == 0:
+        notes.append("no stimulus was judged by two or more participants: agreement is undefined")
+    counts = {
+        "participants": int(main["pcode"].nunique()),
+        "judgements": len(main),
+        "trials": int(main["trial_key"].nunique()),
+        "actions": int(main["action"].nunique()) if "action" in main.columns else 0,
+        "sources": sources,
+        "participants_before": int(rows["pcode"].nunique()),
+    }
+    demographics = None
+    if participants is not None and len(participants):
+        analysed = set(main["participant"].astype(str))
+        demographics = _demographics(participants, analysed)
+    names = table["study"].dropna() if "study" in table.columns else pd.Series(dtype=object)
+    study = str(names.iloc[0]) if len(names) else ""
+    return StudyResult(study, study_type, config, analysis, excluded, agreement, counts, quality,
+                       demographics, notes + analysis.notes, kind.design)
+
+
+def _study_type(table) -> str:
+    if "study_type" not in table.columns or table["study_type"].isna().all():
+        raise AnalysisError("the table has no study_type column: say which study type it is")
+    types = sorted(table["study_type"].dropna().astype(str).unique())
+    if len(types) > 1:
+        raise AnalysisError(f"the table mixes study types ({', '.join(types)}): analyse one study at a time")
+    return types[0]
+
+
+def _prepare(table: pd.DataFrame, kind) -> tuple[pd.DataFrame, list[str]]:
+    """Return the columns the analysis uses, typed, with participant and trial codes."""
+    required = ("participant", "source", kind.answer) + tuple(getattr(kind, "required", ()))
+    missing = [name for name in required if name not in table.columns]
+    if not any(name in table.columns for name in ("trial_id", "trial")):
+        missing.append("trial_id (or trial)")
+    if missing:
+        raise AnalysisError(
+            f"a {kind.name} analysis needs the column(s) {', '.join(missing)}; "
+            f"the table has: {', '.join(map(str, table.columns))}"
+        )
+    notes = []
+    blank = table["participant"].isna() | table["source"].isna()
+    if blank.any():
+        notes.append(f"{int(blank.sum())} row(s) with no participant or source were left out")
+        table = table.loc[~blank]
+    wanted = ["participant", "action", "stimulus", "source", "position", "n_items", kind.answer,
+              "trial_kind", "is_catch", "catch_passed", "time_ms", "duration", "completed"]
+    rows = table[[name for name in dict.fromkeys(wanted) if name in table.columns]].copy()
+    rows["pcode"] = pd.factorize(rows["participant"])[0]
+    if "trial_id" in table.columns and table["trial_id"].notna().all():
+        rows["trial_key"] = pd.factorize(table["trial_id"])[0]
+    elif "trial" in table.columns and table["trial"].notna().all():
+        trial = pd.to_numeric(table["trial"], errors="coerce").to_numpy()
+        rows["trial_key"] = pd.factorize(rows["pcode"].to_numpy() * (np.nanmax(trial) + 1) + trial)[0]
+    else:
+        raise AnalysisError("some rows have no trial_id or trial: cannot tell the trials apart")
+    if "stimulus" not in rows.columns or rows["stimulus"].isna().all():
+        rows["stimulus"] = rows["source"].astype(str)
+        if "action" in rows.columns:
+            rows["stimulus"] += "/" + rows["action"].astype(str)
+        notes.append("the table has no stimulus ids: agreement treats each source and action as one unit")
+    if "trial_kind" in rows.columns:
+        kinds = rows["trial_kind"].fillna("main").astype(str)
+        unknown = sorted(set(kinds.unique()) - set(TRIAL_KINDS))
+        if unknown:
+            raise AnalysisError(f"unknown trial_kind {', '.join(unknown)}; expected {', '.join(TRIAL_KINDS)}")
+        rows["trial_kind"] = kinds
+    else:
+        rows["trial_kind"] = "main"
+    for name in ("is_catch", "catch_passed"):
+        if name in rows.columns:
+            rows[name] = as_boolean(rows[name], name)
+        else:
+            rows[name] = pd.array([pd.NA] * len(rows), dtype="boolean")
+    rows["is_catch"] = rows["is_catch"].fillna(False).astype(bool)
+    if "completed" in rows.columns:
+        rows["completed"] = as_boolean(rows["completed"], "completed")
+    rows["source"] = rows["source"].astype(str)
+    return rows, notes
+
+
+def _quality(rows, kept, main, kind) -> pd.DataFrame:
+    """Return catch-trial pass rates and the consistency of repeated trials."""
+    records = []
+    catch = rows.loc[rows["catch_passed"].notna()]
+    if len(catch):
+        trials = catch.groupby("trial_key")["catch_passed"].all()
+        records.append({"check": "catch trials passed", "n": len(trials),
+                        "participants": int(catch["pcode"].nunique()),
+                        "value": float(trials.mean()),
+                        "detail": f"{int(trials.sum())} of {len(trials)} catch trials"})
+    repeats = kept.loc[kept["trial_kind"] == "repeat"]
+    if len(repeats):
+        repeats, _ = kind.answered(repeats)
+        again = kind.judgement_values(repeats)
+        first = kind.judgement_values(main).drop_duplicates(["participant", "unit"])
+        pairs = again.merge(first, on=["participant", "unit"], suffixes=("_repeat", "_first"))
+        if len(pairs):
+            same = (pairs["value_repeat"].astype(str) == pairs["value_first"].astype(str)).mean()
+            detail = f"{len(pairs)} repeated judgements compared with the first"
+            if kind.agreement_level == "ordinal":
+                gap = np.abs(pd.to_numeric(pairs["value_repeat"]) - pd.to_numeric(pairs["value_first"]))
+                detail += f"; mean absolute difference {gap.mean():.2f}"
+            records.append({"check": "repeated judgements identical", "n": len(pairs),
+                            "participants": int(pairs["participant"].nunique()),
+                            "value": float(same), "detail": detail})
+    return pd.DataFrame(records, columns=["check", "n", "participants", "value", "detail"])
+
+
+# Columns of the per-participant table that are bookkeeping, not demographics.
+_BOOKKEEPING = {"participant", "study", "started", "completed", "started_at", "completed_at",
+                "consented_at", "n_judgements", "n_catch", "failed_catch", "n_repeat",
+                "inconsistent_repeats", "seed", "participant_seed", "completion_code"}
+
+
+def _demographics(participants: pd.DataFrame, analysed: set) -> pd.DataFrame:
+    """Summarise each demographic column over the analysed participants."""
+    if "participant" in participants.columns:
+        participants = participants.loc[participants["participant"].astype(str).isin(analysed)]
+    records = [{"variable": "participants", "summary": str(len(participants))}]
+    for name in participants.columns:
+        lowered = str(name).lower()
+        if lowered in _BOOKKEEPING or lowered.endswith(("_id", "pid", "id")):
+            continue
+        values = participants[name].dropna()
+        values = values[values.astype(str).str.strip() != ""]
+        if values.empty:
+            continue
+        numbers = pd.to_numeric(values, errors="coerce")
+        if numbers.notna().all():
+            summary = (f"mean {numbers.mean():.1f}, SD {numbers.std(ddof=1):.1f}, "
+                       f"range {numbers.min():g}-{numbers.max():g} (n={len(numbers)})")
+        else:
+            counts = values.astype(str).value_counts()
+            summary = ", ".join(f"{k} {v}" for k, v in counts.items())
+        records.append({"variable": str(name), "summary": summary})
+    return pd.DataFrame(records, columns=["variable", "summary"])
+
+
+def _exclusion_text(excluded: pd.DataFrame) -> str:
+    before = excluded.iloc[0]["judgements"]
+    return f"{before} main-trial judgement(s) before exclusions"
+
+
+def _number(value):
+    value = float(value)
+    return value if np.isfinite(value) else None
+
+
+def _jsonable(value):
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, pd.DataFrame):
+        return [_jsonable(r) for r in value.to_dict("records")]
+    if isinstance(value, (np.integer,)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return _number(value)
+    if isinstance(value, np.ndarray):
+        return _jsonable(value.tolist())
+    if isinstance(value, (np.bool_,)):
+        return bool(value)
+    return value

@@ -1,0 +1,105 @@
+"""Exclusion rules applied, counted and reported; switched off and tuned."""
+
+import pytest
+
+from analysis.study import analyse
+from tests.analysis.conftest import config, make_table, trial
+
+RANKS = [("real", 1), ("a2m", 2), ("gru", 3)]
+
+
+def study_table():
+    """Four participants with two main trials each (3 clips of 2 s) and a catch trial.
+
+    p2 fails its catch trial; p3 answers one trial in 1.5 s; p4 answers one trial in
+    3 s that holds a 3.5 s clip.
+    """
+    trials = []
+    for participant in (1, 2, 3, 4):
+        trials.append(trial(participant, RANKS, action="eat"))
+        second = trial(participant, RANKS, action="walk")
+        if participant == 3:
+            second["time_ms"] = 1500
+        trials.append(second)
+        trials.append(trial(participant, [("catch", 1), ("real", 2), ("a2m", 3)], kind="catch",
+                            catch_passed=participant != 2))
+    table = make_table("ranking", trials)
+    slow_clip = (table["participant"] == 4) & (table["action"] == "walk") & (table["source"] == "gru")
+    table.loc[slow_clip, "duration"] = 3.5
+    table.loc[(table["participant"] == 4) & (table["action"] == "walk"), "time_ms"] = 3000
+    return table
+
+
+def counts(result):
+    return {row["rule"]: (row["participants"], row["trials"], row["judgements"])
+            for row in result.exclusions.to_dict("records")}
+
+
+def test_rules_are_applied_and_counted():
+    result = analyse(study_table(), config())
+    assert counts(result) == {
+        "Main-trial judgements before exclusions": (4, 8, 24),
+        "Failed more than 0 catch trial(s)": (1, 2, 6),
+        "Answered faster than 1 x the clip length": (2, 2, 6),
+        "Analysed": (3, 4, 12),
+    }
+    assert result.counts["judgements"] == 12 and result.counts["participants"] == 3
+    quality = result.quality.set_index("check")
+    assert quality.loc["catch trials passed", "value"] == pytest.approx(3 / 4)
+    assert "failed more than 0 catch trial(s): 1 participants" in result.methods()
+
+
+def test_no_exclusions_keeps_everything_but_still_counts():
+    result = analyse(study_table(), config(exclusions=False))
+    table = counts(result)
+    assert table["Analysed"] == (4, 8, 24)
+    assert table["Failed more than 0 catch trial(s)"] == (1, 2, 6)
+    assert result.exclusions.set_index("rule").loc["Analysed", "judgements"] == 24
+    assert "No exclusions were applied" in result.methods()
+
+
+def test_time_factor_and_catch_tolerance_are_configurable():
+    lenient = analyse(study_table(), config(min_time_factor=0.5, max_failed_catch=1))
+    table = counts(lenient)
+    assert table["Answered faster than 0.5 x the clip length"] == (0, 0, 0)
+    assert table["Failed more than 1 catch trial(s)"] == (0, 0, 0)
+    assert table["Analysed"] == (4, 8, 24)
+
+
+def test_speed_rule_is_skipped_without_durations():
+    result = analyse(study_table().drop(columns=["duration"]), config())
+    rows = result.exclusions.set_index("rule")
+    assert rows.loc["Answered faster than 1 x the clip length", "applied"] == "skipped (no data)"
+    assert rows.loc["Analysed", "judgements"] == 18
+    assert any("no clip durations" in note for note in result.notes)
+    assert "could not be applied" in result.methods()
+
+
+def test_completed_only_is_a_counted_rule():
+    table = study_table()
+    table.loc[table["participant"] == 1, "completed"] = False
+    table["completed"] = table["completed"].astype(bool)
+    result = analyse(table, config(completed_only=True))
+    assert counts(result)["Did not complete the study"] == (1, 2, 6)
+    assert counts(result)["Analysed"] == (2, 2, 6)  # p3 and p4 keep one trial each
+
+
+def test_repeated_trials_are_compared_with_the_first_answer():
+    clips = [("real", True, "r1"), ("a2m", False, "g1"), ("gru", False, "g2")]
+    flipped = [("real", True, "r1"), ("a2m", True, "g1"), ("gru", False, "g2")]
+    trials = [trial(1, clips), trial(2, clips), trial(1, clips, kind="repeat"),
+              trial(2, flipped, kind="repeat")]
+    result = analyse(make_table("fake_or_real", trials), config())
+    repeat = result.quality.set_index("check").loc["repeated judgements identical"]
+    assert repeat["value"] == pytest.approx(5 / 6) and repeat["n"] == 6
+    assert result.counts["judgements"] == 6  # repeats stay out of the statistics
+
+
+def test_repeats_match_their_participant_after_exclusions():
+    clips = [("real", True, "r1"), ("a2m", False, "g1")]
+    trials = [trial(1, clips, time_ms=10), trial(2, clips), trial(3, clips),
+              trial(2, clips, kind="repeat"), trial(3, [("real", False, "r1"), ("a2m", True, "g1")],
+                                                    kind="repeat")]
+    result = analyse(make_table("fake_or_real", trials), config())
+    repeat = result.quality.set_index("check").loc["repeated judgements identical"]
+    assert repeat["value"] == pytest.approx(0.5) and repeat["participants"] == 2

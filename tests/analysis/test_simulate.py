@@ -1,0 +1,59 @@
+"""Simulated raters: the tables they write, and the analysis recovering their strengths."""
+
+import json
+
+import pytest
+from scipy import stats as scipy_stats
+
+from analysis.registry import list_analyses
+from analysis.report import write_report
+from analysis.simulate import STUDY_TYPES, simulate
+from analysis.study import analyse
+from analysis.tables import RESPONSE_COLUMNS, AnalysisError
+from tests.analysis.conftest import config
+
+STRENGTHS = {"real": 4.0, "a2m": 3.0, "two_stage_gan": 2.0, "cond_gru": 1.0}
+TRUE_ORDER = ["real", "a2m", "two_stage_gan", "cond_gru"]
+
+
+def test_every_analysed_study_type_can_be_simulated():
+    assert sorted(STUDY_TYPES) == list_analyses()
+
+
+@pytest.mark.parametrize("study_type", STUDY_TYPES)
+def test_simulated_table_has_the_response_columns_and_valid_answers(study_type):
+    table = simulate(study_type, participants=6, trials=4, catch_trials=1, repeat_trials=2, seed=1)
+    assert list(table.columns) == list(RESPONSE_COLUMNS)
+    assert table.groupby("participant")["trial"].nunique().eq(4 + 1 + 2).all()
+    kinds = table.groupby("trial_id")["trial_kind"].first().value_counts().to_dict()
+    assert kinds == {"main": 24, "catch": 6, "repeat": 12}
+    assert table.loc[table["trial_kind"] == "catch", "is_catch"].sum() == 6
+    main = table.loc[table["trial_kind"] == "main"]
+    answers = {"ranking": "rank", "fake_or_real": "judged_real", "pairwise": "choice"}
+    answer = answers.get(study_type, "rating")
+    assert main[answer].notna().all()
+    if study_type == "ranking":
+        assert set(main.groupby("trial_id")["rank"].apply(lambda r: tuple(sorted(r)))) == {(1, 2, 3)}
+    if study_type == "pairwise":
+        assert set(main.groupby("trial_id")["position"].apply(lambda p: tuple(sorted(p)))) == {(0, 1)}
+
+
+@pytest.mark.parametrize("study_type", STUDY_TYPES)
+def test_bots_with_known_strengths_are_recovered(study_type, tmp_path):
+    """200 simulated participants, 10 % inattentive (they fail the catch trial)."""
+    table = simulate(study_type, STRENGTHS, participants=200, trials=8, catch_trials=1,
+                     inattentive=0.1, speeders=0.05, seed=7)
+    result = analyse(table, config(bootstrap=100))
+    write_report(result, tmp_path)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    tau = scipy_stats.kendalltau([TRUE_ORDER.index(s) for s in summary["order"]], range(4)).statistic
+    assert tau >= 0.9, summary["order"]
+    excluded = result.exclusions.set_index("rule").loc["Failed more than 0 catch trial(s)", "participants"]
+    assert excluded == table.loc[table["catch_passed"].eq(False), "participant"].nunique() > 0
+    for source, entry in summary["sources"].items():
+        assert entry["ci"][0] <= entry["score"] <= entry["ci"][1], source
+
+
+def test_unknown_study_type_cannot_be_simulated():
+    with pytest.raises(AnalysisError, match="cannot simulate 'survey'"):
+        simulate("survey")
