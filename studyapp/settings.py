@@ -1,0 +1,151 @@
+"""Settings of the study tool.
+
+Everything a deployment changes comes from the environment:
+
+- ``STUDY_DATABASE_URL`` / ``DATABASE_URL``: ``postgres://user:pass@host:port/name`` or
+  ``sqlite:///path``; default: SQLite at ``var/db.sqlite3``;
+- ``STUDY_VAR_DIR``: where the database, media and demo artefacts live (default ``var/``);
+- ``DJANGO_SECRET_KEY``, ``DJANGO_DEBUG``, ``DJANGO_ALLOWED_HOSTS``;
+- with ``DJANGO_DEBUG=0`` (production, ``make serve``): ``DJANGO_SECRET_KEY`` is required,
+  cookies are secure and HTTPS is enforced; ``STUDY_BEHIND_PROXY=1`` trusts the proxy's
+  ``X-Forwarded-Proto`` header, ``STUDY_SSL_REDIRECT=0`` leaves redirects to the proxy.
+"""
+
+import os
+from pathlib import Path
+from urllib.parse import unquote, urlparse
+
+BASE_DIR = Path(__file__).resolve().parent.parent
+VAR_DIR = Path(os.environ.get("STUDY_VAR_DIR", BASE_DIR / "var"))
+
+DEBUG = os.environ.get("DJANGO_DEBUG", "1") == "1"
+SECRET_KEY = os.environ.get("DJANGO_SECRET_KEY", "")
+if not SECRET_KEY:
+    if not DEBUG:
+        raise RuntimeError("DJANGO_SECRET_KEY must be set when DJANGO_DEBUG=0 (production)")
+    SECRET_KEY = "dev-only-insecure-key-set-DJANGO_SECRET_KEY"
+ALLOWED_HOSTS = os.environ.get("DJANGO_ALLOWED_HOSTS", "127.0.0.1,localhost,testserver").split(",")
+
+if not DEBUG:
+    SESSION_COOKIE_SECURE = True
+    CSRF_COOKIE_SECURE = True
+    SECURE_SSL_REDIRECT = os.environ.get("STUDY_SSL_REDIRECT", "1") == "1"
+    SECURE_HSTS_SECONDS = int(os.environ.get("STUDY_HSTS_SECONDS", "31536000"))
+    SECURE_HSTS_INCLUDE_SUBDOMAINS = True
+    SECURE_HSTS_PRELOAD = True
+    if os.environ.get("STUDY_BEHIND_PROXY") == "1":
+        SECURE_PROXY_SSL_HEADER = ("HTTP_X_FORWARDED_PROTO", "https")
+SESSION_COOKIE_HTTPONLY = True
+X_FRAME_OPTIONS = "DENY"
+
+INSTALLED_APPS = [
+    "django.contrib.admin",
+    "django.contrib.auth",
+    "django.contrib.contenttypes",
+    "django.contrib.sessions",
+    "django.contrib.messages",
+    "django.contrib.staticfiles",
+    "studyapp.survey",
+]
+
+MIDDLEWARE = [
+    "django.middleware.security.SecurityMiddleware",
+    "studyapp.survey.middleware.DatabaseUnavailableMiddleware",
+    "whitenoise.middleware.WhiteNoiseMiddleware",
+    "django.contrib.sessions.middleware.SessionMiddleware",
+    "django.middleware.common.CommonMiddleware",
+    "django.middleware.csrf.CsrfViewMiddleware",
+    "django.contrib.auth.middleware.AuthenticationMiddleware",
+    "django.contrib.messages.middleware.MessageMiddleware",
+    "django.middleware.clickjacking.XFrameOptionsMiddleware",
+    "studyapp.survey.ratelimit.EntryRateLimitMiddleware",
+]
+
+# New participants per IP address (entry link and consent); generous for shared NATs.
+STUDY_ENTRY_RATE_LIMIT = os.environ.get("STUDY_ENTRY_RATE_LIMIT", "120/min")
+# Background jobs (stimulus builds, long analyses) go to Celery when a broker is set,
+# e.g. redis://127.0.0.1:6379/0; otherwise they run in a thread of the web process.
+STUDY_CELERY_BROKER = os.environ.get("STUDY_CELERY_BROKER", "")
+
+ROOT_URLCONF = "studyapp.urls"
+
+TEMPLATES = [
+    {
+        "BACKEND": "django.template.backends.django.DjangoTemplates",
+        "DIRS": [],
+        "APP_DIRS": True,
+        "OPTIONS": {
+            "context_processors": [
+                "django.template.context_processors.request",
+                "django.contrib.auth.context_processors.auth",
+                "django.contrib.messages.context_processors.messages",
+            ],
+        },
+    },
+]
+
+WSGI_APPLICATION = "studyapp.wsgi.application"
+
+
+def database_from_url(url: str) -> dict:
+    """Return a Django DATABASES entry for a ``postgres://`` or ``sqlite:///`` URL."""
+    parsed = urlparse(url)
+    if parsed.scheme in ("postgres", "postgresql"):
+        return {
+            "ENGINE": "django.db.backends.postgresql",
+            "NAME": unquote(parsed.path.lstrip("/")),
+            "USER": unquote(parsed.username or ""),
+            "PASSWORD": unquote(parsed.password or ""),
+            "HOST": parsed.hostname or "",
+            "PORT": str(parsed.port or ""),
+            "CONN_MAX_AGE": 60,
+        }
+    if parsed.scheme == "sqlite":
+        return {
+            "ENGINE": "django.db.backends.sqlite3",
+            "NAME": unquote(parsed.path) or ":memory:",
+            "OPTIONS": {"timeout": 30, "transaction_mode": "IMMEDIATE"},
+        }
+    raise ValueError(f"DATABASE_URL {url!r}: use postgres://... or sqlite:///path")
+
+
+_DATABASE_URL = os.environ.get("STUDY_DATABASE_URL") or os.environ.get("DATABASE_URL")
+DATABASES = {
+    "default": database_from_url(_DATABASE_URL)
+    if _DATABASE_URL
+    else {
+        "ENGINE": "django.db.backends.sqlite3",
+        "NAME": VAR_DIR / "db.sqlite3",
+        # IMMEDIATE: a transaction takes the write lock when it begins, so concurrent
+        # participants queue for it instead of failing at a read-then-write upgrade.
+        "OPTIONS": {"timeout": 30, "transaction_mode": "IMMEDIATE"},
+    }
+}
+
+DEFAULT_AUTO_FIELD = "django.db.models.BigAutoField"
+
+AUTH_PASSWORD_VALIDATORS = []
+
+LANGUAGE_CODE = "en-us"
+TIME_ZONE = "UTC"
+USE_I18N = True
+USE_TZ = True
+
+STATIC_URL = "static/"
+STATIC_ROOT = VAR_DIR / "static"
+STORAGES = {
+    "default": {"BACKEND": "django.core.files.storage.FileSystemStorage"},
+    # Compressed, content-hashed copies (collectstatic); plain files while developing.
+    "staticfiles": {
+        "BACKEND": "django.contrib.staticfiles.storage.StaticFilesStorage"
+        if DEBUG
+        else "whitenoise.storage.CompressedManifestStaticFilesStorage"
+    },
+}
+
+# Stimulus videos live here under content-hash names; they are served only through
+# opaque per-stimulus URLs (survey.views.clip), never from a public media URL.
+MEDIA_ROOT = VAR_DIR / "media"
+
+# Upper bound on a participant's POST body, so a tampered request cannot be huge.
+DATA_UPLOAD_MAX_MEMORY_SIZE = 256 * 1024

@@ -1,0 +1,437 @@
+"""The researcher's view: studies with their progress, stimuli, participants, answers.
+
+Studies are created, edited, opened and closed here, and previewed as a participant
+(a staff-only link whose answers are not stored). Answers are read-only, so a click in
+the admin cannot change collected data.
+"""
+
+from django.contrib import admin
+from django.db import models
+from django.db.models import Count, Q
+from django.forms import Textarea
+from django.urls import reverse
+from django.utils.html import format_html, format_html_join
+
+from studyapp.survey.models import (
+    BuildJob,
+    Participant,
+    Response,
+    ScoringStandard,
+    Stimulus,
+    Study,
+    Trial,
+    TrialItem,
+)
+
+
+def role(stimulus) -> str:
+    """Return what a stimulus is for, as shown to the researcher."""
+    flags = [
+        (stimulus.is_catch, "catch"),
+        (stimulus.is_reference, "reference"),
+        (stimulus.is_standard_example, "standard example"),
+    ]
+    return next((name for flag, name in flags if flag), "judged")
+
+
+class ReadOnlyAdmin(admin.ModelAdmin):
+    def has_add_permission(self, request, obj=None):
+        return False
+
+    def has_change_permission(self, request, obj=None):
+        return False
+
+
+class ScoringStandardInline(admin.TabularInline):
+    model = ScoringStandard
+    fields = ["action", "score", "description", "stimulus"]
+    extra = 0
+    formfield_overrides = {models.TextField: {"widget": Textarea(attrs={"rows": 2, "cols": 60})}}
+
+    def formfield_for_foreignkey(self, db_field, request, **kwargs):
+        if db_field.name == "stimulus":
+            study_id = request.resolver_match.kwargs.get("object_id")
+            kwargs["queryset"] = Stimulus.objects.filter(
+                study_id=study_id, is_standard_example=True
+            )
+        return super().formfield_for_foreignkey(db_field, request, **kwargs)
+
+
+@admin.register(Study)
+class StudyAdmin(admin.ModelAdmin):
+    list_display = [
+        "slug",
+        "title",
+        "study_type",
+        "status",
+        "started",
+        "completed",
+        "judgements",
+        "excluded",
+        "participant_link",
+        "preview_link",
+        "results_link",
+    ]
+    list_filter = ["study_type", "status"]
+    search_fields = ["slug", "title"]
+    readonly_fields = ["participant_link", "preview_link", "results_link", "progress", "created_at"]
+    actions = ["open_studies", "close_studies"]
+    inlines = [ScoringStandardInline]
+    fieldsets = [
+        (None, {"fields": ["slug", "title", "study_type", "status", "dataset", "data_note"]}),
+        (
+            "Trials",
+            {
+                "fields": [
+                    "clips_per_trial",
+                    "trials_per_participant",
+                    "practice",
+                    "catch_trials",
+                    "repeat_trials",
+                    "allow_ties",
+                    "ask_demographics",
+                ]
+            },
+        ),
+        ("Texts", {"fields": ["instructions", "consent_text"], "classes": ["collapse"]}),
+        ("Crowd platform", {"fields": ["completion_url", "max_participants"]}),
+        ("Progress", {"fields": ["participant_link", "preview_link", "results_link", "progress",
+                                 "created_at"]}),
+    ]
+
+    def get_queryset(self, request):
+        return Study.objects.with_counts()
+
+    @admin.display(ordering="n_started")
+    def started(self, obj):
+        return obj.n_started
+
+    @admin.display(ordering="n_completed")
+    def completed(self, obj):
+        return obj.n_completed
+
+    @admin.display(ordering="n_judgements")
+    def judgements(self, obj):
+        return obj.n_judgements
+
+    @admin.display(ordering="n_excluded", description="Excluded")
+    def excluded(self, obj):
+        return obj.n_excluded
+
+    def get_urls(self):
+        from django.urls import path
+
+        from studyapp.survey import results
+
+        own = [
+            path("<int:pk>/results/", self.admin_site.admin_view(
+                lambda request, pk: results.results_view(self.admin_site, request, pk)),
+                name="survey_study_results"),
+            path("<int:pk>/results/report/", self.admin_site.admin_view(results.report_view),
+                 name="survey_study_report"),
+        ]
+        return own + super().get_urls()
+
+    @admin.display(description="Results")
+    def results_link(self, obj):
+        if not obj.pk:
+            return "-"
+        return format_html('<a href="{}">Results</a>', reverse("admin:survey_study_results", args=[obj.pk]))
+
+    @admin.display(description="Preview")
+    def preview_link(self, obj):
+        if not obj.pk:
+            return "-"
+        url = reverse("survey:preview", args=[obj.slug])
+        return format_html('<a href="{}" target="_blank" rel="noopener">Preview</a>', url)
+
+    @admin.display(description="Live progress")
+    def progress(self, obj):
+        if not obj.pk:
+            return "-"
+        counts = Study.objects.with_counts().get(pk=obj.pk)
+        # Reference and example clips are never judged: only judged and catch clips count.
+        stimuli = (
+            Stimulus.objects.with_judgements()
+            .filter(study=obj, is_reference=False, is_standard_example=False)
+            .order_by("action", "source", "pk")
+        )
+        rows = format_html_join(
+            "",
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            ((s.action, s.source, role(s), s.n_judgements) for s in stimuli),
+        )
+        return format_html(
+            "<p>{} started, {} completed, {} excluded (failed a catch trial), "
+            "{} judgements.</p><table><thead><tr><th>Action</th><th>Source</th>"
+            "<th>Role</th><th>Judgements</th></tr></thead><tbody>{}</tbody></table>",
+            counts.n_started,
+            counts.n_completed,
+            counts.n_excluded,
+            counts.n_judgements,
+            rows,
+        )
+
+    def _set_status(self, request, queryset, status):
+        n = Study.objects.filter(pk__in=[study.pk for study in queryset]).update(status=status)
+        self.message_user(request, f"{n} {'study' if n == 1 else 'studies'} now {status}.")
+
+    @admin.action(description="Open the selected studies to participants")
+    def open_studies(self, request, queryset):
+        self._set_status(request, queryset, Study.Status.OPEN)
+
+    @admin.action(description="Close the selected studies")
+    def close_studies(self, request, queryset):
+        self._set_status(request, queryset, Study.Status.CLOSED)
+
+    @admin.display(description="Participant link")
+    def participant_link(self, obj):
+        if not obj.pk:
+            return "-"
+        url = obj.get_absolute_url()
+        return format_html('<a href="{}" target="_blank" rel="noopener">{}</a>', url, url)
+
+
+@admin.register(Stimulus)
+class StimulusAdmin(admin.ModelAdmin):
+    list_display = [
+        "preview",
+        "study",
+        "action",
+        "source",
+        "role",
+        "duration",
+        "n_items",
+        "judgements",
+        "token",
+    ]
+    list_filter = ["study", "action", "source", "is_catch", "is_reference", "is_standard_example"]
+    search_fields = ["token", "video_hash", "motion_hash"]
+    readonly_fields = ["preview", "token", "video", "poster", "video_hash", "motion_hash"]
+
+    def get_queryset(self, request):
+        return Stimulus.objects.with_judgements().annotate(n_items=Count("items", distinct=True))
+
+    @admin.display(description="Trials", ordering="n_items")
+    def n_items(self, obj):
+        return obj.n_items
+
+    @admin.display(description="Judgements", ordering="n_judgements")
+    def judgements(self, obj):
+        return obj.n_judgements
+
+    @admin.display(description="Role")
+    def role(self, obj):
+        return role(obj)
+
+    @admin.display(description="Clip")
+    def preview(self, obj):
+        return format_html(
+            '<video src="{}" poster="{}" width="96" muted loop playsinline preload="none" '
+            'onmouseover="this.play()" onmouseout="this.pause()"></video>',
+            obj.get_absolute_url(),
+            obj.poster_url(),
+        )
+
+
+class TrialInline(admin.TabularInline):
+    model = Trial
+    fields = [
+        "index", "kind", "action", "choice", "catch_passed", "shown_at", "answered_at", "time_ms"
+    ]
+    readonly_fields = fields
+    extra = 0
+    can_delete = False
+    show_change_link = True
+
+    def has_add_permission(self, request, obj=None):
+        return False
+
+
+@admin.register(Participant)
+class ParticipantAdmin(admin.ModelAdmin):
+    list_display = [
+        "pk",
+        "study",
+        "external_key",
+        "consented_at",
+        "answered",
+        "failed_catch",
+        "completed_at",
+        "completion_code",
+    ]
+    list_filter = ["study", ("completed_at", admin.EmptyFieldListFilter)]
+    search_fields = ["external_key", "completion_code", "token"]
+    readonly_fields = [
+        "study",
+        "token",
+        "external_ids",
+        "external_key",
+        "seed",
+        "created_at",
+        "consented_at",
+        "completed_at",
+        "completion_code",
+        "user_agent",
+        "demographics",
+    ]
+    inlines = [TrialInline]
+
+    def get_queryset(self, request):
+        return (
+            super()
+            .get_queryset(request)
+            .annotate(
+                n_trials=Count("trials", distinct=True),
+                n_answered=Count(
+                    "trials", filter=Q(trials__answered_at__isnull=False), distinct=True
+                ),
+                failed_catch=Count(
+                    "trials",
+                    filter=Q(trials__kind=Trial.Kind.CATCH, trials__catch_passed=False),
+                    distinct=True,
+                ),
+            )
+        )
+
+    @admin.display(description="Failed catch trials", ordering="failed_catch")
+    def failed_catch(self, obj):
+        return obj.failed_catch
+
+    @admin.display(description="Answered")
+    def answered(self, obj):
+        return f"{obj.n_answered} / {obj.n_trials}"
+
+    def has_add_permission(self, request):
+        return False
+
+
+class TrialItemInline(admin.TabularInline):
+    model = TrialItem
+    fields = ["position", "stimulus", "source", "rank", "rating", "judged_real", "plays"]
+    readonly_fields = fields
+    extra = 0
+    can_delete = False
+
+    @admin.display(description="Source")
+    def source(self, obj):
+        return obj.stimulus.source
+
+    def has_add_permission(self, request, obj=None):
+        return False
+
+
+@admin.register(Trial)
+class TrialAdmin(ReadOnlyAdmin):
+    list_display = [
+        "__str__",
+        "kind",
+        "action",
+        "choice",
+        "catch_passed",
+        "shown_at",
+        "answered_at",
+        "time_ms",
+    ]
+    list_filter = [
+        "participant__study",
+        "kind",
+        "catch_passed",
+        "action",
+        ("answered_at", admin.EmptyFieldListFilter),
+    ]
+    inlines = [TrialItemInline]
+
+
+@admin.register(Response)
+class ResponseAdmin(ReadOnlyAdmin):
+    list_display = [
+        "participant",
+        "study",
+        "action",
+        "source",
+        "kind",
+        "position",
+        "rank",
+        "rating",
+        "judged_real",
+        "choice",
+        "plays",
+        "time_ms",
+    ]
+    list_filter = [
+        "trial__participant__study",
+        "trial__kind",
+        "stimulus__action",
+        "stimulus__source",
+        "rank",
+        "rating",
+        "judged_real",
+    ]
+    list_select_related = ["trial__participant__study", "stimulus"]
+
+    @admin.display(ordering="trial__participant")
+    def participant(self, obj):
+        return obj.trial.participant_id
+
+    @admin.display(ordering="trial__participant__study")
+    def study(self, obj):
+        return obj.trial.participant.study
+
+    @admin.display(ordering="stimulus__action")
+    def action(self, obj):
+        return obj.stimulus.action
+
+    @admin.display(ordering="stimulus__source")
+    def source(self, obj):
+        return obj.stimulus.source
+
+    @admin.display(ordering="trial__kind")
+    def kind(self, obj):
+        return obj.trial.kind
+
+    @admin.display(ordering="trial__choice")
+    def choice(self, obj):
+        return obj.trial.choice
+
+    @admin.display(description="Time (ms)", ordering="trial__time_ms")
+    def time_ms(self, obj):
+        return obj.trial.time_ms
+
+
+@admin.register(BuildJob)
+class BuildJobAdmin(admin.ModelAdmin):
+    """Start stimulus builds from a study config and watch their progress (reload the page)."""
+
+    list_display = ["config_path", "status", "progress", "message", "study", "started_at",
+                    "finished_at"]
+    list_filter = ["status"]
+    fields = ["config_path", "overrides", "status", "done", "total", "message", "error",
+              "study", "started_at", "finished_at"]
+    readonly_fields = ["status", "done", "total", "message", "error", "study", "started_at",
+                       "finished_at"]
+    actions = ["run_again"]
+
+    @admin.display(description="progress")
+    def progress(self, job):
+        if not job.total:
+            return "—"
+        return f"{job.done}/{job.total} ({100 * job.done // job.total} %)"
+
+    def save_model(self, request, job, form, change):
+        """Save the job and, when it is new, start it in the background."""
+        super().save_model(request, job, form, change)
+        if not change:
+            self._start(request, job)
+
+    @admin.action(description="Run the selected builds again (safe after a crash)")
+    def run_again(self, request, queryset):
+        for job in queryset.exclude(status=BuildJob.Status.RUNNING):
+            self._start(request, job)
+
+    def _start(self, request, job):
+        from studyapp.survey.tasks import run_job
+
+        BuildJob.objects.filter(pk=job.pk).update(status=BuildJob.Status.QUEUED, message="queued")
+        run_job("build_stimuli", job=job.pk)
+        self.message_user(request, f"Build {job.pk} started; reload this page to follow it.")

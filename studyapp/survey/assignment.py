@@ -1,0 +1,149 @@
+"""Balanced assignment of stimuli to trials and of sources to screen positions.
+
+Called while the study row is locked (:meth:`StudyManager.lock`), so the counts read
+here include every participant who started before and none who start concurrently.
+Only main trials count: practice, catch and repeated trials are extras on top. Ties
+are broken by the participant's seeded ``random.Random``, which makes a participant's
+session reproducible from the database and their seed.
+
+A session is then laid out by :func:`arrange`: catch trials at random places (never
+first) and each repeated trial some trials after the one it repeats.
+"""
+
+from collections import Counter, defaultdict
+from dataclasses import dataclass
+
+from django.db.models import Count
+
+from studyapp.survey.models import Stimulus, Trial, TrialItem
+
+# Trials at least between a trial and its repeat, when the session is long enough.
+REPEAT_GAP = 2
+
+
+def stimuli_by_action(study) -> dict[str, dict[str, list[Stimulus]]]:
+    """Return ``{action: {source: [stimuli]}}`` of the stimuli of a study to be judged."""
+    table = defaultdict(lambda: defaultdict(list))
+    stimuli = Stimulus.objects.judged().filter(study=study).order_by("action", "source", "pk")
+    for stimulus in stimuli:
+        table[stimulus.action][stimulus.source].append(stimulus)
+    return {action: dict(sources) for action, sources in table.items()}
+
+
+def item_counts(study) -> Counter:
+    """Return how many main-trial items each stimulus (by id) has so far."""
+    rows = (
+        TrialItem.objects.filter(stimulus__study=study, trial__kind=Trial.Kind.MAIN)
+        .values("stimulus")
+        .annotate(n=Count("pk"))
+        .values_list("stimulus", "n")
+    )
+    return Counter(dict(rows))
+
+
+def position_counts(study) -> Counter:
+    """Return how often each ``(source, position)`` has been shown in main trials so far."""
+    rows = (
+        TrialItem.objects.filter(stimulus__study=study, trial__kind=Trial.Kind.MAIN)
+        .values("stimulus__source", "position")
+        .annotate(n=Count("pk"))
+        .values_list("stimulus__source", "position", "n")
+    )
+    return Counter({(source, position): n for source, position, n in rows})
+
+
+def choose_balanced(by_source: dict[str, list], counts: Counter, rng, n: int) -> list:
+    """Pick ``n`` stimuli: one per source where possible, the least-used first.
+
+    Each source offers its least-used stimulus; when there are more sources than ``n``
+    the sources whose offer is least used win; when there are fewer, the least-used
+    remaining stimuli fill up. Returns fewer than ``n`` only if there are not enough.
+    """
+
+    def key(stimulus):
+        return (counts[stimulus.pk], rng.random())
+
+    offers = [min(stimuli, key=key) for _, stimuli in sorted(by_source.items()) if stimuli]
+    chosen = sorted(offers, key=key)[:n]
+    if len(chosen) < n:
+        taken = {stimulus.pk for stimulus in chosen}
+        rest = [s for _, stimuli in sorted(by_source.items()) for s in stimuli if s.pk not in taken]
+        chosen += sorted(rest, key=key)[: n - len(chosen)]
+    return chosen
+
+
+def order_positions(stimuli: list, counts: Counter, rng) -> list:
+    """Return ``stimuli`` in display order, counterbalancing sources over positions.
+
+    Sources are seated in random order; each takes the free position where its source
+    has been shown least often (ties at random), so over participants every source
+    visits every position about equally often.
+    """
+    free = list(range(len(stimuli)))
+    seats = [None] * len(stimuli)
+    for stimulus in rng.sample(stimuli, len(stimuli)):
+        position = min(free, key=lambda p: (counts[(stimulus.source, p)], rng.random()))
+        free.remove(position)
+        seats[position] = stimulus
+    return seats
+
+
+def assign(by_source: dict[str, list], items: Counter, positions: Counter, rng, n: int) -> list:
+    """Choose and order one trial's stimuli, updating both counters in place."""
+    seats = order_positions(choose_balanced(by_source, items, rng, n), positions, rng)
+    for position, stimulus in enumerate(seats):
+        items[stimulus.pk] += 1
+        positions[(stimulus.source, position)] += 1
+    return seats
+
+
+@dataclass
+class Pool:
+    """What a new session is planned from, read once with the study row locked."""
+
+    table: dict
+    catches: list
+    items: Counter
+    positions: Counter
+
+    @classmethod
+    def of(cls, study) -> "Pool":
+        catches = Stimulus.objects.filter(study=study, is_catch=True).order_by("action", "pk")
+        return cls(
+            stimuli_by_action(study), list(catches), item_counts(study), position_counts(study)
+        )
+
+
+def pick_catch(catches: list, n: int, rng) -> list:
+    """Return ``n`` catch stimuli in random order, each used once before any twice."""
+    if not catches:
+        return []
+    rounds = -(-n // len(catches))
+    return [s for _ in range(rounds) for s in rng.sample(catches, len(catches))][:n]
+
+
+def arrange(main: list, catch: list, n_repeats: int, rng) -> list:
+    """Return the session: main trials with catch trials and repeats placed among them.
+
+    Catch trials go anywhere but first. Repeats show an early main trial again with its
+    clips in mirrored order (left and right swapped in a pair), at least
+    ``REPEAT_GAP`` trials later when the session allows it.
+    """
+    from studyapp.survey.study_types.base import TrialPlan
+
+    session = list(main)
+    for plan in catch:
+        session.insert(rng.randint(1, len(session)) if session else 0, plan)
+    early = main[: max(n_repeats, (len(main) + 1) // 2)]
+    for original in rng.sample(early, min(n_repeats, len(early))):
+        at = session.index(original)
+        later = min(at + 1 + REPEAT_GAP, len(session))
+        repeat = TrialPlan(
+            original.action,
+            original.stimuli[::-1],
+            Trial.Kind.REPEAT,
+            repeat_of=original,
+            reference=original.reference,
+        )
+        session.insert(rng.randint(later, len(session)), repeat)
+    return session

@@ -1,0 +1,30 @@
+"""Run a stimulus build off the request thread (e.g. from an admin action), reporting progress.
+
+:func:`run_build` is what a background thread calls; it opens and closes its own
+database connection, as any thread that uses the ORM must.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from django.conf import settings
+from django.db import close_old_connections
+
+from studyapp.survey.stimulus_build import build_stimuli
+from studyapp.survey.stimulus_config import load_config
+
+
+def run_build(config_path, progress_callback=None, overrides=(), folder=None):
+    """Build the config at ``config_path``; call ``progress_callback(done, total, message)``.
+
+    Return the :class:`~studyapp.survey.stimulus_build.BuildResult`; errors propagate
+    (``ConfigError``, ``BuildError``) for the caller to record.
+    """
+    close_old_connections()
+    try:
+        config = load_config(config_path, overrides)
+        folder = Path(folder or Path(settings.VAR_DIR) / "stimuli" / config.slug)
+        return build_stimuli(config, folder, progress=progress_callback)
+    finally:
+        close_old_connections()

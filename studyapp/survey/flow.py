@@ -1,0 +1,263 @@
+"""A participant's path through a study, declared as data (as in oTree).
+
+``PAGE_SEQUENCE`` lists the pages; the participant is always sent to the first page
+they have not finished, so a reload, a back button or a stale tab lands where they
+are. The participant is found through their token in the session cookie.
+"""
+
+from django.shortcuts import redirect, render
+from django.urls import reverse
+
+from studyapp.survey.forms import ConsentForm, DemographicsForm
+from studyapp.survey.models import (
+    EXTERNAL_PARAMS,
+    Participant,
+    Study,
+    Trial,
+    Unavailable,
+    external_key,
+)
+
+MAX_ID_LENGTH = 100
+
+
+def session_key(study) -> str:
+    return f"survey:{study.pk}"
+
+
+def pending_key(study) -> str:
+    return f"survey:{study.pk}:external"
+
+
+def external_ids_from(query) -> dict:
+    """Return the crowd-platform parameters of the entry link (printable characters only)."""
+    # Control characters (a NUL byte above all, which PostgreSQL refuses in text) are
+    # never part of a platform's ids: drop them rather than fail.
+    clean = {
+        name: "".join(c for c in query.get(name, "") if c.isprintable())
+        for name in EXTERNAL_PARAMS
+    }
+    return {name: value[:MAX_ID_LENGTH] for name, value in clean.items() if value.strip()}
+
+
+def session_participant(request, study):
+    token = request.session.get(session_key(study))
+    return Participant.objects.filter(study=study, token=token).first() if token else None
+
+
+def remember(request, participant) -> None:
+    request.session[session_key(participant.study)] = participant.token
+    request.session.pop(pending_key(participant.study), None)
+
+
+def unavailable(request, study, reason: str):
+    return render(request, "survey/unavailable.html", {"study": study, "reason": reason})
+
+
+def bad_answer(request, study, messages: list[str]):
+    context = {"study": study, "messages": messages, "back": page_url(study, "trial")}
+    return render(request, "survey/bad_answer.html", context, status=400)
+
+
+def page_url(study, name: str) -> str:
+    return reverse("survey:page", args=[study.slug, name])
+
+
+def render_trial(request, study, trial, items, number, total, **extra):
+    """Render a trial page; ``number`` is None for a practice trial.
+
+    Shared by participants and the researcher's preview (which passes unsaved trials).
+    """
+    for item in items:
+        item.label = study.kind.item_label(item.position)
+    context = {
+        "study": study,
+        "trial": trial,
+        "items": items,
+        "number": number,
+        "total": total,
+        "progress": round(100 * ((number or 1) - 1) / max(total, 1)),
+        "ranks": range(1, len(items) + 1),
+        "scripts": study.kind.scripts,
+        "page": "trial",
+        "trial_key": trial.pk,
+        "action_name": trial.action.replace("_", " "),
+        **extra,
+    }
+    context.update(study.kind.trial_context(trial, items))
+    return render(request, study.kind.trial_template, context)
+
+
+class Page:
+    """One step of the sequence; subclasses say when it is done and what it does."""
+
+    name = ""
+    template_name = ""
+
+    def is_done(self, participant) -> bool:
+        raise NotImplementedError
+
+    def context(self, request, study, participant) -> dict:
+        return {}
+
+    def get(self, request, study, participant):
+        context = {"study": study, "participant": participant, "page": self.name}
+        context.update(self.context(request, study, participant))
+        return render(request, self.template_name, context)
+
+    def post(self, request, study, participant):
+        return redirect(page_url(study, current_page(participant).name))
+
+
+class Consent(Page):
+    name = "consent"
+    template_name = "survey/consent.html"
+
+    def is_done(self, participant):
+        return participant is not None and participant.consented_at is not None
+
+    def context(self, request, study, participant):
+        return {"form": ConsentForm()}
+
+    def post(self, request, study, participant):
+        form = ConsentForm(request.POST)
+        if not form.is_valid():
+            return render(request, self.template_name, {"study": study, "form": form})
+        external = request.session.get(pending_key(study), {})
+        try:
+            participant = Participant.objects.enroll(
+                study, external, request.headers.get("User-Agent", "")
+            )
+        except Unavailable as exc:
+            return unavailable(request, study, exc.reason)
+        remember(request, participant)
+        return super().post(request, study, participant)
+
+
+class Instructions(Page):
+    name = "instructions"
+    template_name = "survey/instructions.html"
+
+    def is_done(self, participant):
+        return participant.trials.exists()
+
+    def post(self, request, study, participant):
+        Participant.objects.start(participant)
+        if not participant.trials.exists():
+            return unavailable(request, study, "closed")
+        return super().post(request, study, participant)
+
+
+class Trials(Page):
+    name = "trial"
+
+    def is_done(self, participant):
+        return participant.completed_at is not None
+
+    def get(self, request, study, participant):
+        trial = participant.current_trial()
+        Trial.objects.mark_shown(trial)
+        items = list(trial.items.select_related("stimulus"))
+        practice = participant.trials.filter(kind=Trial.Kind.PRACTICE).count()
+        total = participant.trials.count() - practice
+        number = None if trial.kind == Trial.Kind.PRACTICE else trial.index + 1 - practice
+        return render_trial(
+            request, study, trial, items, number, total, practice_over=practice and number == 1
+        )
+
+    def post(self, request, study, participant):
+        trial_id = request.POST.get("trial", "")
+        if not trial_id.isdigit():
+            return bad_answer(request, study, ["The answer does not say which question it is for."])
+        trial = participant.trials.filter(pk=int(trial_id)).first()
+        if trial is None:
+            return bad_answer(request, study, ["This question is not part of your session."])
+        current = participant.current_trial()  # read after ``trial``: never older than it
+        if trial.answered_at is not None or current is None or trial.index < current.index:
+            # A repeated submit, or a simultaneous copy of this one that was stored
+            # between the two reads (answers only move forward): move on.
+            return super().post(request, study, participant)
+        if trial != current:
+            return bad_answer(request, study, ["This is not the question you are on."])
+        form = study.kind.answer_form(trial, trial.items.select_related("stimulus"), request.POST)
+        if not form.is_valid():
+            return bad_answer(request, study, form.messages())
+        Trial.objects.record_answer(trial, form.answers(), form.trial_answer())
+        participant.refresh_from_db()
+        return super().post(request, study, participant)
+
+
+class Demographics(Page):
+    name = "about-you"
+    template_name = "survey/demographics.html"
+
+    def is_done(self, participant):
+        return not participant.study.ask_demographics or participant.demographics is not None
+
+    def context(self, request, study, participant):
+        return {"form": DemographicsForm()}
+
+    def post(self, request, study, participant):
+        form = DemographicsForm(request.POST)
+        if not form.is_valid():
+            context = {"study": study, "participant": participant, "form": form}
+            return render(request, self.template_name, context, status=400)
+        Participant.objects.record_demographics(participant, form.cleaned_data)
+        return super().post(request, study, participant)
+
+
+class Completion(Page):
+    name = "done"
+    template_name = "survey/done.html"
+
+    def is_done(self, participant):
+        return False
+
+
+PAGE_SEQUENCE = [Consent(), Instructions(), Trials(), Demographics(), Completion()]
+PAGES = {page.name: page for page in PAGE_SEQUENCE}
+
+
+def current_page(participant) -> Page:
+    """Return the first page of the sequence the participant has not finished."""
+    for page in PAGE_SEQUENCE:
+        if participant is None or not page.is_done(participant):
+            return page
+    return PAGE_SEQUENCE[-1]
+
+
+def enter(request, study):
+    """Start or resume a participant from the study link; return the redirect."""
+    external = external_ids_from(request.GET)
+    participant = session_participant(request, study)
+    if participant is not None and external_key(external) not in ("", participant.external_key):
+        participant = None  # another person on the same browser
+    if participant is None:
+        participant = Participant.objects.find(study, external)
+        taken = participant is not None and participant.completed_at is not None
+        if participant is None or taken:
+            # Consent re-checks these ids, so skipping this page changes nothing.
+            request.session.pop(session_key(study), None)
+            request.session[pending_key(study)] = external
+            if taken:
+                return unavailable(request, study, "taken")
+            if study.status != Study.Status.OPEN:
+                return unavailable(request, study, "closed")
+            if study.is_full():
+                return unavailable(request, study, "full")
+    if participant is not None:
+        remember(request, participant)
+    return redirect(page_url(study, current_page(participant).name))
+
+
+def show(request, study, name: str):
+    """Render or submit page ``name``, or redirect to the page the participant is on."""
+    participant = session_participant(request, study)
+    page = current_page(participant)
+    if name != page.name:
+        return redirect(page_url(study, page.name))
+    if participant is None and study.status != Study.Status.OPEN:
+        return unavailable(request, study, "closed")
+    if request.method == "POST":
+        return page.post(request, study, participant)
+    return page.get(request, study, participant)

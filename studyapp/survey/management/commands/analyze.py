@@ -1,0 +1,106 @@
+import argparse
+from pathlib import Path
+
+from django.core.management.base import BaseCommand, CommandError
+
+from analysis.formatting import interval, number
+from analysis.report import write_report
+from analysis.study import AnalysisConfig, analyse
+from analysis.tables import AnalysisError, read_responses, write_responses
+from studyapp.survey import export
+from studyapp.survey.export import get_study, responses_frame
+
+
+class Command(BaseCommand):
+    help = (
+        "Analyse a study's answers for its study type: statistics with confidence intervals, "
+        "tests, agreement and exclusions, written as report.html, summary.json, tables "
+        "(CSV, Markdown, LaTeX) and figures (PNG, SVG)."
+    )
+
+    def add_arguments(self, parser):
+        source = parser.add_mutually_exclusive_group(required=True)
+        source.add_argument("--study", metavar="SLUG", help="Analyse this study's stored answers.")
+        source.add_argument("--responses", metavar="FILE",
+                            help="Analyse an exported response table (.csv or .parquet) instead.")
+        parser.add_argument("--out", required=True, metavar="DIR")
+        parser.add_argument("--completed-only", action="store_true",
+                            help="Leave out participants who did not finish the study.")
+        parser.add_argument("--no-exclusions", action="store_true",
+                            help="Keep participants who failed catch trials and too-fast answers "
+                                 "(the report still counts them).")
+        parser.add_argument("--min-time-factor", type=float, default=1.0, metavar="F",
+                            help="Exclude trials answered in less than F x the clip length (default 1).")
+        parser.add_argument("--max-failed-catch", type=int, default=0, metavar="N",
+                            help="Exclude participants who failed more than N catch trials (default 0).")
+        parser.add_argument("--bootstrap", type=int, default=1000, metavar="N",
+                            help="Bootstrap resamples for intervals (default 1000; 0 = none).")
+        parser.add_argument("--seed", type=int, default=0, help="Seed of the bootstrap.")
+        parser.add_argument("--real-source", default="real", metavar="NAME",
+                            help="The source holding real clips (fake_or_real; default 'real').")
+        # Kept for old scripts: SVGs are always written now.
+        parser.add_argument("--svg", action="store_true", help=argparse.SUPPRESS)
+
+    def handle(self, *args, study, responses, out, **options):
+        participants = None
+        if responses:
+            try:
+                table = read_responses(responses)
+            except (AnalysisError, OSError, ValueError) as error:
+                raise CommandError(f"Cannot read {responses}: {error}") from None
+            name = Path(responses).name
+        else:
+            record = get_study(study)
+            table = responses_frame(record)
+            participants = _participants(record)
+            name = record.slug
+            if table.empty:
+                raise CommandError(f"Study {name} has no answers yet; nothing to analyse.")
+        out = Path(out)
+        try:
+            config = AnalysisConfig(
+                exclusions=not options["no_exclusions"], min_time_factor=options["min_time_factor"],
+                max_failed_catch=options["max_failed_catch"], completed_only=options["completed_only"],
+                bootstrap=options["bootstrap"], seed=options["seed"], real_source=options["real_source"],
+            )
+            result = analyse(table, config, participants=participants)
+            out.mkdir(parents=True, exist_ok=True)
+            if not responses:
+                write_responses(table, out / "responses.csv")
+            written = write_report(result, out, title=_title(study, result))
+        except (AnalysisError, OSError, ValueError) as error:
+            raise CommandError(f"Cannot analyse {name}: {error}") from None
+        self._print(name, result, written, out)
+
+    def _print(self, name, result, written, out):
+        counts, summary = result.counts, result.summary()
+        removed = counts["participants_before"] - counts["participants"]
+        self.stdout.write(
+            f"Study {name} ({result.study_type}): {counts['participants']} participants, "
+            f"{counts['judgements']} judgements"
+            + (f" ({removed} participants excluded or without answers)." if removed else ".")
+        )
+        self.stdout.write(f"Sources by {summary['measure']} (best first):")
+        sources = result.analysis.sources
+        for place, (source, row) in enumerate(sources.iterrows(), start=1):
+            extra = f", mean rank {row['mean_rank']:.2f}" if "mean_rank" in sources.columns else ""
+            self.stdout.write(
+                f"  {place}. {source}: {number(row['score'])} {interval(row['ci_low'], row['ci_high'])}"
+                f"{extra}, n={int(row['n_judgements'])}"
+            )
+        for note in result.notes:
+            self.stderr.write(self.style.WARNING(f"Note: {note}."))
+        tables = sum(1 for path in written if path.suffix == ".csv")
+        figures = sum(1 for path in written if path.suffix == ".png")
+        self.stdout.write(f"Wrote report.html, summary.json, {tables} tables (CSV, Markdown, LaTeX) "
+                          f"and {figures} figures (PNG, SVG) to {out}.")
+
+
+def _participants(study):
+    """Return the per-participant table (demographics) when the export provides one."""
+    frame = getattr(export, "participants_frame", None)
+    return frame(study) if frame is not None else None
+
+
+def _title(slug, result):
+    return f"{slug or result.study or 'Study'}: {result.study_type.replace('_', ' ')}"

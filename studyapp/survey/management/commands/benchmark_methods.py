@@ -1,0 +1,89 @@
+import shlex
+from pathlib import Path
+
+from django.conf import settings
+from django.core.management.base import BaseCommand, CommandError
+
+from generation.benchmark import BenchmarkError, run_benchmark
+from generation.benchmark_report import render
+from generation.datasets import DatasetError
+from generation.methods import CheckpointError, MethodError, list_methods
+from generation.recognition import ClassifierError
+from generation.sampling import SamplingError, split_names
+
+
+class Command(BaseCommand):
+    help = (
+        "Train every method for a time budget on each dataset, evaluate it with the seed "
+        "papers' metrics and write a Markdown report of our numbers beside the papers' "
+        "(default docs/RESULTS.md). Checkpoints in --work let a stopped run resume."
+    )
+
+    def add_arguments(self, parser):
+        parser.add_argument("--dataset", default="h36m2d,h36m",
+                            help="Comma-separated datasets: h36m2d (seeds 003/004), h36m (A2M's "
+                                 "metrics), demo (default: h36m2d,h36m).")
+        parser.add_argument("--budget", type=float, required=True,
+                            help="Seconds of training wall time per method and dataset.")
+        parser.add_argument("--methods", help=f"Comma-separated, from: {', '.join(list_methods())} "
+                                              f"(default: all).")
+        parser.add_argument("--presets", metavar="METHOD=PRESET,...",
+                            help="Config presets replacing the default recipe (demo) of some methods.")
+        parser.add_argument("--repeats", type=int, default=20, help="Repeats for the 95 %% CI (A2M: 20).")
+        parser.add_argument("--seed", type=int, default=0, help="Seed of training, sampling and repeats.")
+        parser.add_argument("--n", type=int, default=100, help="Motions per action (seed 003: 100).")
+        parser.add_argument("--subjects", help="Training subjects (default for h36m*: S1,S5,S6,S7,S8).")
+        parser.add_argument("--test-subjects", help="Held-out subjects (default for h36m*: S9).")
+        parser.add_argument("--actions", help="Comma-separated actions (default: the dataset's).")
+        parser.add_argument("--classifier-iters", type=int, default=500,
+                            help="Training iterations of the action classifier.")
+        parser.add_argument("--classifier-preset", default="paper",
+                            help="Classifier preset: paper (A2M's GRU) or tiny (tests).")
+        parser.add_argument("--data-root", help="Folder of the datasets (default: their usual place).")
+        parser.add_argument("--work", help="Folder for checkpoints, samples and records "
+                                           "(default: STUDY_VAR_DIR/benchmark).")
+        parser.add_argument("--out", default="docs/RESULTS.md", help="Markdown file to write.")
+
+    def handle(self, *args, **options):
+        if options["budget"] <= 0:
+            raise CommandError(f"--budget must be positive; got {options['budget']}")
+        work = Path(options["work"] or Path(settings.VAR_DIR) / "benchmark")
+        try:
+            presets = dict(item.split("=", 1) for item in split_names(options["presets"]))
+        except ValueError:
+            raise CommandError(f"--presets {options['presets']!r}: write METHOD=PRESET pairs") from None
+        try:
+            result = run_benchmark(
+                split_names(options["dataset"]), options["budget"], work,
+                methods=split_names(options["methods"]) or None, presets=presets,
+                repeats=options["repeats"], seed=options["seed"], n=options["n"],
+                subjects=split_names(options["subjects"]) or None,
+                test_subjects=split_names(options["test_subjects"]) or None,
+                actions=split_names(options["actions"]) or None,
+                classifier_iters=options["classifier_iters"],
+                classifier_preset=options["classifier_preset"], data_root=options["data_root"],
+                progress=options["verbosity"] >= 1, log=self.stdout.write,
+            )
+        except KeyError as exc:
+            raise CommandError(exc.args[0]) from None
+        except (BenchmarkError, DatasetError, ClassifierError, MethodError, CheckpointError,
+                SamplingError) as exc:
+            raise CommandError(str(exc)) from None
+        out = Path(options["out"])
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(render(result, command_line(options, work)))
+        self.stdout.write(f"wrote {out} ({result['wall_seconds'] / 60:.1f} minutes)")
+
+
+def command_line(options: dict, work: Path) -> str:
+    """Return the command that reproduces this run (every choice spelled out)."""
+    parts = ["python", "manage.py", "benchmark_methods", "--dataset", options["dataset"],
+             "--budget", f"{options['budget']:g}"]
+    for flag in ("methods", "presets", "subjects", "test_subjects", "actions", "data_root"):
+        if options[flag]:
+            parts += [f"--{flag.replace('_', '-')}", options[flag]]
+    parts += ["--repeats", str(options["repeats"]), "--seed", str(options["seed"]),
+              "--n", str(options["n"]), "--classifier-iters", str(options["classifier_iters"]),
+              "--classifier-preset", options["classifier_preset"], "--out", options["out"],
+              "--work", str(work)]
+    return shlex.join(parts)

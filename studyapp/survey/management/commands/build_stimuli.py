@@ -1,0 +1,41 @@
+from pathlib import Path
+
+from django.conf import settings
+from django.core.management.base import BaseCommand, CommandError
+
+from studyapp.survey.stimulus_build import BuildError, build_stimuli
+from studyapp.survey.stimulus_config import ConfigError, load_config
+
+
+class Command(BaseCommand):
+    help = (
+        "Sample, render and register the stimuli of a study config (YAML, see studies/) and "
+        "create or update its study; write manifest.json in the build folder. Incremental: "
+        "a rerun with the same config changes nothing."
+    )
+
+    def add_arguments(self, parser):
+        parser.add_argument("config", help="A study config, e.g. studies/a2m_ranking.yaml.")
+        parser.add_argument(
+            "--set", action="append", default=[], dest="overrides", metavar="FIELD=VALUE",
+            help="Override a field (dotted path, YAML value), e.g. --set dataset=demo "
+                 "--set train.iters=3 --set sources.1.seed=2. Repeatable.",
+        )
+        parser.add_argument("--out", help="Build folder (default: <var>/stimuli/<slug>).")
+        parser.add_argument("--dry-run", action="store_true", help="Check and plan; build nothing.")
+
+    def handle(self, *args, **options):
+        try:
+            config = load_config(options["config"], options["overrides"])
+            folder = Path(options["out"] or Path(settings.VAR_DIR) / "stimuli" / config.slug)
+            result = build_stimuli(config, folder, log=self.stdout.write,
+                                   dry_run=options["dry_run"])
+        except (ConfigError, BuildError) as exc:
+            raise CommandError(str(exc)) from exc
+        if not options["dry_run"]:
+            self.stdout.write(
+                f"study {result.study.slug}: {len(result.entries)} clips "
+                f"({result.rendered} rendered now, sampled now: "
+                f"{', '.join(result.sampled) or 'none'}, removed: {result.removed}); "
+                f"manifest {result.manifest}"
+            )

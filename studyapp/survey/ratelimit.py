@@ -1,0 +1,99 @@
+"""A per-IP token bucket on the URLs that create participants (entry link, consent).
+
+``STUDY_ENTRY_RATE_LIMIT`` (default ``"120/min"``; ``"N/s"``, ``"N/min"``, ``"N/h"``)
+is the sustained rate; a burst of the same size is allowed. Buckets live in Django's
+cache: per process with the default local-memory cache, shared by every worker with a
+Redis cache (docs/PRODUCTION.md). The read-modify-write is not atomic across workers,
+so the limit is approximate, which is enough to stop a script creating participants.
+"""
+
+import functools
+import time
+
+from django.conf import settings
+from django.core.cache import cache
+from django.http import HttpResponse
+
+DEFAULT = "120/min"
+PERIODS = {"s": 1, "sec": 1, "min": 60, "m": 60, "h": 3600, "hour": 3600}
+LIMITED = """<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><title>Too many requests</title></head>
+<body style="font-family: system-ui, sans-serif; max-width: 36rem; margin: 4rem auto">
+<h1>Too many new sessions</h1>
+<p>Too many people have started this study from your network just now.
+Please wait a minute and open your study link again.</p>
+</body></html>
+"""
+
+
+def parse_rate(text: str) -> tuple[float, float]:
+    """Return ``(capacity, tokens per second)`` of ``"120/min"``; raise ValueError."""
+    count, _, period = text.strip().partition("/")
+    if period not in PERIODS or not count.isdigit() or int(count) < 1:
+        raise ValueError(f"rate {text!r}: use N/s, N/min or N/h")
+    return float(count), int(count) / PERIODS[period]
+
+
+def client_ip(request) -> str:
+    """The client's address; behind a proxy, the one it appends to X-Forwarded-For."""
+    if getattr(settings, "SECURE_PROXY_SSL_HEADER", None):
+        forwarded = request.META.get("HTTP_X_FORWARDED_FOR", "")
+        if forwarded:
+            return forwarded.rsplit(",", 1)[-1].strip()
+    return request.META.get("REMOTE_ADDR", "")
+
+
+def allow(key: str, rate: str | None = None, now: float | None = None) -> bool:
+    """Take one token from bucket ``key``; return False when it is empty."""
+    capacity, refill = parse_rate(rate or getattr(settings, "STUDY_ENTRY_RATE_LIMIT", DEFAULT))
+    now = time.time() if now is None else now
+    tokens, then = cache.get(key, (capacity, now))
+    tokens = min(capacity, tokens + (now - then) * refill)
+    if tokens < 1:
+        cache.set(key, (tokens, now), timeout=int(capacity / refill) + 60)
+        return False
+    cache.set(key, (tokens - 1, now), timeout=int(capacity / refill) + 60)
+    return True
+
+
+def too_many() -> HttpResponse:
+    response = HttpResponse(LIMITED, status=429, content_type="text/html; charset=utf-8")
+    response["Retry-After"] = "60"
+    return response
+
+
+def creates_participants(request) -> bool:
+    match = request.resolver_match
+    if match is None:
+        return False
+    if match.view_name == "survey:entry":
+        return True
+    return (match.view_name == "survey:page" and match.kwargs.get("name") == "consent"
+            and request.method == "POST")
+
+
+def rate_limited(view):
+    """Decorate a participant-creating view with the per-IP limit."""
+
+    @functools.wraps(view)
+    def wrapped(request, *args, **kwargs):
+        if not allow(f"ratelimit:entry:{client_ip(request)}"):
+            return too_many()
+        return view(request, *args, **kwargs)
+
+    return wrapped
+
+
+class EntryRateLimitMiddleware:
+    """Apply the limit to the entry link and the consent POST only."""
+
+    def __init__(self, get_response):
+        self.get_response = get_response
+
+    def __call__(self, request):
+        return self.get_response(request)
+
+    def process_view(self, request, view_func, view_args, view_kwargs):
+        if creates_participants(request) and not allow(f"ratelimit:entry:{client_ip(request)}"):
+            return too_many()
+        return None

@@ -1,0 +1,59 @@
+"""The admin's results page of a study: the analysis report, refreshed as a background job.
+
+The analysis runs outside the request (``tasks.run_job("call_command", ...)``, i.e. the
+``analyze`` command); the page shows the latest ``report.html`` it wrote.
+"""
+
+from datetime import datetime, timezone
+from pathlib import Path
+
+from django.conf import settings
+from django.contrib import messages
+from django.http import FileResponse, Http404
+from django.shortcuts import get_object_or_404, redirect
+from django.template.response import TemplateResponse
+
+from studyapp.survey.models import Study
+
+
+def report_folder(study: Study) -> Path:
+    """Return where the study's latest analysis is written."""
+    return Path(settings.VAR_DIR) / "reports" / study.slug
+
+
+def start_analysis(study: Study) -> None:
+    """Run ``analyze`` for the study in the background."""
+    from studyapp.survey.tasks import run_job
+
+    run_job("call_command", name="analyze",
+            options={"study": study.slug, "out": str(report_folder(study))})
+
+
+def results_view(admin_site, request, pk):
+    """Show the latest report; a POST starts a fresh analysis."""
+    study = get_object_or_404(Study, pk=pk)
+    if request.method == "POST":
+        start_analysis(study)
+        messages.info(request, "The analysis is running; reload this page in a few seconds.")
+        return redirect(request.path)
+    report = report_folder(study) / "report.html"
+    written = (
+        datetime.fromtimestamp(report.stat().st_mtime, tz=timezone.utc) if report.is_file() else None
+    )
+    context = {
+        **admin_site.each_context(request),
+        "title": f"Results of {study.slug}",
+        "study": study,
+        "opts": Study._meta,
+        "written": written,
+    }
+    return TemplateResponse(request, "admin/survey/study/results.html", context)
+
+
+def report_view(request, pk):
+    """Return the study's latest ``report.html`` (self-contained, figures embedded)."""
+    study = get_object_or_404(Study, pk=pk)
+    report = report_folder(study) / "report.html"
+    if not report.is_file():
+        raise Http404("no analysis yet")
+    return FileResponse(open(report, "rb"), content_type="text/html; charset=utf-8")

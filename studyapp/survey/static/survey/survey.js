@@ -1,0 +1,117 @@
+// Shared by every study type: play clips on repeat, count complete plays, keep the
+// answer button shut until each clip has played through once and every question of the
+// form is answered, copy the completion code.
+(function () {
+  "use strict";
+
+  function setupTrial(form) {
+    var cards = Array.prototype.slice.call(form.querySelectorAll("[data-clip-card]"));
+    var submit = form.querySelector("[data-submit]");
+    var gate = form.querySelector("[data-gate]");
+    var label = submit.textContent;
+
+    function playsOf(card) {
+      return Number(card.querySelector("[data-plays]").value) || 0;
+    }
+
+    function update() {
+      var watched = cards.filter(function (card) { return playsOf(card) > 0; }).length;
+      var allWatched = watched === cards.length;
+      var answered = form.checkValidity();
+      var ready = allWatched && answered;
+      submit.disabled = !ready;
+      form.classList.toggle("is-ready", ready);
+      if (!allWatched) {
+        gate.textContent = "Watched to the end: " + watched + " of " + cards.length +
+          ". The button unlocks once every clip has played through.";
+      } else if (!answered) {
+        gate.textContent = "All clips watched. Answer for every clip to continue.";
+      } else {
+        gate.textContent = "All clips watched. Submit when your answer is ready.";
+      }
+    }
+
+    function start(card, video) {
+      var playing = video.play();
+      if (playing && playing.catch) {
+        playing.then(function () {
+          card.querySelector("[data-play]").hidden = true;
+        }).catch(function () {
+          // Autoplay refused (e.g. a phone's data saver): ask for a tap instead.
+          card.querySelector("[data-play]").hidden = false;
+        });
+      }
+    }
+
+    cards.forEach(function (card) {
+      var video = card.querySelector("video");
+      var plays = card.querySelector("[data-plays]");
+      var state = card.querySelector("[data-state]");
+      // Loop by hand: with the loop attribute a video never fires "ended", which is
+      // exactly the event that proves it was played through.
+      video.loop = false;
+      video.addEventListener("ended", function () {
+        plays.value = String(playsOf(card) + 1);
+        card.classList.add("is-watched");
+        state.textContent = "Watched";
+        update();
+        video.currentTime = 0;
+        start(card, video);
+      });
+      video.addEventListener("playing", function () {
+        if (!playsOf(card)) { state.textContent = "Playing…"; }
+      });
+      video.addEventListener("error", function () {
+        state.textContent = "Could not load: please reload the page";
+      });
+      video.addEventListener("click", function () {
+        if (video.paused) { start(card, video); } else { video.pause(); }
+      });
+      card.querySelector("[data-play]").addEventListener("click", function () {
+        start(card, video);
+      });
+      start(card, video);
+    });
+
+    form.addEventListener("submit", function (event) {
+      if (submit.disabled) { event.preventDefault(); return; }
+      // One click, one answer: the server ignores repeats, but people need feedback.
+      window.setTimeout(function () {
+        submit.disabled = true;
+        submit.textContent = "Saving…";
+      }, 0);
+    });
+    form.addEventListener("change", update);
+    window.addEventListener("pageshow", function () {
+      submit.textContent = label;
+      update();
+    });
+    update();
+    // Once every deferred script (this and the study type's) has run, say so.
+    document.addEventListener("DOMContentLoaded", function () {
+      form.setAttribute("data-ready", "");
+    });
+  }
+
+  function setupCopy(button) {
+    var target = document.getElementById(button.getAttribute("data-copy"));
+    button.addEventListener("click", function () {
+      var text = target.textContent.trim();
+      var done = function () { button.textContent = "Copied"; };
+      if (navigator.clipboard && window.isSecureContext) {
+        navigator.clipboard.writeText(text).then(done);
+      } else {
+        var range = document.createRange();
+        range.selectNodeContents(target);
+        var selection = window.getSelection();
+        selection.removeAllRanges();
+        selection.addRange(range);
+        document.execCommand("copy");
+        done();
+      }
+    });
+  }
+
+  document.querySelectorAll("[data-trial-form]").forEach(setupTrial);
+  document.querySelectorAll("[data-copy]").forEach(setupCopy);
+})();

@@ -1,0 +1,439 @@
+"""Build a study's stimuli from a config: sample, render, register, write a manifest.
+
+The build folder holds caches keyed on their inputs, so a rebuild only redoes what a
+changed field touches:
+
+- ``motions/<source>-<key>.npz``: a source's motions; the key hashes the source's
+  config section, the dataset fields, the checkpoint's (or file's) sha256 and the seed;
+- ``checkpoints/<source>-<key>.pt``: methods without a ``checkpoint`` are trained here
+  with the stated budget (``train.iters``, ``train.preset``), keyed on that budget;
+- ``renders/<video_hash>.mp4|png`` and ``renders/index.json``: each clip's render,
+  keyed by its motion hash, the style, the size and the framing.
+
+The framing is fitted to real clips only (``clips_per_source + 2`` per action, drawn
+with the config's seed), never to generated ones: changing a method then re-renders
+only that method's clips. A generated clip that wanders further than real ones may
+leave the frame; that is what participants would see of it anyway.
+
+``manifest.json`` lists per clip its source, checkpoint or file sha256, seed, action,
+role, motion hash and video hash; no paths and no times, so two machines that build the
+same config write the same manifest. Sampling runs on one torch thread, seeded.
+
+Updating a study never loses answers: stimuli no longer in the build are deleted only
+when no trial ever showed them; otherwise the build stops and changes nothing (build the
+new set under a new slug, or put the source back).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from django.db import transaction
+from tqdm import tqdm
+
+from generation import ops
+from generation.formats import load_motions, npz
+from generation.sampling import SamplingError, choose
+from rendering import Framing, get_style, render_set
+from studyapp.survey.demo import CATCH_NOISE, CATCH_SOURCE, STANDARD_NOISE, degrade
+from studyapp.survey.models import ScoringStandard, Stimulus, Study
+from studyapp.survey.stimuli import file_hash, register_clips
+from studyapp.survey.stimulus_config import ConfigError, StudyConfig
+from studyapp.survey.study_types.rating_standards import default_descriptions
+
+ROLE_FLAGS = {"catch": "is_catch", "reference": "is_reference", "example": "is_standard_example"}
+PER_SOURCE_TYPES = ("ranking", "rating_standards", "rating_reference")
+
+
+class BuildError(RuntimeError):
+    """The build cannot go on (e.g. it would delete answered stimuli); nothing was changed."""
+
+
+@dataclass
+class BuildResult:
+    study: Study | None
+    manifest: Path
+    entries: list[dict] = field(default_factory=list)
+    rendered: int = 0  # clips rendered now (not taken from the cache)
+    sampled: list[str] = field(default_factory=list)  # sources sampled now
+    removed: int = 0  # stimuli deleted from the study
+
+
+def digest(value) -> str:
+    return hashlib.sha256(json.dumps(value, sort_keys=True, default=str).encode()).hexdigest()
+
+
+@contextmanager
+def one_thread():
+    """Run torch on one thread (same numbers on any machine); restore the count after."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
+
+
+class Build:
+    """One build of a config into ``folder``; :meth:`run` does it all."""
+
+    def __init__(self, config: StudyConfig, folder, progress=None, log=None):
+        self.config = config
+        self.folder = Path(folder)
+        self.progress = progress  # callable(done, total, message), e.g. a background job's
+        self.log = log or (lambda message: None)
+        self._dataset = None
+        self.bar = None
+
+    # The dataset loads only when a cache misses: a no-op rebuild never reads it.
+    @property
+    def dataset(self):
+        if self._dataset is None:
+            from generation.datasets import get_dataset
+
+            try:
+                self._dataset = get_dataset(self.config.dataset, self.config.data_root)
+            except KeyError as exc:
+                raise ConfigError(f"dataset: {exc.args[0]}") from None
+        return self._dataset
+
+    def data_fields(self) -> dict:
+        c = self.config
+        return {"dataset": c.dataset, "subjects": c.subjects, "actions": c.actions,
+                "frames": c.frames, "fps": c.fps, "n": c.clips_per_source}
+
+    def actions(self) -> list[str]:
+        try:
+            return choose(self.config.actions, self.dataset.actions(), "action",
+                          f"dataset {self.config.dataset!r}")
+        except SamplingError as exc:
+            raise ConfigError(f"actions: {exc}") from None
+
+    def step(self, message: str, n: int = 1) -> None:
+        self.bar.set_description_str(message[:40])
+        self.bar.update(n)
+        if self.progress:
+            self.progress(self.bar.n, self.bar.total, message)
+
+    def run(self, dry_run: bool = False) -> BuildResult:
+        c = self.config
+        if dry_run:
+            return self.plan()
+        self.folder.mkdir(parents=True, exist_ok=True)
+        extras_count = self._extras_per_action()
+        # One step per source sampled, one per clip rendered, one to register; actions
+        # are counted once known (the dataset may not need loading at all).
+        total = len(c.sources) + 3
+        self.bar = tqdm(total=total, desc="build_stimuli", unit="step", dynamic_ncols=True)
+        result = BuildResult(None, self.folder / "manifest.json")
+        try:
+            groups = []
+            for source in c.sources:
+                motions, meta, fresh = self.source_motions(source)
+                if fresh:
+                    result.sampled.append(source.name)
+                groups.append((source, motions, meta))
+                self.step(f"sampled {source.name}")
+            base, framing = self.real_base()
+            self.step("framing")
+            extras = self.extras(base) if extras_count else []
+            rated = [(m, source, meta) for source, motions, meta in groups for m in motions]
+            self.bar.total += len(rated) + len(extras)
+            self.bar.refresh()
+            clips, result.rendered = self.render(rated, extras, framing)
+            self.step("registering")
+            result.entries = [self.entry(clip) for clip in clips]
+            result.study, result.removed = self.register(clips)
+            self.write_manifest(result.entries)
+            self.step("manifest written")
+        finally:
+            self.bar.close()
+        return result
+
+    def plan(self) -> BuildResult:
+        """Report what would be built, touching nothing."""
+        for source in self.config.sources:
+            ready = source.kind != "method" or source.checkpoint or self._auto_checkpoint(source).is_file()
+            self.log(f"{source.name}: {source.kind}"
+                     f"{'' if ready else ' (to train: ' + str(source.iters) + ' iterations)'}")
+        self.log(f"study {self.config.slug!r} ({self.config.study_type}), style "
+                 f"{self.config.style} at {self.config.size} px, into {self.folder}")
+        return BuildResult(Study.objects.filter(slug=self.config.slug).first(),
+                           self.folder / "manifest.json")
+
+    # --- motions -------------------------------------------------------------------
+
+    def _auto_checkpoint(self, source) -> Path:
+        key = digest({"source": source.section(), "data": self.data_fields()})[:16]
+        return self.folder / "checkpoints" / f"{source.name}-{key}.pt"
+
+    def source_motions(self, source):
+        """Return (motions, manifest fields, sampled now?) of one source, from the cache if there."""
+        c = self.config
+        meta = {"source": source.name, "seed": source.seed}
+        if source.kind == "method":
+            path = self.checkpoint(source)
+            meta["checkpoint"] = file_hash(path)
+        elif source.kind == "file":
+            path = c.path(source.file)
+            if not path.is_file():
+                raise ConfigError(f"sources: file {source.file!r} of source {source.name!r} is not "
+                                  f"there (looked in {path}); fix the path")
+            meta["file"] = file_hash(path)
+            extra = source.options.get("classes_path")
+            if extra:
+                meta["classes"] = file_hash(c.path(extra))
+        key = digest({"source": source.section(), "data": self.data_fields(), **meta})[:16]
+        cached = self.folder / "motions" / f"{source.name}-{key}.npz"
+        if cached.is_file():
+            return npz.load(cached), meta, False
+        motions = self.sample(source)
+        npz.save(cached, motions)
+        return motions, meta, True
+
+    def checkpoint(self, source) -> Path:
+        if source.checkpoint:
+            path = self.config.path(source.checkpoint)
+            if not path.is_file():
+                raise ConfigError(f"sources: checkpoint {source.checkpoint!r} of {source.name!r} "
+                                  f"is not there (looked in {path}); fix the path, or drop "
+                                  f"'checkpoint' to train one with train.iters")
+            return path
+        path = self._auto_checkpoint(source)
+        if not path.is_file():
+            from generation.methods.training import train_on_dataset
+
+            c = self.config
+            self.log(f"training {source.method} for {source.iters} iterations ({source.preset})")
+            with one_thread():
+                train_on_dataset(source.method, c.dataset, path, data_root=c.data_root,
+                                 subjects=c.subjects, actions=self.actions(), iters=source.iters,
+                                 preset=source.preset, seed=source.seed, frames=c.frames,
+                                 fps=c.fps, progress=False, save_every=0)
+        return path
+
+    def sample(self, source) -> list:
+        c = self.config
+        n = c.clips_per_source
+        frames = c.frames or self.dataset.clip_frames
+        if source.kind == "real":
+            from generation.sampling import sample_real
+
+            motions = sample_real(self.dataset, self.actions(), n, frames, source.seed, c.fps,
+                                  c.subjects)
+        elif source.kind == "method":
+            from generation.sampling import sample_method
+
+            with one_thread():
+                motions = sample_method(self.checkpoint(source), self.actions(), n, frames,
+                                        source.seed, source.method)
+            if c.fps:
+                motions = [ops.resample(m, c.fps) for m in motions]
+        else:
+            options = {k: (str(self.config.path(v)) if k == "classes_path" else v)
+                       for k, v in source.options.items()}
+            loaded = load_motions(c.path(source.file), source.format,
+                                  fps=c.fps or self.dataset.clip_fps, **options)
+            motions = []
+            for action in self.actions():
+                mine = [m for m in loaded if m.action == action][:n]
+                motions.extend(ops.trim(m, 0, min(frames, m.frames)) for m in mine)
+            if not motions:
+                raise ConfigError(f"sources: file {source.file!r} has no motions of the actions "
+                                  f"{', '.join(self.actions())}; set the actions, or the file's "
+                                  f"'action' option")
+        return [m.with_joints(m.joints, source=source.name, meta=dict(m.meta)) for m in motions]
+
+    def real_base(self):
+        """Return real clips (n + 2 per action) and the framing fitted to them, cached."""
+        c = self.config
+        key = digest({"data": self.data_fields(), "seed": c.seed, "style": c.style,
+                      "size": c.size})[:16]
+        cached = self.folder / "motions" / f"_real-{key}.npz"
+        framing_file = self.folder / "motions" / f"_framing-{key}.json"
+        if cached.is_file() and framing_file.is_file():
+            return npz.load(cached), Framing(**_framing_fields(json.loads(framing_file.read_text())))
+        from generation.sampling import sample_real
+
+        frames = c.frames or self.dataset.clip_frames
+        base = sample_real(self.dataset, self.actions(), c.clips_per_source + 2, frames, c.seed,
+                           c.fps, c.subjects)
+        framing = Framing.from_motions(base, pad=get_style(c.style).pad)
+        npz.save(cached, base)
+        framing_file.write_text(json.dumps(asdict(framing), sort_keys=True))
+        return base, framing
+
+    def _extras_per_action(self) -> int:
+        c = self.config
+        count = 1 if c.study_type == "rating_reference" else 0
+        count += len(STANDARD_NOISE) if c.study_type == "rating_standards" else 0
+        return count + (1 if c.study_options.get("catch_trials") else 0)
+
+    def extras(self, base) -> list[tuple]:
+        """Return (motion, role, score) of the reference, example and catch clips."""
+        import numpy as np
+
+        c = self.config
+        n = c.clips_per_source
+        per = n + 2
+        rng = np.random.default_rng(c.seed + 1)
+        out = []
+        for start in range(0, len(base), per):
+            group = base[start:start + per]
+            reference, root = group[n], group[n + 1]
+            if c.study_type == "rating_reference":
+                out.append((reference, "reference", None))
+            if c.study_type == "rating_standards":
+                for score, noise in STANDARD_NOISE.items():
+                    out.append((degrade(root, noise, rng, "standard_example"), "example", score))
+            if c.study_options.get("catch_trials"):
+                out.append((degrade(root, CATCH_NOISE, rng, CATCH_SOURCE), "catch", None))
+        return out
+
+    # --- renders -------------------------------------------------------------------
+
+    def render(self, rated, extras, framing):
+        """Render what the cache lacks; return clip specs in build order and the count rendered."""
+        c = self.config
+        folder = self.folder / "renders"
+        index_file = folder / "index.json"
+        index = json.loads(index_file.read_text()) if index_file.is_file() else {}
+        settings = {"style": c.style, "size": c.size, "framing": asdict(framing)}
+        items = [(m, {"role": "rated", **meta}) for m, _, meta in rated]
+        items += [(m, {"role": role, "score": score, "source": m.source, "seed": c.seed})
+                  for m, role, score in extras]
+        keys = [digest({"motion": m.content_hash(), **settings}) for m, _ in items]
+        missing = [i for i, key in enumerate(keys) if key not in index
+                   or not (folder / f"{index[key]['video_hash']}.mp4").is_file()]
+        self.step("renders cached", len(items) - len(missing))
+        if missing:
+            incoming = folder / ".incoming"
+            shutil.rmtree(incoming, ignore_errors=True)
+            report = render_set([items[i][0] for i in missing], incoming, style=c.style,
+                                size=c.size, framing=framing, progress=False)
+            if report.failures:
+                raise BuildError(f"clips failed to render in the {c.style!r} style: "
+                                 f"{report.failures}")
+            for clip in report.clips:
+                for path in (Path(clip.video), Path(clip.poster)):
+                    target = folder / path.name
+                    if not target.is_file():  # two clips may share one video
+                        path.replace(target)
+                index[keys[missing[clip.index]]] = {"video_hash": clip.video_hash,
+                                                    "duration": clip.duration}
+                self.step(f"rendered {items[missing[clip.index]][0].source}")
+            shutil.rmtree(incoming, ignore_errors=True)
+            _write_if_changed(index_file, json.dumps(index, sort_keys=True, indent=1))
+        clips = []
+        for (motion, spec), key in zip(items, keys):
+            done = index[key]
+            clips.append({
+                **spec, "action": motion.action, "source": spec["source"],
+                "motion_hash": motion.content_hash(), "video_hash": done["video_hash"],
+                "video": folder / f"{done['video_hash']}.mp4",
+                "poster": folder / f"{done['video_hash']}.png", "duration": done["duration"],
+            })
+        return clips, len(missing)
+
+    # --- study and manifest ---------------------------------------------------------
+
+    def entry(self, clip: dict) -> dict:
+        keep = ("source", "checkpoint", "file", "seed", "action", "role", "score",
+                "motion_hash", "video_hash")
+        return {k: clip[k] for k in keep if clip.get(k) is not None}
+
+    def study_fields(self) -> dict:
+        c = self.config
+        fields = {k: v for k, v in c.study_options.items() if v is not None}
+        fields["dataset"] = c.dataset
+        if c.study_type in PER_SOURCE_TYPES:
+            fields.setdefault("clips_per_trial", len(c.sources))
+        return fields
+
+    def register(self, clips):
+        """Create or update the study to hold exactly these clips; return (study, removed)."""
+        c = self.config
+        wanted = {clip["video_hash"] for clip in clips}
+        with transaction.atomic():
+            study = Study.objects.filter(slug=c.slug).first()
+            if study is None:
+                study = Study.objects.create_study(c.study_type, c.slug, c.title,
+                                                   **self.study_fields())
+            elif study.study_type != c.study_type:
+                raise BuildError(f"study {c.slug!r} is a {study.study_type} study, not "
+                                 f"{c.study_type}; pick another slug")
+            else:
+                changes = {"title": c.title, **self.study_fields()}
+                if any(getattr(study, k) != v for k, v in changes.items()):
+                    for name, value in changes.items():
+                        setattr(study, name, value)
+                    study.full_clean()
+                    study.save()
+            stale = study.stimuli.exclude(video_hash__in=wanted)
+            shown = stale.filter(items__isnull=False).distinct()
+            if shown.exists():
+                sources = sorted({s.source for s in shown})
+                raise BuildError(
+                    f"study {c.slug!r}: {shown.count()} stimuli of {', '.join(sources)} are no "
+                    f"longer in the config but participants have seen them; answers are never "
+                    f"deleted. Put those sources back, or build under a new slug"
+                )
+            removed = stale.count()
+            if removed:
+                ScoringStandard.objects.filter(stimulus__in=stale).delete()
+                stale.delete()
+            try:
+                stimuli = register_clips(study, [
+                    {**clip, **({ROLE_FLAGS[clip["role"]]: True} if clip["role"] in ROLE_FLAGS else {})}
+                    for clip in clips
+                ])
+            except ValueError as exc:  # two sources gave the same video
+                raise BuildError(f"{exc}; give the sources different motions") from None
+            if c.study_type == "rating_standards":
+                self.standards(study, clips, stimuli)
+        return study, removed
+
+    def standards(self, study, clips, stimuli):
+        examples: dict[str, dict] = {}
+        for clip, stimulus in zip(clips, stimuli):
+            if clip["role"] == "example":
+                examples.setdefault(clip["action"], {})[clip["score"]] = stimulus
+        for action, chosen in examples.items():
+            have = {s.score: s.stimulus_id for s in ScoringStandard.objects.for_action(study, action)}
+            if have != {score: s.pk for score, s in chosen.items()}:
+                ScoringStandard.objects.set_standards(
+                    study, action, chosen, default_descriptions(action.replace("_", " ")))
+
+    def write_manifest(self, entries) -> None:
+        c = self.config
+        manifest = {"slug": c.slug, "study_type": c.study_type, "dataset": c.dataset,
+                    "style": c.style, "size": c.size, "clips": entries}
+        _write_if_changed(self.folder / "manifest.json", json.dumps(manifest, indent=1) + "\n")
+
+
+def _framing_fields(raw: dict) -> dict:
+    raw["target"] = tuple(raw["target"])
+    return raw
+
+
+def _write_if_changed(path: Path, text: str) -> bool:
+    if path.is_file() and path.read_text() == text:
+        return False
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(text)
+    tmp.replace(path)
+    return True
+
+
+def build_stimuli(config: StudyConfig, folder, progress=None, log=None,
+                  dry_run: bool = False) -> BuildResult:
+    """Build ``config`` into ``folder``; see the module docstring."""
+    return Build(config, folder, progress, log).run(dry_run)

@@ -1,0 +1,280 @@
+"""Read and check a stimulus-set config (YAML): what ``manage.py build_stimuli`` builds.
+
+A config names the dataset, the clips, the sources, the render settings and the study
+(see ``studies/*.yaml`` for documented examples). :func:`load_config` applies
+``--set`` overrides, then checks every field; each error names the field, the value
+and the fix. Plain Python and YAML: no Django, so configs are checked anywhere.
+
+Overrides are ``path=value``: ``path`` is dotted (``train.iters``, ``study.type``,
+``sources.2.seed`` for the third source) and ``value`` is read as YAML
+(``3``, ``tiny``, ``[walk, run]``, ``null``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+STYLES = ("stick", "stick2d", "mesh")
+FORMATS = ("npz", "a2m", "bvh")
+STUDY_TYPES = ("ranking", "fake_or_real", "rating_standards", "rating_reference", "pairwise")
+STUDY_OPTIONS = {
+    "clips_per_trial": int, "trials_per_participant": int, "practice": bool,
+    "catch_trials": int, "repeat_trials": int, "allow_ties": bool, "ask_demographics": bool,
+    "max_participants": int, "completion_url": str, "instructions": str, "data_note": str,
+}
+TOP = ("slug", "title", "seed", "dataset", "data_root", "subjects", "actions", "frames", "fps",
+       "clips_per_source", "train", "sources", "render", "study")
+
+
+class ConfigError(ValueError):
+    """A config field has a wrong value; the message names the field, the value and the fix."""
+
+
+@dataclass
+class Source:
+    """One source of clips: ``real`` data, a ``method`` checkpoint, or a motions ``file``."""
+
+    name: str
+    kind: str  # "real", "method" or "file"
+    method: str | None = None
+    checkpoint: str | None = None  # None: trained into the build folder with ``train``
+    file: str | None = None
+    format: str | None = None
+    options: dict = field(default_factory=dict)
+    seed: int = 0
+    iters: int = 1000
+    preset: str = "paper"
+
+    def section(self) -> dict:
+        """Return the fields that decide this source's motions (its cache key, with hashes)."""
+        return {k: v for k, v in vars(self).items() if k not in ("checkpoint", "file")}
+
+
+@dataclass
+class StudyConfig:
+    slug: str
+    title: str
+    seed: int
+    dataset: str
+    data_root: str | None
+    subjects: list[str] | None
+    actions: list[str] | None
+    frames: int | None
+    fps: float | None
+    clips_per_source: int
+    sources: list[Source]
+    style: str
+    size: int
+    study_type: str
+    study_options: dict
+    folder: Path  # relative paths in the config are relative to this
+
+    def path(self, value: str) -> Path:
+        return (self.folder / value).resolve()
+
+
+def load_config(path, overrides=()) -> StudyConfig:
+    """Read the YAML config at ``path``, apply ``path=value`` overrides and check it."""
+    path = Path(path)
+    try:
+        raw = yaml.safe_load(path.read_text())
+    except OSError as exc:
+        raise ConfigError(f"cannot read config {path}: {exc.strerror}; check the path") from None
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"config {path} is not valid YAML: {exc}") from None
+    if not isinstance(raw, dict):
+        raise ConfigError(f"config {path} must be a mapping of fields (slug, dataset, sources, ...)")
+    for override in overrides:
+        apply_override(raw, override)
+    return parse(raw, path.resolve().parent)
+
+
+def apply_override(raw: dict, override: str) -> None:
+    """Set ``raw[a][b]...`` from ``"a.b=value"`` (value read as YAML) in place."""
+    key, sep, text = override.partition("=")
+    if not sep or not key.strip():
+        raise ConfigError(f"--set {override!r}: write FIELD=VALUE, e.g. --set train.iters=3")
+    parts = key.strip().split(".")
+    value = yaml.safe_load(text) if text.strip() else None
+    node = raw
+    for i, part in enumerate(parts[:-1]):
+        node = _child(node, part, ".".join(parts[: i + 1]), create=True)
+    last = parts[-1]
+    if isinstance(node, list):
+        node[_index(node, last, key)] = value
+    else:
+        node[last] = value
+
+
+def _child(node, part, where, create):
+    if isinstance(node, list):
+        index = _index(node, part, where)
+        if isinstance(node[index], str):  # a source given by name becomes a mapping
+            node[index] = _source_mapping(node[index])
+        return node[index]
+    if not isinstance(node, dict):
+        raise ConfigError(f"--set {where}: {where.rsplit('.', 1)[0]} holds no fields")
+    if node.get(part) is None and create:
+        node[part] = {}
+    return node[part]
+
+
+def _index(node: list, part: str, where: str) -> int:
+    if not part.isdigit() or int(part) >= len(node):
+        raise ConfigError(f"--set {where}: {part!r} is not an index of the list "
+                          f"(0 to {len(node) - 1})")
+    return int(part)
+
+
+def _source_mapping(name: str) -> dict:
+    return {"real": True} if name == "real" else {"method": name}
+
+
+def parse(raw: dict, folder: Path) -> StudyConfig:
+    """Check a config mapping; raise :class:`ConfigError` naming the first bad field."""
+    unknown = sorted(set(raw) - set(TOP))
+    if unknown:
+        raise ConfigError(f"unknown field {unknown[0]!r}; fields are: {', '.join(TOP)}")
+    slug = _text(raw, "slug")
+    if not slug.replace("-", "").replace("_", "").isalnum():
+        raise ConfigError(f"slug: {slug!r} is not a slug; use letters, digits, - and _")
+    seed = _int(raw, "seed", 0, minimum=0)
+    train = raw.get("train") or {}
+    if not isinstance(train, dict):
+        raise ConfigError(f"train: {train!r} must be a mapping like {{iters: 1000, preset: paper}}")
+    iters = _int(train, "iters", 1000, minimum=0, where="train.iters")
+    preset = _text(train, "preset", "paper", where="train.preset")
+    render = raw.get("render") or {}
+    style = _text(render, "style", "stick", where="render.style")
+    if style not in STYLES:
+        raise ConfigError(f"render.style: {style!r} is not a style; choose one of {', '.join(STYLES)}")
+    study = dict(raw.get("study") or {})
+    study_type = study.pop("type", None)
+    if study_type not in STUDY_TYPES:
+        raise ConfigError(f"study.type: {study_type!r} is not a study type; choose one of "
+                          f"{', '.join(STUDY_TYPES)}")
+    options = {}
+    for name, value in study.items():
+        kind = STUDY_OPTIONS.get(name)
+        if kind is None:
+            raise ConfigError(f"study.{name}: unknown study option; options are type, "
+                              f"{', '.join(STUDY_OPTIONS)}")
+        if value is not None and (not isinstance(value, kind) or (kind is int and isinstance(value, bool))):
+            raise ConfigError(f"study.{name}: {value!r} must be {kind.__name__}")
+        if kind is int and value is not None and value < 0:
+            raise ConfigError(f"study.{name}: {value!r} must be 0 or more")
+        options[name] = value
+    sources = _sources(raw.get("sources"), seed, iters, preset)
+    fps = raw.get("fps")
+    if fps is not None and (isinstance(fps, bool) or not isinstance(fps, (int, float)) or fps <= 0):
+        raise ConfigError(f"fps: {fps!r} must be a positive number, or null for the dataset's")
+    return StudyConfig(
+        slug=slug,
+        title=_text(raw, "title"),
+        seed=seed,
+        dataset=_text(raw, "dataset"),
+        data_root=raw.get("data_root"),
+        subjects=_names(raw, "subjects"),
+        actions=_names(raw, "actions"),
+        frames=_int(raw, "frames", None, minimum=2),
+        fps=fps,
+        clips_per_source=_int(raw, "clips_per_source", 1, minimum=1),
+        sources=sources,
+        style=style,
+        size=_int(render, "size", 480, minimum=16, where="render.size"),
+        study_type=study_type,
+        study_options=options,
+        folder=folder,
+    )
+
+
+def _sources(raw, seed, iters, preset) -> list[Source]:
+    if not isinstance(raw, list) or not raw:
+        raise ConfigError(f"sources: {raw!r} must be a non-empty list, e.g. [real, cond_gru]")
+    sources = []
+    for i, entry in enumerate(raw):
+        where = f"sources.{i}"
+        if isinstance(entry, str):
+            entry = _source_mapping(entry)
+        if not isinstance(entry, dict):
+            raise ConfigError(f"{where}: {entry!r} must be 'real', a method name or a mapping")
+        kinds = [k for k in ("real", "method", "file") if entry.get(k)]
+        if len(kinds) != 1:
+            raise ConfigError(f"{where}: {entry!r} needs exactly one of real: true, method: NAME, "
+                              f"file: PATH")
+        kind = kinds[0]
+        allowed = {"name", "seed", kind} | {
+            "real": set(), "method": {"checkpoint", "iters", "preset"},
+            "file": {"format", "options"},
+        }[kind]
+        extra = sorted(set(entry) - allowed)
+        if extra:
+            raise ConfigError(f"{where}.{extra[0]}: not a field of a {kind} source; "
+                              f"its fields are {', '.join(sorted(allowed))}")
+        source = Source(
+            name=str(entry.get("name") or ("real" if kind == "real" else entry.get("method")
+                                           or Path(str(entry["file"])).stem)),
+            kind=kind,
+            seed=_int(entry, "seed", seed, minimum=0, where=f"{where}.seed"),
+        )
+        if kind == "method":
+            source.method = _text(entry, "method", where=f"{where}.method")
+            source.checkpoint = entry.get("checkpoint")
+            source.iters = _int(entry, "iters", iters, minimum=1, where=f"{where}.iters")
+            source.preset = _text(entry, "preset", preset, where=f"{where}.preset")
+            _check_method(source, where)
+        elif kind == "file":
+            source.file = str(entry["file"])
+            source.format = entry.get("format") or Path(source.file).suffix.lstrip(".")
+            if source.format not in FORMATS:
+                raise ConfigError(f"{where}.format: {source.format!r} is not a motion format; "
+                                  f"choose one of {', '.join(FORMATS)}")
+            source.options = dict(entry.get("options") or {})
+        if source.name in [s.name for s in sources]:
+            raise ConfigError(f"{where}.name: {source.name!r} is used twice; give each source "
+                              f"its own name")
+        sources.append(source)
+    return sources
+
+
+def _check_method(source: Source, where: str) -> None:
+    from generation.methods import get_method, list_methods
+
+    try:
+        cls = get_method(source.method)
+    except KeyError:
+        raise ConfigError(f"{where}.method: {source.method!r} is not a method; choose one of "
+                          f"{', '.join(list_methods())}") from None
+    if source.checkpoint is None and source.preset not in cls.Config.PRESETS:
+        raise ConfigError(f"{where}.preset (or train.preset): {source.preset!r} is not a preset "
+                          f"of {source.method}; choose one of {', '.join(sorted(cls.Config.PRESETS))}")
+
+
+def _text(raw: dict, name: str, default=None, where=None) -> str:
+    value = raw.get(name, default)
+    if not isinstance(value, str) or not value.strip():
+        raise ConfigError(f"{where or name}: {value!r} must be a non-empty text")
+    return value
+
+
+def _int(raw: dict, name: str, default, minimum=None, where=None):
+    value = raw.get(name, default)
+    if value is None and default is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int) or (minimum is not None and value < minimum):
+        raise ConfigError(f"{where or name}: {value!r} must be a whole number of at least {minimum}")
+    return value
+
+
+def _names(raw: dict, name: str) -> list[str] | None:
+    value = raw.get(name)
+    if value is None or value == "all":
+        return None
+    if isinstance(value, str):
+        value = [v.strip() for v in value.split(",") if v.strip()]
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise ConfigError(f"{name}: {value!r} must be a list of names, or null for all")
+    return value

@@ -1,0 +1,116 @@
+"""Background jobs: stimulus builds and long analyses, outside any request.
+
+``run_job(kind, **params)`` runs the job registered as ``kind``. With
+``STUDY_CELERY_BROKER`` set (``redis://127.0.0.1:6379/0``) it is queued for a Celery
+worker (``celery -A studyapp worker``); otherwise it runs in a thread of this process.
+Jobs must be safe to run again after a crash: ``register_stimuli`` is, because
+``register_clips`` finds a video already in the study by its hash.
+"""
+
+import logging
+import os
+import threading
+from collections.abc import Callable
+
+log = logging.getLogger(__name__)
+
+JOBS: dict[str, Callable] = {}
+
+
+def register_job(kind: str):
+    """Register a function as the job ``kind`` (keyword parameters, JSON-serialisable)."""
+
+    def decorate(function):
+        JOBS[kind] = function
+        return function
+
+    return decorate
+
+
+def broker_url() -> str:
+    from django.conf import settings
+
+    return getattr(settings, "STUDY_CELERY_BROKER", "") or os.environ.get("STUDY_CELERY_BROKER", "")
+
+
+def execute(kind: str, params: dict):
+    """Run job ``kind`` here and now; return its result."""
+    if kind not in JOBS:
+        raise KeyError(f"no job {kind!r}; known: {', '.join(sorted(JOBS))}")
+    log.info("job %s %s", kind, params)
+    return JOBS[kind](**params)
+
+
+def run_job(kind: str, **params):
+    """Start job ``kind``; return a Celery ``AsyncResult`` or the started thread."""
+    if kind not in JOBS:
+        raise KeyError(f"no job {kind!r}; known: {', '.join(sorted(JOBS))}")
+    if broker_url():
+        from studyapp.celery import run_task
+
+        return run_task.delay(kind, params)
+    thread = threading.Thread(target=_in_thread, args=(kind, params), name=f"job-{kind}", daemon=True)
+    thread.start()
+    return thread
+
+
+def _in_thread(kind, params):
+    from django.db import connection
+
+    try:
+        execute(kind, params)
+    except Exception:
+        log.exception("job %s failed", kind)
+    finally:
+        connection.close()
+
+
+@register_job("register_stimuli")
+def register_stimuli(study: str, clips: list[dict]) -> list[int]:
+    """Register rendered clips (see ``stimuli.register_clips``) with study ``study`` (slug)."""
+    from studyapp.survey.models import Study
+    from studyapp.survey.stimuli import register_clips
+
+    return [s.pk for s in register_clips(Study.objects.get(slug=study), clips)]
+
+
+@register_job("call_command")
+def call_command(name: str, args: list | None = None, options: dict | None = None) -> str:
+    """Run a management command (``render``, ``analyze``, ...) and return its output."""
+    from io import StringIO
+
+    from django.core.management import call_command as call
+
+    out = StringIO()
+    call(name, *(args or []), stdout=out, **(options or {}))
+    return out.getvalue()
+
+
+@register_job("build_stimuli")
+def build_stimuli_job(job: int) -> int | None:
+    """Run the stimulus build of ``BuildJob`` ``job``, recording progress; return the study id.
+
+    Running it again after a crash is safe: the build reuses what it finished and
+    ``register_clips`` never registers a video twice.
+    """
+    from django.utils import timezone
+
+    from studyapp.survey.build_jobs import run_build
+    from studyapp.survey.models import BuildJob
+
+    jobs = BuildJob.objects.filter(pk=job)
+    jobs.update(status=BuildJob.Status.RUNNING, started_at=timezone.now(), finished_at=None,
+                error="", done=0, total=0, message="starting")
+    record = jobs.get()
+
+    def progress(done, total, message=""):
+        jobs.update(done=done, total=total, message=str(message)[:300])
+
+    try:
+        result = run_build(record.config_path, progress, record.overrides)
+    except Exception as exc:
+        jobs.update(status=BuildJob.Status.FAILED, error=str(exc), finished_at=timezone.now())
+        raise
+    jobs.update(status=BuildJob.Status.DONE, finished_at=timezone.now(), study=result.study,
+                message=f"built: {len(result.entries)} clips, {result.rendered} rendered now")
+    return result.study.pk if result.study else None
