@@ -1,0 +1,337 @@
+"""Fixtures of the survey app: tiny playable clips, studies of every type, a bot, a browser."""
+
+import hashlib
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+# Playwright's sync API runs an event loop in this thread; Django refuses ORM calls
+# from a thread with a running loop unless told it is safe here.
+os.environ["DJANGO_ALLOW_ASYNC_UNSAFE"] = "true"
+
+ACTIONS = ("walk", "wave")
+SOURCES = ("real", "a2m", "cond_gru")
+CATCH_SOURCE = "broken"
+EXAMPLE_SOURCE = "standard_example"
+FPS = 25
+FRAMES = 10
+SIZE = 64
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--no-first-run",
+]
+
+
+@dataclass
+class Clip:
+    action: str
+    source: str
+    video: Path
+    poster: Path
+    duration: float
+    motion_hash: str
+    video_hash: str = ""
+    is_catch: bool = False
+    is_reference: bool = False
+    is_standard_example: bool = False
+    score: int = 0  # of a scoring-standard example
+
+
+def write_clip(path: Path, colour, frames=FRAMES, size=SIZE) -> None:
+    """Write an H.264 mp4 of a bar sweeping over a solid colour."""
+    import imageio_ffmpeg
+
+    writer = imageio_ffmpeg.write_frames(
+        str(path),
+        (size, size),
+        fps=FPS,
+        codec="libx264",
+        pix_fmt_out="yuv420p",
+        output_params=["-movflags", "+faststart", "-map_metadata", "-1"],
+        macro_block_size=16,
+        ffmpeg_log_level="error",
+    )
+    writer.send(None)
+    for t in range(frames):
+        frame = np.empty((size, size, 3), np.uint8)
+        frame[:] = colour
+        row = (t * size) // frames
+        frame[row : row + size // 8] = 255 - np.asarray(colour, np.uint8)
+        writer.send(frame.tobytes())
+    writer.close()
+
+
+def write_poster(path: Path, colour, size=SIZE) -> None:
+    import imageio.v3 as iio
+
+    iio.imwrite(path, np.full((size, size, 3), colour, np.uint8))
+
+
+@pytest.fixture(scope="session")
+def django_db_modify_db_settings(django_db_modify_db_settings_parallel_suffix, tmp_path_factory):
+    """Keep SQLite's test database in a file rather than shared memory.
+
+    Threads (concurrent participants, the live server) then wait for each other's write
+    lock as separate processes do; a shared-cache memory database fails at once with
+    "database table is locked". PostgreSQL is left as configured.
+    """
+    from django.db import connections
+
+    db = connections["default"].settings_dict
+    if db["ENGINE"].endswith("sqlite3") and not db["TEST"].get("NAME"):
+        db["TEST"]["NAME"] = str(tmp_path_factory.mktemp("db") / "test.sqlite3")
+        db["OPTIONS"] = {
+            **db.get("OPTIONS", {}),
+            "timeout": 30,
+            "transaction_mode": "IMMEDIATE",
+            "init_command": "PRAGMA synchronous=OFF; PRAGMA journal_mode=WAL;",
+        }
+
+
+@pytest.fixture(scope="session")
+def clips(tmp_path_factory) -> list[Clip]:
+    """Return 2 actions x 3 sources of real, distinct, playable clips (written once)."""
+    root = tmp_path_factory.mktemp("clips")
+    rng = np.random.default_rng(0)
+    out = []
+    for action in ACTIONS:
+        for source in SOURCES:
+            colour = tuple(int(c) for c in rng.integers(30, 225, size=3))
+            name = f"{action}-{source}"
+            write_clip(root / f"{name}.mp4", colour)
+            write_poster(root / f"{name}.png", colour)
+            out.append(
+                Clip(action, source, root / f"{name}.mp4", root / f"{name}.png", FRAMES / FPS, name)
+            )
+    return out
+
+
+@pytest.fixture(scope="session")
+def extra_clips(tmp_path_factory) -> list[Clip]:
+    """Return, per action, a reference clip, five standard examples and a catch clip."""
+    root = tmp_path_factory.mktemp("extra-clips")
+    rng = np.random.default_rng(1)
+    out = []
+    roles = [("reference", "real", {"is_reference": True})]
+    roles += [
+        (f"score{k}", EXAMPLE_SOURCE, {"is_standard_example": True, "score": k})
+        for k in range(1, 6)
+    ]
+    roles += [("catch", CATCH_SOURCE, {"is_catch": True})]
+    for action in ACTIONS:
+        for name, source, flags in roles:
+            colour = tuple(int(c) for c in rng.integers(30, 225, size=3))
+            path = root / f"{action}-{name}.mp4"
+            write_clip(path, colour)
+            write_poster(path.with_suffix(".png"), colour)
+            out.append(Clip(action, source, path, path.with_suffix(".png"), FRAMES / FPS,
+                            f"{action}-{name}", **flags))
+    return out
+
+
+def make_study(study_type, clips, extra_clips=(), slug=None, catch=False, **fields):
+    """Create an open study of any type from the test clips, with what the type needs.
+
+    Rating with a reference gets the reference clips, rating with standards the
+    examples and their standards; ``catch`` adds the broken clips (and one catch trial
+    per participant unless ``catch_trials`` says otherwise).
+    """
+    from studyapp.survey.models import ScoringStandard, Study
+    from studyapp.survey.stimuli import register_clips
+    from studyapp.survey.study_types.rating_standards import default_descriptions
+
+    fields.setdefault("data_note", "The motions in this study are synthetic demo data.")
+    if study_type in ("ranking", "rating_standards", "rating_reference"):
+        fields.setdefault("clips_per_trial", 3)
+    if catch:
+        fields.setdefault("catch_trials", 1)
+    slug = slug or f"study-{study_type.replace('_', '-')}"
+    study = Study.objects.create_study(study_type, slug, "Movement study", **fields)
+    wanted = list(clips) + [
+        clip
+        for clip in extra_clips
+        if (clip.is_catch and catch)
+        or (clip.is_reference and study_type == "rating_reference")
+        or (clip.is_standard_example and study_type == "rating_standards")
+    ]
+    stimuli = register_clips(study, wanted)
+    if study_type == "rating_standards":
+        for action in ACTIONS:
+            examples = {
+                clip.score: stimulus
+                for clip, stimulus in zip(wanted, stimuli)
+                if clip.is_standard_example and clip.action == action
+            }
+            texts = default_descriptions(action)
+            ScoringStandard.objects.set_standards(study, action, examples, texts)
+    return study
+
+
+@pytest.fixture
+def media_root(settings, tmp_path):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    return settings.MEDIA_ROOT
+
+
+def make_ranking_study(clips, slug="motion-study", **fields):
+    from studyapp.survey.models import Study
+    from studyapp.survey.stimuli import register_clips
+
+    fields.setdefault("data_note", "The motions in this study are synthetic demo data.")
+    fields.setdefault("clips_per_trial", 3)
+    study = Study.objects.create_ranking(slug, "Movement study", **fields)
+    register_clips(study, clips)
+    return study
+
+
+@pytest.fixture
+def ranking_study(db, media_root, clips):
+    """Return an open ranking study: 2 actions x 3 sources, 3 clips per trial."""
+    return make_ranking_study(clips, completion_url="https://platform.example/complete?cc=OK")
+
+
+def make_stimuli(study, actions=ACTIONS, sources=SOURCES, per_cell=1):
+    """Add file-less stimuli to a study, for tests of assignment alone."""
+    from studyapp.survey.models import Stimulus
+
+    return [
+        Stimulus.objects.create(
+            study=study,
+            action=action,
+            source=source,
+            video=f"stimuli/missing-{action}-{source}-{k}.mp4",
+            duration=1.0,
+            video_hash=hashlib.sha256(f"{study.pk}/{action}/{source}/{k}".encode()).hexdigest(),
+        )
+        for action in actions
+        for source in sources
+        for k in range(per_cell)
+    ]
+
+
+class Bot:
+    """Play a study through the same pages a person uses (as oTree's bots do)."""
+
+    def __init__(self, client, study):
+        self.client = client
+        self.study = study
+
+    def url(self, name=""):
+        return f"/s/{self.study.slug}/{name + '/' if name else ''}"
+
+    def enter(self, **params):
+        return self.client.get(self.url(), params, follow=True)
+
+    def consent(self, agree=True):
+        return self.client.post(self.url("consent"), {"agree": "1"} if agree else {}, follow=True)
+
+    def start(self):
+        return self.client.post(self.url("instructions"), follow=True)
+
+    def join(self, **params):
+        self.enter(**params)
+        self.consent()
+        return self.start()
+
+    def participant(self):
+        from studyapp.survey.models import Participant
+
+        token = self.client.session[f"survey:{self.study.pk}"]
+        return Participant.objects.get(token=token)
+
+    def trial_page(self):
+        return self.client.get(self.url("trial"))
+
+    def answer_data(self, trial, ranks=None, plays=1, ratings=None, verdicts=None, choice="left"):
+        """Return a valid POST for ``trial`` of any study type.
+
+        ``ranks``, ``ratings`` and ``verdicts`` map positions to answers (defaults: the
+        screen order, 3, "real"); ``choice`` answers a pairwise trial.
+        """
+        items = list(trial.items.select_related("stimulus").order_by("position"))
+        kind = self.study.study_type
+        data = {"trial": str(trial.pk)}
+        if kind == "pairwise":
+            data["choice"] = choice
+        for item in items:
+            token = item.stimulus.token
+            data[f"plays_{token}"] = str(plays)
+            if kind == "ranking":
+                data[f"rank_{token}"] = str((ranks or {}).get(item.position, item.position + 1))
+            elif kind.startswith("rating"):
+                data[f"rating_{token}"] = str((ratings or {}).get(item.position, 3))
+            elif kind == "fake_or_real":
+                data[f"judged_{token}"] = (verdicts or {}).get(item.position, "real")
+        return data
+
+    def answer(self, data, follow=False):
+        return self.client.post(self.url("trial"), data, follow=follow)
+
+    def finish(self, **answers):
+        """Answer every remaining trial alike (the screen order); return the last response."""
+        response = None
+        while (trial := self.participant().current_trial()) is not None:
+            self.trial_page()
+            response = self.answer(self.answer_data(trial, **answers), follow=True)
+        return response
+
+
+@pytest.fixture
+def make_bot(db):
+    """Return a factory of bots, each with its own browser session."""
+    from django.test import Client
+
+    return lambda study: Bot(Client(), study)
+
+
+@pytest.fixture(scope="session")
+def browser():
+    """Start Debian's Chromium once for the whole session."""
+    if not Path(CHROMIUM).exists():
+        if os.environ.get("STUDY_REQUIRE_BROWSER"):
+            pytest.fail(f"{CHROMIUM} not installed, and STUDY_REQUIRE_BROWSER is set (CI)")
+        pytest.skip(f"{CHROMIUM} not installed (make setup installs it when run as root)")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as playwright:
+        chromium = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield chromium
+        chromium.close()
+
+
+@pytest.fixture
+def page(browser):
+    context = browser.new_context(viewport={"width": 1280, "height": 860})
+    page = context.new_page()
+    page.set_default_timeout(15_000)
+    yield page
+    context.close()
+
+
+@pytest.fixture
+def phone_page(browser):
+    context = browser.new_context(
+        viewport={"width": 390, "height": 844},
+        device_scale_factor=2,
+        is_mobile=True,
+        has_touch=True,
+    )
+    page = context.new_page()
+    page.set_default_timeout(15_000)
+    yield page
+    context.close()
+
+
+def words(text: str, label: str) -> list[str]:
+    """Return the places ``label`` occurs in ``text`` as a word of its own."""
+    pattern = rf"(?<![A-Za-z0-9]){re.escape(label)}(?![A-Za-z0-9])"
+    return [text[max(0, m.start() - 40) : m.end() + 40] for m in re.finditer(pattern, text, re.I)]

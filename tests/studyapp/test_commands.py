@@ -1,0 +1,136 @@
+"""simulate_participants (bots over real HTTP against the live server) and studies."""
+
+import json
+from io import StringIO
+
+import pytest
+from django.core.management import call_command
+from django.core.management.base import CommandError
+
+from studyapp.survey import simulate
+from studyapp.survey.export import participants_frame, responses_frame
+from studyapp.survey.models import Participant, Study, TrialItem
+from studyapp.survey.study_types import list_study_types
+from tests.studyapp.conftest import make_study
+
+pytestmark = pytest.mark.django_db(transaction=True)
+
+ANSWER = {
+    "ranking": "rank",
+    "fake_or_real": "judged_real",
+    "rating_standards": "rating",
+    "rating_reference": "rating",
+    "pairwise": "choice",
+}
+
+
+@pytest.fixture
+def study_of(transactional_db, media_root, clips, extra_clips):
+    return lambda study_type, **fields: make_study(study_type, clips, extra_clips, **fields)
+
+
+def simulate_run(study, url, **options) -> str:
+    out = StringIO()
+    options.setdefault("pace", 0)
+    call_command("simulate_participants", study=study.slug, url=url, stdout=out, **options)
+    return out.getvalue()
+
+
+@pytest.mark.parametrize("study_type", list_study_types())
+def test_bots_take_every_type_through_the_real_pages(study_of, live_server, study_type):
+    study = study_of(
+        study_type, catch=True, practice=True, repeat_trials=1, ask_demographics=True
+    )
+    out = simulate_run(
+        study, live_server.url, n=2, policy="bt", seed=3, strengths="real=8,a2m=2,cond_gru=1"
+    )
+    assert "2 of 2 simulated participants completed" in out
+    people = list(Participant.objects.filter(study=study))
+    assert len(people) == 2 and all(p.completed_at and p.completion_code in out for p in people)
+    assert all(p.demographics is not None for p in people)
+    assert {p.external_ids["PROLIFIC_PID"] for p in people} == {"sim-3-1", "sim-3-2"}
+    assert not TrialItem.objects.exclude(plays=1).exists()  # every clip reported played once
+    table = responses_frame(study)
+    assert table[ANSWER[study_type]].notna().all() and len(table) > 0
+    assert set(table["trial_kind"]) == {"main", "catch", "repeat"}
+    assert table.loc[table["trial_kind"] == "catch", "catch_passed"].notna().all()
+    assert len(participants_frame(study)) == 2
+
+
+def test_prefer_real_bots_answer_by_the_source_from_the_database(study_of, live_server):
+    study = study_of("fake_or_real", catch=True)
+    simulate_run(study, live_server.url, n=2, policy="prefer-real", seed=1)
+    table = responses_frame(study)
+    expected = table["source"].eq("real")
+    assert table["judged_real"].astype(bool).tolist() == expected.tolist()
+    assert table.loc[table["is_catch"], "catch_passed"].all()
+
+
+def test_the_bots_know_sources_only_through_the_database(study_of, live_server, monkeypatch):
+    study = study_of("fake_or_real")
+    monkeypatch.setattr(simulate, "sources_of", lambda tokens: dict.fromkeys(tokens, "real"))
+    simulate_run(study, live_server.url, n=1, policy="prefer-real", seed=2)
+    assert responses_frame(study)["judged_real"].all()  # every clip "real", as told
+
+
+def test_bradley_terry_bots_follow_their_strengths(study_of, live_server):
+    ranking = study_of("ranking")
+    pairwise = study_of("pairwise", slug="pairs")
+    strengths = "real=1000,a2m=1,cond_gru=0.001"
+    for study in (ranking, pairwise):
+        simulate_run(study, live_server.url, n=3, policy="bt", seed=5, strengths=strengths)
+    ranks = responses_frame(ranking).groupby("source")["rank"].mean()
+    assert ranks["real"] < ranks["a2m"] < ranks["cond_gru"]
+    table = responses_frame(pairwise)
+    picked = table["choice"].map({"left": 0, "right": 1}) == table["position"]
+    wins = table.loc[picked, "source"].value_counts()
+    assert wins.get("cond_gru", 0) == 0 and wins.get("real", 0) >= wins.get("a2m", 0)
+
+
+def test_simulation_mistakes_are_clear(study_of, live_server):
+    study = study_of("pairwise")
+    with pytest.raises(CommandError, match="not a source of study-pairwise"):
+        simulate_run(study, live_server.url, strengths="real=2,sa_gcn=3")
+    with pytest.raises(CommandError, match="NAME=NUMBER"):
+        simulate_run(study, live_server.url, strengths="real")
+    Study.objects.filter(pk=study.pk).update(status="closed")
+    with pytest.raises(CommandError, match="did not finish"):
+        simulate_run(study, live_server.url, n=1)
+
+
+def test_paced_bots_take_as_long_as_the_clips(study_of, live_server):
+    study = study_of("fake_or_real", trials_per_participant=2)
+    simulate_run(study, live_server.url, n=1, seed=4, pace=1.0)
+    table = responses_frame(study)
+    assert (table["time_ms"] >= 1000 * table["duration"]).all()
+
+
+def test_strengths_are_parsed():
+    assert simulate.parse_strengths("real=4, a2m=3,cond_gru=0.5") == {
+        "real": 4.0, "a2m": 3.0, "cond_gru": 0.5
+    }
+    assert simulate.parse_strengths("") == {}
+    with pytest.raises(ValueError, match="positive"):
+        simulate.parse_strengths("real=0")
+
+
+def test_studies_lists_every_study_as_json(study_of, make_bot):
+    ranking = study_of("ranking")
+    study_of("rating_reference", catch=True)
+    bot = make_bot(ranking)
+    bot.join()
+    bot.finish()
+    out = StringIO()
+    call_command("studies", json=True, base_url="https://study.example", stdout=out)
+    rows = {row["slug"]: row for row in json.loads(out.getvalue())}
+    assert set(rows) == {"study-ranking", "study-rating-reference"}
+    row = rows["study-ranking"]
+    assert row["type"] == "ranking" and row["status"] == "open"
+    assert row["sources"] == ["a2m", "cond_gru", "real"]
+    assert row["participant_url"] == "https://study.example/s/study-ranking/"
+    assert row["participants"] == 1 and row["completed"] == 1
+    assert row["judgements"] == 6 and row["excluded"] == 0
+    assert rows["study-rating-reference"]["sources"] == ["a2m", "cond_gru", "real"]  # no extras
+    text = StringIO()
+    call_command("studies", stdout=text)
+    assert "study-ranking (ranking, open): 1 participants" in text.getvalue()

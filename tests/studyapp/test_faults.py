@@ -1,0 +1,171 @@
+"""Faults: a killed server, double submits, an unreachable database.
+
+The server tests start real gunicorn (production settings) on the test database, so
+they run on SQLite and on PostgreSQL (``DATABASE_URL=postgres://...``) alike.
+"""
+
+import threading
+from pathlib import Path
+
+import pytest
+from django.db import OperationalError, connection
+
+from benchmarks.loadtest import Participant
+from benchmarks.server import Server, server_env
+from tests.studyapp.conftest import make_ranking_study
+
+pytestmark = [pytest.mark.slow, pytest.mark.django_db(transaction=True)]
+
+
+def database_url() -> str:
+    db = connection.settings_dict
+    if connection.vendor == "sqlite":
+        return f"sqlite:///{db['NAME']}"
+    user = db["USER"] or "postgres"
+    return f"postgres://{user}@{db['HOST'] or '127.0.0.1'}:{db['PORT'] or 5432}/{db['NAME']}"
+
+
+@pytest.fixture
+def server(tmp_path, media_root):
+    env = server_env(database_url(), tmp_path / "var")
+    server = Server(env, workers=2, settings="benchmarks.loadtest_settings",
+                    log=tmp_path / "gunicorn.log")
+    server.collectstatic()
+    yield server
+    server.stop()
+
+
+def answered(participant_token):
+    from studyapp.survey.models import Trial
+
+    return set(
+        Trial.objects.filter(participant__token=participant_token, answered_at__isnull=False)
+        .values_list("pk", flat=True)
+    )
+
+
+def test_kill_9_mid_study_keeps_every_acknowledged_answer_and_sessions_resume(clips, server):
+    from studyapp.survey.models import Participant as Row
+
+    study = make_ranking_study(clips, trials_per_participant=4)
+    server.start()
+    bots = [Participant(server.url, study.slug, f"kill-{i}") for i in range(4)]
+    for bot in bots:
+        bot.enter()
+        bot.consent()
+        bot.start()
+        bot.answer()
+        bot.answer()
+    acknowledged = {t for bot in bots for t, status, _ in bot.submits if status == 302}
+
+    server.kill()  # master and workers, SIGKILL
+    server.start()
+
+    rows = Row.objects.filter(study=study)
+    stored = set().union(*(answered(row.token) for row in rows))
+    assert acknowledged <= stored and len(acknowledged) == 8
+    for bot in bots:
+        bot.close()
+        bot.page = bot.get(bot.path())  # the old cookie resumes at the next trial
+        assert bot.on_trial()
+        while bot.on_trial():
+            bot.answer()
+        assert bot.at.endswith("/done/")
+    assert all(row.completed_at for row in rows.all())
+    assert sum(len(answered(row.token)) for row in rows) == 16
+
+
+def test_double_submit_concurrently_stores_one_answer(clips, server):
+    from studyapp.survey.models import Trial, TrialItem
+
+    study = make_ranking_study(clips, trials_per_participant=2)
+    server.start()
+    bot = Participant(server.url, study.slug, "double")
+    bot.enter()
+    bot.consent()
+    bot.start()
+    data = bot.answer_data()
+    trial = int(data["trial"])
+    statuses = []
+
+    def submit():
+        twin = Participant(server.url, study.slug, "double")
+        twin.cookies, twin.page = dict(bot.cookies), bot.page
+        statuses.append(twin.post(bot.path("trial"), data)[0])
+
+    threads = [threading.Thread(target=submit) for _ in range(6)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(30)
+    assert statuses == [302] * 6  # every copy is acknowledged: the answer is there once
+    again = bot.post(bot.path("trial"), data)  # and once more, sequentially
+    assert again[0] == 302
+    row = Trial.objects.get(pk=trial)
+    assert row.answered_at is not None
+    ranks = sorted(TrialItem.objects.filter(trial=row).values_list("rank", flat=True))
+    assert ranks == [1, 2, 3]
+    assert Trial.objects.filter(participant=row.participant, answered_at__isnull=False).count() == 1
+
+
+def test_database_unavailable_shows_503_page_and_writes_nothing(clips, make_bot, media_root,
+                                                               settings, monkeypatch):
+    from studyapp.survey.models import Trial, TrialItem
+
+    settings.MIDDLEWARE = [*settings.MIDDLEWARE, "studyapp.survey.middleware.DatabaseUnavailableMiddleware"]
+    study = make_ranking_study(clips)
+    bot = make_bot(study)
+    bot.join(PROLIFIC_PID="db-down")
+    trial = bot.participant().current_trial()
+    data = bot.answer_data(trial)
+
+    # The connection breaks in the middle of storing the answer: after the trial row
+    # is marked answered, before the ranks are written.
+    real = TrialItem.objects.bulk_update
+
+    def broken(*args, **kwargs):
+        raise OperationalError("server closed the connection unexpectedly")
+
+    monkeypatch.setattr(TrialItem.objects, "bulk_update", broken)
+    response = bot.answer(data)
+    assert response.status_code == 503
+    assert b"The study is briefly unavailable" in response.content
+    assert response["Retry-After"]
+    trial.refresh_from_db()
+    assert trial.answered_at is None  # the transaction rolled back: nothing half-written
+    assert not TrialItem.objects.filter(trial=trial, rank__isnull=False).exists()
+
+    monkeypatch.setattr(TrialItem.objects, "bulk_update", real)
+    assert bot.answer(data).status_code == 302  # back: the same answer goes through
+    trial.refresh_from_db()
+    assert trial.answered_at is not None
+
+
+def test_database_unreachable_everywhere_is_503(clips, make_bot, media_root, settings, monkeypatch):
+    settings.MIDDLEWARE = [*settings.MIDDLEWARE, "studyapp.survey.middleware.DatabaseUnavailableMiddleware"]
+    study = make_ranking_study(clips)
+    bot = make_bot(study)
+    bot.join(PROLIFIC_PID="db-gone")
+
+    def refuse(*args, **kwargs):
+        raise OperationalError("connection refused")
+
+    from django.db.backends.base.base import BaseDatabaseWrapper
+
+    connection.close()
+    monkeypatch.setattr(BaseDatabaseWrapper, "ensure_connection", refuse)
+    response = bot.trial_page()
+    assert response.status_code == 503
+    assert b"briefly unavailable" in response.content
+
+
+def test_server_error_handler_maps_database_errors_to_503(rf):
+    import sys
+
+    from studyapp.survey.middleware import server_error
+
+    try:
+        raise OperationalError("gone")
+    except OperationalError:
+        assert sys.exc_info()[0] is OperationalError
+        assert server_error(rf.get("/")).status_code == 503

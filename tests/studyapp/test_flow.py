@@ -1,0 +1,373 @@
+"""The ranking study through Django's test client: flow, assignment, answers, clips."""
+
+import re
+from collections import Counter
+from datetime import timedelta
+from pathlib import Path
+
+import pytest
+from django.conf import settings
+from django.contrib.staticfiles import finders
+from django.utils import timezone
+
+from studyapp.survey.models import Participant, Stimulus, Study, Trial, TrialItem
+from studyapp.survey.stimuli import register_clips
+from studyapp.survey.study_types import list_study_types
+from tests.studyapp.conftest import SOURCES, make_stimuli, words
+
+pytestmark = pytest.mark.django_db
+
+
+# Registering clips
+
+
+def test_register_clips_copies_each_video_once(ranking_study, clips, media_root):
+    stimuli = list(ranking_study.stimuli.all())
+    assert len(stimuli) == 6
+    for stimulus in stimuli:
+        assert re.fullmatch(r"stimuli/[0-9a-f]{64}\.mp4", stimulus.video)
+        assert (Path(media_root) / stimulus.video).read_bytes()[4:8] == b"ftyp"
+        assert (Path(media_root) / stimulus.poster).is_file()
+    again = register_clips(ranking_study, clips)
+    assert sorted(s.pk for s in again) == sorted(s.pk for s in stimuli)
+    assert len(list((Path(media_root) / "stimuli").iterdir())) == 12
+
+
+def test_register_clips_refuses_a_video_under_another_source(ranking_study, clips):
+    clip = clips[0]
+    moved = {"action": clip.action, "source": "other", "video": clip.video, "duration": 0.4}
+    with pytest.raises(ValueError, match="already in study"):
+        register_clips(ranking_study, [moved])
+
+
+def test_create_ranking_fills_in_texts():
+    study = Study.objects.create_ranking("plain", "Plain", clips_per_trial=6)
+    assert study.study_type == "ranking"
+    assert "rank 6" in study.instructions
+    assert study.consent_text
+
+
+@pytest.mark.parametrize("name", list_study_types())
+def test_every_study_type_runs_through_the_shared_flow(name, media_root, clips, make_bot):
+    """Contract: defaults, balanced trials, a trial page with the gate, a strict form."""
+    study = Study.objects.create_study(name, f"type-{name.replace('_', '-')}", "Contract")
+    assert study.shown_instructions() and study.shown_consent()
+    register_clips(study, clips)
+    bot = make_bot(study)
+    bot.join()
+    trials = list(bot.participant().trials.all())
+    assert trials and all(trial.items.count() >= study.kind.min_items for trial in trials)
+    page = bot.trial_page().content.decode()
+    assert "data-trial-form" in page and "data-submit" in page and "disabled" in page
+    for item in trials[0].items.all():
+        assert f"/c/{item.stimulus.token}.mp4" in page
+    assert bot.answer({"trial": str(trials[0].pk)}).status_code == 400
+
+
+# Entering and consenting
+
+
+def test_consent_is_required(ranking_study, make_bot):
+    bot = make_bot(ranking_study)
+    response = bot.enter()
+    assert response.redirect_chain[-1][0].endswith("/consent/")
+    assert ranking_study.data_note.encode() in response.content
+    response = bot.consent(agree=False)
+    assert b"Please tick the box" in response.content
+    assert not Participant.objects.exists()
+    bot.client.post(bot.url("instructions"))
+    assert not Participant.objects.exists()
+    response = bot.consent()
+    assert response.redirect_chain[-1][0].endswith("/instructions/")
+    assert Participant.objects.get().consented_at is not None
+
+
+@pytest.mark.parametrize(
+    "params, key",
+    [
+        ({"PROLIFIC_PID": "p1", "STUDY_ID": "s1", "SESSION_ID": "x1"}, "PROLIFIC_PID:p1"),
+        ({"workerId": "w1", "assignmentId": "a1", "hitId": "h1"}, "workerId:w1"),
+    ],
+)
+def test_platform_ids_are_stored(ranking_study, make_bot, params, key):
+    bot = make_bot(ranking_study)
+    bot.enter(**params, other="ignored")
+    bot.consent()
+    participant = Participant.objects.get()
+    assert participant.external_ids == params
+    assert participant.external_key == key
+    assert participant.seed > 0
+
+
+def test_a_person_cannot_take_a_study_twice(ranking_study, make_bot):
+    first = make_bot(ranking_study)
+    first.join(PROLIFIC_PID="same")
+    elsewhere = make_bot(ranking_study)
+    elsewhere.enter(PROLIFIC_PID="same")
+    assert elsewhere.participant() == first.participant()  # still in progress: resumes
+    first.finish()
+    again = make_bot(ranking_study)
+    response = again.enter(PROLIFIC_PID="same")
+    assert b"already taken part" in response.content
+    assert again.consent().status_code == 200
+    assert Participant.objects.count() == 1
+
+
+def test_closed_or_full_study_says_so(ranking_study, make_bot):
+    make_bot(ranking_study).join()
+    Study.objects.filter(pk=ranking_study.pk).update(max_participants=1)
+    assert b"This study is full" in make_bot(ranking_study).enter().content
+    Study.objects.filter(pk=ranking_study.pk).update(status="closed", max_participants=None)
+    assert b"This study is not open" in make_bot(ranking_study).enter().content
+    assert Participant.objects.count() == 1
+
+
+# Assignment
+
+
+def test_assignment_is_balanced_over_stimuli_and_positions(media_root, make_bot):
+    study = Study.objects.create_ranking("balanced", "Balanced", clips_per_trial=3)
+    make_stimuli(study, per_cell=3)
+    for _ in range(7):
+        make_bot(study).join()
+    counts = Counter({s.pk: 0 for s in study.stimuli.all()})
+    counts.update(TrialItem.objects.values_list("stimulus", flat=True))
+    assert max(counts.values()) - min(counts.values()) <= 1
+    for trial in Trial.objects.all():
+        assert sorted(trial.items.values_list("stimulus__source", flat=True)) == sorted(SOURCES)
+        assert {trial.action} == set(trial.items.values_list("stimulus__action", flat=True))
+    seats = Counter(TrialItem.objects.values_list("stimulus__source", "position"))
+    assert len(seats) == 9  # every source has been at every position
+    assert max(seats.values()) - min(seats.values()) <= 2
+    assert Trial.objects.count() == 14
+
+
+def test_each_participant_gets_their_own_order(media_root, make_bot):
+    study = Study.objects.create_ranking("orders", "Orders", clips_per_trial=3)
+    make_stimuli(study)
+    orders = set()
+    for _ in range(6):
+        bot = make_bot(study)
+        bot.join()
+        participant = bot.participant()
+        orders.add(
+            tuple(
+                tuple(trial.items.values_list("stimulus__source", flat=True))
+                for trial in participant.trials.all()
+            )
+        )
+    assert len(orders) > 1
+
+
+# Answers
+
+
+def test_a_valid_ranking_is_stored(ranking_study, make_bot):
+    bot = make_bot(ranking_study)
+    bot.join()
+    trial = bot.participant().current_trial()
+    page = bot.trial_page()
+    assert page.status_code == 200
+    Trial.objects.filter(pk=trial.pk).update(shown_at=timezone.now() - timedelta(seconds=2))
+    data = bot.answer_data(trial, ranks={0: 2, 1: 3, 2: 1}, plays=2)
+    response = bot.answer(data)
+    assert response.status_code == 302
+    trial.refresh_from_db()
+    assert trial.answered_at is not None and 2000 <= trial.time_ms < 10_000
+    stored = list(trial.items.order_by("position").values_list("position", "rank", "plays"))
+    assert stored == [(0, 2, 2), (1, 3, 2), (2, 1, 2)]
+
+
+def other_participants_trial(study, make_bot):
+    other = make_bot(study)
+    other.join()
+    return other.participant().current_trial()
+
+
+TAMPERINGS = {
+    "duplicate rank": lambda d, t: d | {key(d, "rank", 0): d[key(d, "rank", 1)]},
+    "rank out of range": lambda d, t: d | {key(d, "rank", 0): "4"},
+    "rank zero": lambda d, t: d | {key(d, "rank", 0): "0"},
+    "non-numeric rank": lambda d, t: d | {key(d, "rank", 0): "first"},
+    "non-numeric plays": lambda d, t: d | {key(d, "plays", 0): "many"},
+    "plays zero": lambda d, t: d | {key(d, "plays", 2): "0"},
+    "missing item": lambda d, t: {k: v for k, v in d.items() if not k.endswith(token(d, 1))},
+    "foreign stimulus": lambda d, t: d | {f"{p}_{t['foreign']}": "1" for p in ("rank", "plays")},
+    "another participant's trial": lambda d, t: d | {"trial": str(t["other"].pk)},
+    "no trial": lambda d, t: {k: v for k, v in d.items() if k != "trial"},
+    "non-numeric trial": lambda d, t: d | {"trial": "1; DROP TABLE"},
+}
+
+
+def token(data, index):
+    return sorted(k for k in data if k.startswith("rank_"))[index].removeprefix("rank_")
+
+
+def key(data, prefix, index):
+    return f"{prefix}_{token(data, index)}"
+
+
+@pytest.mark.parametrize("tampering", sorted(TAMPERINGS))
+def test_a_tampered_answer_is_refused_and_nothing_stored(ranking_study, make_bot, tampering):
+    bot = make_bot(ranking_study)
+    bot.join()
+    trial = bot.participant().current_trial()
+    bot.trial_page()
+    shown = {item.stimulus_id for item in trial.items.all()}
+    extra = {
+        "foreign": Stimulus.objects.exclude(pk__in=shown).first().token,
+        "other": other_participants_trial(ranking_study, make_bot),
+    }
+    response = bot.answer(TAMPERINGS[tampering](bot.answer_data(trial), extra))
+    assert response.status_code == 400
+    assert b"Your answer was not saved" in response.content
+    assert not TrialItem.objects.filter(rank__isnull=False).exists()
+    assert not TrialItem.objects.exclude(plays=0).exists()
+    assert not Trial.objects.filter(answered_at__isnull=False).exists()
+
+
+def test_the_refusal_says_what_is_wrong(ranking_study, make_bot):
+    bot = make_bot(ranking_study)
+    bot.join()
+    trial = bot.participant().current_trial()
+    data = bot.answer_data(trial, ranks={0: 1, 1: 1, 2: 3})
+    assert b"Rank 1 is given to more than one clip" in bot.answer(data).content
+    data = bot.answer_data(trial, plays=0)
+    assert b"has not been played to the end yet" in bot.answer(data).content
+
+
+def test_a_second_submit_stores_nothing_new(ranking_study, make_bot):
+    bot = make_bot(ranking_study)
+    bot.join()
+    trial = bot.participant().current_trial()
+    first = bot.answer_data(trial, ranks={0: 1, 1: 2, 2: 3})
+    assert bot.answer(first).status_code == 302
+    answered_at = Trial.objects.get(pk=trial.pk).answered_at
+    second = bot.answer(bot.answer_data(trial, ranks={0: 3, 1: 2, 2: 1}, plays=5))
+    assert second.status_code == 302 and second.url.endswith("/trial/")
+    assert Trial.objects.get(pk=trial.pk).answered_at == answered_at
+    assert list(trial.items.order_by("position").values_list("rank", "plays")) == [
+        (1, 1),
+        (2, 1),
+        (3, 1),
+    ]
+
+
+def test_a_reload_resumes_at_the_same_trial(ranking_study, make_bot):
+    bot = make_bot(ranking_study)
+    bot.join()
+    first = bot.participant().current_trial()
+    assert f'name="trial" value="{first.pk}"'.encode() in bot.trial_page().content
+    response = bot.enter()
+    assert response.redirect_chain[-1][0].endswith("/trial/")
+    assert f'value="{first.pk}"'.encode() in response.content
+    shown_at = Trial.objects.get(pk=first.pk).shown_at
+    bot.client.get(bot.url("consent"), follow=True)
+    assert Trial.objects.get(pk=first.pk).shown_at == shown_at
+    bot.answer(bot.answer_data(first))
+    second = bot.participant().current_trial()
+    assert second.index == 1
+    assert f'value="{second.pk}"'.encode() in bot.enter().content
+
+
+def test_completion_shows_the_code_and_the_way_back(ranking_study, make_bot):
+    bot = make_bot(ranking_study)
+    bot.join(PROLIFIC_PID="done1")
+    response = bot.finish()
+    participant = bot.participant()
+    assert participant.completed_at is not None
+    assert re.fullmatch(r"[0-9A-F]{8}", participant.completion_code)
+    assert participant.completion_code.encode() in response.content
+    assert b'href="https://platform.example/complete?cc=OK"' in response.content
+    assert bot.enter().redirect_chain[-1][0].endswith("/done/")
+    assert bot.answer({"trial": "1"}).status_code == 302
+
+
+# Clips
+
+
+def test_clips_are_served_in_byte_ranges(ranking_study, client, media_root):
+    stimulus = ranking_study.stimuli.first()
+    url = f"/c/{stimulus.token}.mp4"
+    data = (Path(media_root) / stimulus.video).read_bytes()
+    full = client.get(url)
+    assert full.status_code == 200 and b"".join(full.streaming_content) == data
+    assert full["Accept-Ranges"] == "bytes" and full["Content-Type"] == "video/mp4"
+    part = client.get(url, HTTP_RANGE="bytes=10-109")
+    assert part.status_code == 206
+    assert part["Content-Range"] == f"bytes 10-109/{len(data)}"
+    assert part["Content-Length"] == "100"
+    assert b"".join(part.streaming_content) == data[10:110]
+    tail = client.get(url, HTTP_RANGE="bytes=-16")
+    assert b"".join(tail.streaming_content) == data[-16:]
+    assert client.get(url, HTTP_RANGE=f"bytes={len(data)}-").status_code == 416
+    assert client.get(url, HTTP_IF_NONE_MATCH=full["ETag"]).status_code == 304
+    assert client.head(url)["Content-Length"] == str(len(data))
+    for header in ("Content-Disposition", "Last-Modified"):
+        assert header not in full
+    assert client.get(f"/c/{stimulus.token}.png")["Content-Type"] == "image/png"
+    assert client.get("/c/AAAAAAAAAAAAAAAAAAAAAA.mp4").status_code == 404
+
+
+# Blindness
+
+
+def test_nothing_a_participant_receives_names_a_source(ranking_study, make_bot):
+    """Fetch every page, script, style sheet and clip of a session; search for sources."""
+    bot = make_bot(ranking_study)
+    responses = [bot.enter(PROLIFIC_PID="blind"), bot.consent(), bot.start()]
+    while (trial := bot.participant().current_trial()) is not None:
+        responses.append(bot.trial_page())
+        responses.append(bot.answer(bot.answer_data(trial, plays=0)))  # the 400 page
+        responses.append(bot.answer(bot.answer_data(trial), follow=True))
+    texts = []
+    for response in responses:
+        html = response.content.decode()
+        texts.append(html.replace(ranking_study.data_note, ""))
+        texts.append(str(dict(response.items())))
+        for url in re.findall(r'(?:src|href|poster)="([^"]+)"', html):
+            if url.startswith(settings.STATIC_URL) or url.startswith("/" + settings.STATIC_URL):
+                texts.append(Path(finders.find(url.split(settings.STATIC_URL, 1)[1])).read_text())
+            elif url.startswith("/c/"):
+                clip = bot.client.get(url, HTTP_RANGE="bytes=0-")
+                texts.append(str(dict(clip.items())))
+                texts.append(b"".join(clip.streaming_content).decode("latin-1"))
+    assert any("/c/" in text for text in texts) and any("drag" in text for text in texts)
+    labels = set(Stimulus.objects.values_list("source", flat=True))
+    labels |= {"generated", "fake", "condgru"}
+    for label in labels:
+        for text in texts:
+            assert not words(text, label), f"{label!r} leaks: {words(text, label)[:3]}"
+
+
+# Admin
+
+
+def test_admin_lists_studies_stimuli_participants_trials_responses(
+    ranking_study, make_bot, admin_client
+):
+    for _ in range(3):
+        make_bot(ranking_study).join()
+    bot = make_bot(ranking_study)
+    bot.join()
+    bot.finish()
+    studies = admin_client.get("/admin/survey/study/")
+    assert studies.status_code == 200
+    row = re.search(rb'<tr>.*?motion-study.*?</tr>', studies.content, re.S).group(0)
+    assert re.findall(rb'class="field-(?:started|completed|judgements)">(\d+)<', row) == [
+        b"4",
+        b"1",
+        b"6",
+    ]
+    assert b'href="/s/motion-study/"' in row
+    for path in (
+        "/admin/survey/stimulus/?source=a2m",
+        "/admin/survey/participant/",
+        "/admin/survey/trial/",
+        "/admin/survey/response/?stimulus__source=real",
+        f"/admin/survey/trial/{Trial.objects.first().pk}/change/",
+        f"/admin/survey/participant/{Participant.objects.first().pk}/change/",
+        f"/admin/survey/stimulus/{Stimulus.objects.first().pk}/change/",
+    ):
+        assert admin_client.get(path).status_code == 200, path
+    assert b"<video" in admin_client.get("/admin/survey/stimulus/").content

@@ -1,0 +1,185 @@
+"""Bad input at the participant pages: tampered answers, foreign ids, huge bodies, script.
+
+Every refusal is a 4xx with a message, stores nothing, and reflects nothing unescaped.
+"""
+
+import pytest
+from django.test import Client
+from hypothesis import HealthCheck, given, settings, strategies as st
+
+from tests.studyapp.conftest import make_ranking_study
+
+pytestmark = pytest.mark.django_db
+
+SCRIPT = "<script>alert(1)</script>"
+FUZZ = settings(max_examples=50, deadline=None,
+                suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+
+
+@pytest.fixture
+def joined(ranking_study, make_bot):
+    bot = make_bot(ranking_study)
+    bot.join(PROLIFIC_PID="fuzz")
+    return bot
+
+
+def stored_answers(study):
+    from studyapp.survey.models import Trial
+
+    return Trial.objects.filter(participant__study=study, answered_at__isnull=False).count()
+
+
+def assert_refused(response, study):
+    assert 400 <= response.status_code < 500, response.status_code
+    assert SCRIPT.encode() not in response.content
+    assert stored_answers(study) == 0
+
+
+def tokens_of(bot, trial):
+    return [item.stimulus.token for item in trial.items.select_related("stimulus").order_by("position")]
+
+
+@FUZZ
+@given(ranks=st.lists(st.one_of(st.integers(-10**12, 10**12), st.text(max_size=20)), min_size=3, max_size=3))
+def test_tampered_ranks_are_refused_unless_a_permutation(joined, ranks):
+    trial = joined.participant().current_trial()
+    data = joined.answer_data(trial)
+    for token, rank in zip(tokens_of(joined, trial), ranks):
+        data[f"rank_{token}"] = str(rank)
+    response = joined.answer(data)
+    valid = sorted(str(r) for r in ranks) == ["1", "2", "3"]
+    if valid:
+        assert response.status_code == 302
+        trial.refresh_from_db()
+        assert trial.answered_at is not None
+        trial.__class__.objects.filter(pk=trial.pk).update(answered_at=None)  # next example
+        from studyapp.survey.models import Participant
+
+        Participant.objects.filter(pk=trial.participant_id).update(completed_at=None)
+    else:
+        assert_refused(response, joined.study)
+
+
+@FUZZ
+@given(
+    drop=st.sets(st.integers(0, 2), max_size=3),
+    foreign=st.lists(st.text(alphabet="abcdefghijklmnopqrstuvwxyz0123456789_-", min_size=1, max_size=40), max_size=3),
+    plays=st.one_of(st.integers(-5, 0), st.text(max_size=5).filter(lambda s: not s.strip().isdigit())),
+)
+def test_missing_foreign_and_unplayed_clips_are_refused(joined, drop, foreign, plays):
+    trial = joined.participant().current_trial()
+    tokens = tokens_of(joined, trial)
+    data = joined.answer_data(trial)
+    for k in drop:
+        data.pop(f"rank_{tokens[k]}")
+    for token in foreign:
+        data[f"rank_{token}"] = "1"
+    if not drop and not [t for t in foreign if t not in tokens]:
+        data[f"plays_{tokens[0]}"] = str(plays)  # at least one thing is wrong
+    response = joined.answer(data)
+    if response.status_code == 302:  # an unknown extra field may be ignored; then all else was valid
+        assert not drop
+        return
+    assert_refused(response, joined.study)
+
+
+@FUZZ
+@given(trial_id=st.one_of(st.integers(0, 10**18).map(str), st.text(max_size=30)))
+def test_foreign_or_garbled_trial_ids_are_refused(joined, trial_id):
+    own = set(joined.participant().trials.values_list("pk", flat=True))
+    if trial_id.strip().isdigit() and int(trial_id) in own:
+        return
+    data = joined.answer_data(joined.participant().current_trial())
+    data["trial"] = trial_id
+    assert_refused(joined.answer(data), joined.study)
+
+
+def test_another_participants_trial_is_refused(ranking_study, make_bot):
+    alice, bob = make_bot(ranking_study), make_bot(ranking_study)
+    alice.join(PROLIFIC_PID="alice")
+    bob.join(PROLIFIC_PID="bob")
+    data = alice.answer_data(alice.participant().current_trial())
+    response = bob.answer(data)
+    assert response.status_code == 400
+    assert b"not part of your session" in response.content
+    assert stored_answers(ranking_study) == 0
+
+
+def test_oversized_body_is_refused(joined):
+    data = joined.answer_data(joined.participant().current_trial())
+    data["comments"] = "x" * (300 * 1024)
+    response = joined.answer(data)
+    assert response.status_code == 400
+    assert stored_answers(joined.study) == 0
+
+
+@FUZZ
+@given(pid=st.text(min_size=1, max_size=300).map(lambda s: s + SCRIPT))
+def test_script_in_crowd_ids_is_never_reflected(ranking_study, pid):
+    from studyapp.survey.models import Participant
+
+    client = Client()
+    for response in (client.get(f"/s/{ranking_study.slug}/", {"PROLIFIC_PID": pid}, follow=True),
+                     client.post(f"/s/{ranking_study.slug}/consent/", {"agree": "1"}, follow=True)):
+        assert response.status_code < 500
+        assert SCRIPT.encode() not in response.content
+    stored = Participant.objects.filter(study=ranking_study).order_by("-pk").first()
+    if stored is not None:
+        assert len(stored.external_key) <= 200  # ids are cut to a bounded length
+
+
+def test_script_in_free_text_is_escaped(ranking_study, make_bot):
+    ranking_study.ask_demographics = True
+    ranking_study.save()
+    bot = make_bot(ranking_study)
+    bot.join(PROLIFIC_PID="free-text")
+    bot.finish()
+    response = bot.client.post(bot.url("about-you"), {"comments": SCRIPT, "age_range": SCRIPT,
+                                                       "gender": SCRIPT}, follow=True)
+    assert response.status_code in (200, 400)
+    assert SCRIPT.encode() not in response.content
+
+
+def test_every_participant_form_needs_the_csrf_token(ranking_study):
+    client = Client(enforce_csrf_checks=True)
+    client.get(f"/s/{ranking_study.slug}/", {"PROLIFIC_PID": "csrf"})
+    for name in ("consent", "instructions", "trial", "about-you"):
+        response = client.post(f"/s/{ranking_study.slug}/{name}/", {"agree": "1"})
+        assert response.status_code == 403, name
+    from studyapp.survey.models import Participant
+
+    assert not Participant.objects.filter(study=ranking_study).exists()
+
+
+def test_admin_needs_login_and_preview_needs_staff(ranking_study, client):
+    for url in ("/admin/", "/admin/survey/study/", f"/preview/{ranking_study.slug}/"):
+        response = client.get(url)
+        assert response.status_code == 302 and "/admin/login/" in response["Location"], url
+
+
+def test_stimulus_sources_and_media_are_not_readable(joined, ranking_study):
+    page = joined.trial_page().content.decode()
+    for source in ("real", "a2m", "cond_gru"):
+        assert f">{source}<" not in page and f'"{source}"' not in page
+    for path in ("/media/", "/media/stimuli/", "/c/../../settings.py", "/c/notatoken.mp4"):
+        assert joined.client.get(path).status_code == 404, path
+
+
+def test_entry_rate_limit_per_ip(ranking_study, settings):
+    from django.core.cache import cache
+
+    from studyapp.survey import ratelimit
+
+    assert "studyapp.survey.ratelimit.EntryRateLimitMiddleware" in settings.MIDDLEWARE
+    settings.STUDY_ENTRY_RATE_LIMIT = "5/min"
+    cache.clear()
+    statuses = [Client().get(f"/s/{ranking_study.slug}/", {"PROLIFIC_PID": f"p{i}"}).status_code
+                for i in range(8)]
+    assert statuses == [302] * 5 + [429] * 3
+    other = Client(REMOTE_ADDR="10.0.0.2").get(f"/s/{ranking_study.slug}/")
+    assert other.status_code == 302  # another address has its own bucket
+    assert ratelimit.allow("k", "1/s", now=100.0) and not ratelimit.allow("k", "1/s", now=100.1)
+    assert ratelimit.allow("k", "1/s", now=101.2)
+    with pytest.raises(ValueError):
+        ratelimit.parse_rate("lots")
+    cache.clear()
