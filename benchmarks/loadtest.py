@@ -1,0 +1,309 @@
+"""Load test: N concurrent bot participants against a real gunicorn + PostgreSQL server.
+
+``make loadtest`` (or ``.venv/bin/python benchmarks/loadtest.py --participants 500``):
+creates a fresh PostgreSQL database, a ranking study of tiny generated mp4s, starts
+gunicorn (production settings, several workers) on 127.0.0.1, runs every participant
+in its own thread (enter, consent, start, answer every trial through the real pages,
+reporting each clip played once), stops the server and checks the database:
+stored answers == acknowledged answers (HTTP 302 to the next page), no duplicates,
+every stored ranking a permutation, judgements per stimulus balanced. The last line is
+``acknowledged=N stored=N duplicates=0 p50_ms=... p99_ms=... answers_per_s=...``.
+"""
+
+import argparse
+import http.client
+import os
+import random
+import re
+import statistics
+import sys
+import tempfile
+import threading
+import time
+from collections import Counter
+from pathlib import Path
+from urllib.parse import urlencode, urlsplit
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from benchmarks.server import Server, create_database, drop_database, server_env  # noqa: E402
+
+CSRF = re.compile(r'name="csrfmiddlewaretoken" value="([^"]+)"')
+TRIAL = re.compile(r'name="trial" value="(\d+)"')
+RANK = re.compile(r'name="rank_([A-Za-z0-9_-]+)"')
+TIMEOUT = 60
+
+
+class HttpError(RuntimeError):
+    pass
+
+
+class Participant:
+    """A bot with its own cookies, speaking plain HTTP/1.1 to one server.
+
+    Cookies are kept by hand (name=value, sent back always): the production settings
+    mark them Secure, and this client talks plain HTTP to 127.0.0.1.
+    """
+
+    def __init__(self, url: str, slug: str, person: str, rng: random.Random | None = None):
+        parts = urlsplit(url)
+        self.host, self.port = parts.hostname, parts.port
+        self.slug = slug
+        self.person = person
+        self.rng = rng or random.Random(person)
+        self.cookies: dict[str, str] = {}
+        self.connection = None
+        self.submits: list[tuple[int, int, float]] = []  # (trial id, status, seconds)
+
+    def path(self, name: str = "") -> str:
+        return f"/s/{self.slug}/{name + '/' if name else ''}"
+
+    def request(self, method: str, path: str, data: dict | None = None, headers=None):
+        """Return ``(status, location, body)``; a new connection when the server closed it."""
+        body = urlencode(data) if data is not None else None
+        sent = {"Host": f"{self.host}:{self.port}"}
+        if self.cookies:
+            sent["Cookie"] = "; ".join(f"{k}={v}" for k, v in self.cookies.items())
+        if body is not None:
+            sent["Content-Type"] = "application/x-www-form-urlencoded"
+        sent.update(headers or {})
+        for attempt in range(2):
+            if self.connection is None:
+                self.connection = http.client.HTTPConnection(self.host, self.port, timeout=TIMEOUT)
+            try:
+                self.connection.request(method, path, body, sent)
+                response = self.connection.getresponse()
+                text = response.read().decode(errors="replace")
+                break
+            except (ConnectionError, http.client.RemoteDisconnected, http.client.BadStatusLine):
+                self.close()
+                if attempt or method == "POST":
+                    raise
+        for header, value in response.getheaders():
+            if header.lower() == "set-cookie":
+                name, _, rest = value.partition("=")
+                self.cookies[name.strip()] = rest.split(";", 1)[0]
+        if response.getheader("Connection", "").lower() == "close":
+            self.close()
+        return response.status, response.getheader("Location", ""), text
+
+    def close(self):
+        if self.connection is not None:
+            self.connection.close()
+            self.connection = None
+
+    def get(self, path: str) -> str:
+        status, location, text = self.request("GET", path)
+        if status in (301, 302):
+            return self.get(location)
+        if status != 200:
+            raise HttpError(f"GET {path}: HTTP {status}")
+        self.at = path
+        return text
+
+    def post(self, path: str, data: dict) -> tuple[int, str]:
+        html = self.page
+        token = CSRF.search(html)
+        data = {"csrfmiddlewaretoken": token.group(1) if token else "", **data}
+        status, location, _ = self.request("POST", path, data)
+        return status, location
+
+    def enter(self) -> None:
+        self.page = self.get(self.path() + "?" + urlencode({"PROLIFIC_PID": self.person}))
+
+    def consent(self) -> None:
+        status, location = self.post(self.path("consent"), {"agree": "1"})
+        if status != 302:
+            raise HttpError(f"consent: HTTP {status}")
+        self.page = self.get(location)
+
+    def start(self) -> None:
+        status, location = self.post(self.path("instructions"), {})
+        if status != 302:
+            raise HttpError(f"instructions: HTTP {status}")
+        self.page = self.get(location)
+
+    def answer_data(self) -> dict:
+        """Return a valid answer to the trial on the page: a random ranking, one play each."""
+        trial = TRIAL.search(self.page).group(1)
+        tokens = RANK.findall(self.page)
+        ranks = self.rng.sample(range(1, len(tokens) + 1), len(tokens))
+        data = {"trial": trial}
+        for token, rank in zip(tokens, ranks):
+            data[f"plays_{token}"] = "1"
+            data[f"rank_{token}"] = str(rank)
+        return data
+
+    def answer(self) -> str:
+        """Submit the trial on the page; return where the server sent us."""
+        data = self.answer_data()
+        begun = time.perf_counter()
+        status, location = self.post(self.path("trial"), data)
+        self.submits.append((int(data["trial"]), status, time.perf_counter() - begun))
+        if status != 302:
+            raise HttpError(f"answer to trial {data['trial']}: HTTP {status}")
+        self.page = self.get(location)
+        return location
+
+    def on_trial(self) -> bool:
+        return self.at.endswith("/trial/")
+
+    def run(self) -> None:
+        self.enter()
+        self.consent()
+        self.start()
+        while self.on_trial():
+            self.answer()
+        self.close()
+
+
+def make_study(slug: str, media_root: Path, actions=("walk", "wave", "jump"),
+               sources=("real", "a2m", "cond_gru", "mdm"), trials: int = 6):
+    """Create an open ranking study of tiny generated clips (3 of 4 sources per trial)."""
+    from django.conf import settings
+
+    from studyapp.survey.models import Study
+    from studyapp.survey.stimuli import register_clips
+    from tests.studyapp.conftest import FPS, FRAMES, write_clip
+
+    settings.MEDIA_ROOT = media_root
+    clips_dir = Path(tempfile.mkdtemp(prefix="loadtest-clips-"))
+    rng = random.Random(0)
+    clips = []
+    for action in actions:
+        for source in sources:
+            path = clips_dir / f"{action}-{source}.mp4"
+            write_clip(path, tuple(rng.randrange(30, 225) for _ in range(3)))
+            clips.append({"action": action, "source": source, "video": path,
+                          "duration": FRAMES / FPS, "motion_hash": f"{action}-{source}"})
+    study = Study.objects.create_ranking(
+        slug, "Movement study", clips_per_trial=3, trials_per_participant=trials,
+        data_note="Synthetic load-test data.",
+    )
+    register_clips(study, clips)
+    return study
+
+
+def check(study, acknowledged: list[int]) -> dict:
+    """Compare the database with what the server acknowledged; return the figures."""
+    from studyapp.survey.models import Stimulus, Trial, TrialItem
+
+    answered = Trial.objects.filter(participant__study=study, answered_at__isnull=False)
+    stored = answered.count()
+    ack = Counter(acknowledged)
+    duplicates = sum(n - 1 for n in ack.values() if n > 1)
+    missing = set(ack) - set(answered.values_list("pk", flat=True))
+    bad = 0
+    ranks: dict[int, list] = {}
+    for trial_id, rank in TrialItem.objects.filter(trial__in=answered).values_list("trial", "rank"):
+        ranks.setdefault(trial_id, []).append(rank)
+    for values in ranks.values():
+        bad += sorted(values) != list(range(1, len(values) + 1))
+    per_stimulus = Counter(
+        TrialItem.objects.filter(trial__in=answered, trial__kind=Trial.Kind.MAIN)
+        .values_list("stimulus", flat=True)
+    )
+    assigned = Counter(
+        TrialItem.objects.filter(trial__participant__study=study, trial__kind=Trial.Kind.MAIN)
+        .values_list("stimulus", flat=True)
+    )
+    judged = Stimulus.objects.judged().filter(study=study)
+    by_action: dict[str, list[int]] = {}
+    for s in judged:
+        by_action.setdefault(s.action, []).append(assigned[s.pk])
+    spread = max(max(v) - min(v) for v in by_action.values())
+    return {"stored": stored, "duplicates": duplicates, "missing": len(missing),
+            "bad_rankings": bad, "assigned_spread": spread,
+            "judged_min": min(per_stimulus.values() or [0]),
+            "judged_max": max(per_stimulus.values() or [0])}
+
+
+def percentile(values: list[float], q: float) -> float:
+    if not values:
+        return float("nan")
+    return statistics.quantiles(values, n=100, method="inclusive")[q - 1] if len(values) > 1 else values[0]
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--participants", type=int, default=500)
+    parser.add_argument("--concurrency", type=int, default=500, help="Bots running at once.")
+    parser.add_argument("--trials", type=int, default=6, help="Trials per participant.")
+    parser.add_argument("--workers", type=int, default=(os.cpu_count() or 1) * 2 + 1)
+    parser.add_argument("--time-limit", type=float, default=300, help="Seconds before bots give up.")
+    parser.add_argument("--keep-db", action="store_true")
+    args = parser.parse_args(argv)
+
+    name = f"loadtest_{os.getpid()}"
+    var = Path(tempfile.mkdtemp(prefix="loadtest-var-"))
+    url = create_database(name)
+    env = server_env(url, var, STUDY_ENTRY_RATE_LIMIT="1000000/min")
+    os.environ.update({k: env[k] for k in ("DATABASE_URL", "STUDY_DATABASE_URL", "STUDY_VAR_DIR")})
+    os.environ.update(DJANGO_SETTINGS_MODULE="studyapp.settings", DJANGO_DEBUG="1")
+    try:
+        import django
+        from django.core.management import call_command
+
+        django.setup()
+        call_command("migrate", verbosity=0)
+        study = make_study("load", var / "media", trials=args.trials)
+        server = Server(env, workers=args.workers, settings="benchmarks.loadtest_settings",
+                        log=var / "gunicorn.log")
+        server.collectstatic()
+        bots = [Participant("http://x:1", study.slug, f"load-{i}") for i in range(args.participants)]
+        errors: list[str] = []
+        gate = threading.Semaphore(args.concurrency)
+        deadline = time.monotonic() + args.time_limit
+
+        def play(bot):
+            with gate:
+                if time.monotonic() > deadline:
+                    errors.append(f"{bot.person}: time limit")
+                    return
+                try:
+                    bot.run()
+                except Exception as exc:  # a bot's failure is a finding, not a crash
+                    errors.append(f"{bot.person}: {type(exc).__name__}: {exc}")
+
+        with server:
+            for bot in bots:
+                bot.host, bot.port = "127.0.0.1", server.port
+            threads = [threading.Thread(target=play, args=(bot,), daemon=True) for bot in bots]
+            threading.stack_size(256 * 1024)
+            begun = time.perf_counter()
+            for t in threads:
+                t.start()
+            for t in threads:
+                t.join(max(0.0, deadline - time.monotonic()) + 5)
+            elapsed = time.perf_counter() - begun
+        submits = [s for bot in bots for s in bot.submits]
+        acknowledged = [trial for trial, status, _ in submits if status == 302]
+        latencies = sorted(seconds * 1000 for _, status, seconds in submits if status == 302)
+        figures = check(study, acknowledged)
+        completed = sum(1 for bot in bots if bot.submits and not bot.on_trial())
+        print(f"participants={args.participants} concurrency={args.concurrency} "
+              f"workers={args.workers} trials/participant={args.trials} completed={completed} "
+              f"errors={len(errors)} elapsed_s={elapsed:.1f}")
+        for line in errors[:5]:
+            print("  error:", line)
+        print(f"missing={figures['missing']} bad_rankings={figures['bad_rankings']} "
+              f"assigned_per_stimulus_spread={figures['assigned_spread']} "
+              f"judged_per_stimulus={figures['judged_min']}..{figures['judged_max']}")
+        ok = (figures["stored"] == len(acknowledged) and figures["duplicates"] == 0
+              and not figures["missing"] and not figures["bad_rankings"])
+        print(f"acknowledged={len(acknowledged)} stored={figures['stored']} "
+              f"duplicates={figures['duplicates']} p50_ms={percentile(latencies, 50):.1f} "
+              f"p99_ms={percentile(latencies, 99):.1f} "
+              f"answers_per_s={len(acknowledged) / elapsed:.0f}")
+        return 0 if ok and not errors else 1
+    finally:
+        from django.db import connections
+
+        connections.close_all()
+        if not args.keep_db:
+            drop_database(name)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
