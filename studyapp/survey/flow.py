@@ -41,8 +41,14 @@ def external_ids_from(query) -> dict:
 
 
 def session_participant(request, study):
+    """Return the participant of this browser (read with ``by_token``), or None."""
     token = request.session.get(session_key(study))
-    return Participant.objects.filter(study=study, token=token).first() if token else None
+    if not token:
+        return None
+    participant = Participant.objects.by_token(study, token)
+    if participant is not None:
+        participant.study = study  # already read: spare the query
+    return participant
 
 
 def remember(request, participant) -> None:
@@ -139,11 +145,12 @@ class Instructions(Page):
     template_name = "survey/instructions.html"
 
     def is_done(self, participant):
-        return participant.trials.exists()
+        return participant.has_trials()
 
     def post(self, request, study, participant):
         Participant.objects.start(participant)
-        if not participant.trials.exists():
+        participant.n_trials = participant.trials.count()
+        if not participant.n_trials:
             return unavailable(request, study, "closed")
         return super().post(request, study, participant)
 
@@ -155,11 +162,13 @@ class Trials(Page):
         return participant.completed_at is not None
 
     def get(self, request, study, participant):
-        trial = participant.current_trial()
+        trial = participant.trials.filter(pk=participant.current_id).first()
+        if trial is None:  # answered in another tab since this request began
+            return redirect(page_url(study, self.name))
         Trial.objects.mark_shown(trial)
         items = list(trial.items.select_related("stimulus"))
-        practice = participant.trials.filter(kind=Trial.Kind.PRACTICE).count()
-        total = participant.trials.count() - practice
+        practice = participant.n_practice
+        total = participant.n_trials - practice
         number = None if trial.kind == Trial.Kind.PRACTICE else trial.index + 1 - practice
         return render_trial(
             request, study, trial, items, number, total, practice_over=practice and number == 1
@@ -172,18 +181,18 @@ class Trials(Page):
         trial = participant.trials.filter(pk=int(trial_id)).first()
         if trial is None:
             return bad_answer(request, study, ["This question is not part of your session."])
-        current = participant.current_trial()  # read after ``trial``: never older than it
-        if trial.answered_at is not None or current is None or trial.index < current.index:
-            # A repeated submit, or a simultaneous copy of this one that was stored
-            # between the two reads (answers only move forward): move on.
-            return super().post(request, study, participant)
-        if trial != current:
+        if trial.answered_at is not None:
+            return super().post(request, study, participant)  # a repeated submit: move on
+        # ``current_id`` was read before ``trial``: an unanswered trial that is not the
+        # current one is not for now (a simultaneous copy of this submit is settled by
+        # ``record_answer``, which stores one and tells the other).
+        if trial.pk != participant.current_id:
             return bad_answer(request, study, ["This is not the question you are on."])
-        form = study.kind.answer_form(trial, trial.items.select_related("stimulus"), request.POST)
+        items = list(trial.items.select_related("stimulus"))
+        form = study.kind.answer_form(trial, items, request.POST)
         if not form.is_valid():
             return bad_answer(request, study, form.messages())
-        Trial.objects.record_answer(trial, form.answers(), form.trial_answer())
-        participant.refresh_from_db()
+        Trial.objects.record_answer(trial, form.answers(), form.trial_answer(), items=items)
         return super().post(request, study, participant)
 
 

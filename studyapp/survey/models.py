@@ -316,6 +316,30 @@ class ParticipantManager(models.Manager):
                     for position, stimulus in enumerate(plan.stimuli)
                 )
 
+    def by_token(self, study: Study, token: str):
+        """Return the study's participant with ``token``, or None, with ``n_trials``,
+        ``n_practice`` and ``current_id`` (the first unanswered trial, None before the
+        start and after the last answer). Every page asks this, so it is one SQL
+        statement written out (building it as an annotated queryset costs more CPU than
+        running it)."""
+        rows = list(self.raw(self._by_token_sql(), [study.pk, token]))
+        return rows[0] if rows else None
+
+    @staticmethod
+    def _by_token_sql() -> str:
+        quote = connection.ops.quote_name
+        p, t = quote(Participant._meta.db_table), quote(Trial._meta.db_table)
+        trials = f"FROM {t} WHERE {t}.{quote('participant_id')} = {p}.{quote('id')}"
+        return (
+            f"SELECT {p}.*, "
+            f"(SELECT COUNT(*) {trials}) AS n_trials, "
+            f"(SELECT COUNT(*) {trials} AND {t}.{quote('kind')} = '{Trial.Kind.PRACTICE}') "
+            f"AS n_practice, "
+            f"(SELECT {t}.{quote('id')} {trials} AND {t}.{quote('answered_at')} IS NULL "
+            f"ORDER BY {t}.{quote('index')} LIMIT 1) AS current_id "
+            f"FROM {p} WHERE {p}.{quote('study_id')} = %s AND {p}.{quote('token')} = %s"
+        )
+
     def record_demographics(self, participant: "Participant", answers: dict) -> None:
         """Store the answers to the closing questions once; later posts change nothing."""
         self.filter(pk=participant.pk, demographics__isnull=True).update(demographics=answers)
@@ -384,6 +408,11 @@ class Participant(models.Model):
         """Return the first unanswered trial, or None."""
         return self.trials.filter(answered_at__isnull=True).order_by("index").first()
 
+    def has_trials(self) -> bool:
+        """Return whether the trials were made (from ``by_token``'s count when read so)."""
+        n_trials = getattr(self, "n_trials", None)
+        return self.trials.exists() if n_trials is None else n_trials > 0
+
     def excluded(self) -> bool:
         """Return whether the participant failed a catch trial."""
         return self.trials.filter(kind=Trial.Kind.CATCH, catch_passed=False).exists()
@@ -392,18 +421,24 @@ class Participant(models.Model):
 class TrialManager(models.Manager):
     def mark_shown(self, trial: "Trial") -> None:
         """Record when the trial was first shown; reloads keep the first time."""
+        if trial.shown_at is not None:
+            return  # a reload: ``trial`` was just read, so the database has it too
         now = timezone.now()
         if self.filter(pk=trial.pk, shown_at__isnull=True).update(shown_at=now):
             trial.shown_at = now
 
     def record_answer(
-        self, trial: "Trial", answers: dict[int, dict], fields: dict | None = None
+        self, trial: "Trial", answers: dict[int, dict], fields: dict | None = None, items=None
     ) -> bool:
         """Store ``{item id: {field: value}}`` for every item of a trial, once.
 
         ``fields`` are answers stored on the trial itself (a pairwise ``choice``). A
         practice trial keeps only its plays: its answer is no judgement. A catch or
-        repeated trial is graded by the study type into ``catch_passed``.
+        repeated trial is graded by the study type into ``catch_passed``. ``items`` are
+        the trial's items when the caller has read them already (with their stimuli).
+        ``trial.shown_at`` must be as read in this request (a trial never shown counts
+        from now). When this answer is the participant's last, ``completed_at`` is set
+        on ``trial.participant`` too.
 
         Return False (and store nothing) when the trial was already answered. The
         conditional UPDATE comes first so two simultaneous submits cannot both win.
@@ -413,17 +448,18 @@ class TrialManager(models.Manager):
         if trial.kind == Trial.Kind.PRACTICE:
             answers = {pk: {"plays": values["plays"]} for pk, values in answers.items()}
             fields = {}
+        shown_at = trial.shown_at or now
+        time_ms = max(0, round((now - shown_at).total_seconds() * 1000))
         with transaction.atomic():
-            shown_at = self.filter(pk=trial.pk).values_list("shown_at", flat=True).get() or now
-            time_ms = max(0, round((now - shown_at).total_seconds() * 1000))
             won = self.filter(pk=trial.pk, answered_at__isnull=True).update(
                 answered_at=now, time_ms=time_ms, shown_at=shown_at, **fields
             )
             if not won:
                 return False
+            trial.answered_at, trial.time_ms, trial.shown_at = now, time_ms, shown_at
             for name, value in fields.items():
                 setattr(trial, name, value)
-            items = list(trial.items.select_related("stimulus"))
+            items = list(items) if items is not None else list(trial.items.select_related("stimulus"))
             names = sorted({name for values in answers.values() for name in values})
             for item in items:
                 for name, value in answers[item.pk].items():
@@ -434,9 +470,11 @@ class TrialManager(models.Manager):
                 passed = participant.study.kind.grade(trial, items)
                 self.filter(pk=trial.pk).update(catch_passed=passed)
             if not participant.trials.filter(answered_at__isnull=True).exists():
-                Participant.objects.filter(pk=participant.pk, completed_at__isnull=True).update(
-                    completed_at=now, completion_code=new_completion_code()
-                )
+                code = new_completion_code()
+                if Participant.objects.filter(pk=participant.pk, completed_at__isnull=True).update(
+                    completed_at=now, completion_code=code
+                ):
+                    participant.completed_at, participant.completion_code = now, code
         return True
 
 

@@ -371,3 +371,27 @@ def test_admin_lists_studies_stimuli_participants_trials_responses(
     ):
         assert admin_client.get(path).status_code == 200, path
     assert b"<video" in admin_client.get("/admin/survey/stimulus/").content
+
+
+def test_by_token_counts_trials_and_finds_the_current_one(ranking_study, make_bot):
+    from studyapp.survey.models import Participant, Trial
+
+    bot = make_bot(ranking_study)
+    bot.enter(PROLIFIC_PID="progress")
+    bot.consent()
+    row = bot.participant()
+    before = Participant.objects.by_token(ranking_study, row.token)
+    assert (before.pk, before.n_trials, before.n_practice, before.current_id) == (row.pk, 0, 0, None)
+    assert not before.has_trials()
+    bot.start()
+    trials = list(row.trials.order_by("index"))
+    for answered in range(len(trials) + 1):
+        read = Participant.objects.by_token(ranking_study, row.token)
+        assert read.n_trials == len(trials)
+        assert read.n_practice == sum(t.kind == Trial.Kind.PRACTICE for t in trials)
+        assert read.current_id == (trials[answered].pk if answered < len(trials) else None)
+        if answered < len(trials):
+            bot.trial_page()
+            assert bot.answer(bot.answer_data(trials[answered])).status_code == 302
+    assert Participant.objects.by_token(ranking_study, "no-such-token") is None
+    assert read.completed_at is not None and read.external_ids == {"PROLIFIC_PID": "progress"}
