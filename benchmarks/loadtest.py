@@ -2,15 +2,18 @@
 
 ``make loadtest`` (or ``.venv/bin/python benchmarks/loadtest.py --participants 500``):
 creates a fresh PostgreSQL database, a ranking study of tiny generated mp4s, starts
-gunicorn (production settings, several workers) on 127.0.0.1, runs every participant
-in its own thread (enter, consent, start, answer every trial through the real pages,
-reporting each clip played once), stops the server and checks the database:
-stored answers == acknowledged answers (HTTP 302 to the next page), no duplicates,
-every stored ranking a permutation, judgements per stimulus balanced. The last line is
+gunicorn (production settings, several workers) on 127.0.0.1, and runs every
+participant as a coroutine of one light asyncio client process (enter, consent, start,
+answer every trial through the real pages, reporting each clip played once, optionally
+"watching" each trial for ``--think`` seconds first). It then stops the server and
+checks the database: stored answers == acknowledged answers (HTTP 302 to the next
+page), no duplicates, every stored ranking a permutation, judgements per stimulus
+balanced. The last line is
 ``acknowledged=N stored=N duplicates=0 p50_ms=... p99_ms=... answers_per_s=...``.
 """
 
 import argparse
+import asyncio
 import http.client
 import os
 import random
@@ -18,7 +21,6 @@ import re
 import statistics
 import sys
 import tempfile
-import threading
 import time
 from collections import Counter
 from pathlib import Path
@@ -39,11 +41,12 @@ class HttpError(RuntimeError):
     pass
 
 
-class Participant:
-    """A bot with its own cookies, speaking plain HTTP/1.1 to one server.
+class Bot:
+    """What a bot participant knows: its cookies, the page it is on, its answers.
 
     Cookies are kept by hand (name=value, sent back always): the production settings
-    mark them Secure, and this client talks plain HTTP to 127.0.0.1.
+    mark them Secure, and this client talks plain HTTP to 127.0.0.1. Subclasses move
+    the bytes (blocking ``http.client`` or asyncio streams).
     """
 
     def __init__(self, url: str, slug: str, person: str, rng: random.Random | None = None):
@@ -53,14 +56,15 @@ class Participant:
         self.person = person
         self.rng = rng or random.Random(person)
         self.cookies: dict[str, str] = {}
-        self.connection = None
+        self.page = ""
+        self.at = ""
         self.submits: list[tuple[int, int, float]] = []  # (trial id, status, seconds)
 
     def path(self, name: str = "") -> str:
         return f"/s/{self.slug}/{name + '/' if name else ''}"
 
-    def request(self, method: str, path: str, data: dict | None = None, headers=None):
-        """Return ``(status, location, body)``; a new connection when the server closed it."""
+    def headers(self, data: dict | None, headers=None) -> tuple[dict, str | None]:
+        """Return the request headers and the urlencoded body of a request."""
         body = urlencode(data) if data is not None else None
         sent = {"Host": f"{self.host}:{self.port}"}
         if self.cookies:
@@ -68,6 +72,44 @@ class Participant:
         if body is not None:
             sent["Content-Type"] = "application/x-www-form-urlencoded"
         sent.update(headers or {})
+        return sent, body
+
+    def keep_cookies(self, headers) -> None:
+        for header, value in headers:
+            if header.lower() == "set-cookie":
+                name, _, rest = value.partition("=")
+                self.cookies[name.strip()] = rest.split(";", 1)[0]
+
+    def form(self, data: dict) -> dict:
+        """Return ``data`` with the CSRF token of the page the bot is on."""
+        token = CSRF.search(self.page)
+        return {"csrfmiddlewaretoken": token.group(1) if token else "", **data}
+
+    def answer_data(self) -> dict:
+        """Return a valid answer to the trial on the page: a random ranking, one play each."""
+        trial = TRIAL.search(self.page).group(1)
+        tokens = RANK.findall(self.page)
+        ranks = self.rng.sample(range(1, len(tokens) + 1), len(tokens))
+        data = {"trial": trial}
+        for token, rank in zip(tokens, ranks):
+            data[f"plays_{token}"] = "1"
+            data[f"rank_{token}"] = str(rank)
+        return data
+
+    def on_trial(self) -> bool:
+        return self.at.endswith("/trial/")
+
+
+class Participant(Bot):
+    """A blocking bot on one kept-alive ``http.client`` connection (for tests)."""
+
+    def __init__(self, url: str, slug: str, person: str, rng: random.Random | None = None):
+        super().__init__(url, slug, person, rng)
+        self.connection = None
+
+    def request(self, method: str, path: str, data: dict | None = None, headers=None):
+        """Return ``(status, location, body)``; a new connection when the server closed it."""
+        sent, body = self.headers(data, headers)
         for attempt in range(2):
             if self.connection is None:
                 self.connection = http.client.HTTPConnection(self.host, self.port, timeout=TIMEOUT)
@@ -80,10 +122,7 @@ class Participant:
                 self.close()
                 if attempt or method == "POST":
                     raise
-        for header, value in response.getheaders():
-            if header.lower() == "set-cookie":
-                name, _, rest = value.partition("=")
-                self.cookies[name.strip()] = rest.split(";", 1)[0]
+        self.keep_cookies(response.getheaders())
         if response.getheader("Connection", "").lower() == "close":
             self.close()
         return response.status, response.getheader("Location", ""), text
@@ -103,10 +142,7 @@ class Participant:
         return text
 
     def post(self, path: str, data: dict) -> tuple[int, str]:
-        html = self.page
-        token = CSRF.search(html)
-        data = {"csrfmiddlewaretoken": token.group(1) if token else "", **data}
-        status, location, _ = self.request("POST", path, data)
+        status, location, _ = self.request("POST", path, self.form(data))
         return status, location
 
     def enter(self) -> None:
@@ -124,17 +160,6 @@ class Participant:
             raise HttpError(f"instructions: HTTP {status}")
         self.page = self.get(location)
 
-    def answer_data(self) -> dict:
-        """Return a valid answer to the trial on the page: a random ranking, one play each."""
-        trial = TRIAL.search(self.page).group(1)
-        tokens = RANK.findall(self.page)
-        ranks = self.rng.sample(range(1, len(tokens) + 1), len(tokens))
-        data = {"trial": trial}
-        for token, rank in zip(tokens, ranks):
-            data[f"plays_{token}"] = "1"
-            data[f"rank_{token}"] = str(rank)
-        return data
-
     def answer(self) -> str:
         """Submit the trial on the page; return where the server sent us."""
         data = self.answer_data()
@@ -146,16 +171,70 @@ class Participant:
         self.page = self.get(location)
         return location
 
-    def on_trial(self) -> bool:
-        return self.at.endswith("/trial/")
 
-    def run(self) -> None:
-        self.enter()
-        self.consent()
-        self.start()
+
+class AsyncParticipant(Bot):
+    """A bot as a coroutine: one short HTTP/1.1 connection per request (gunicorn's sync
+    workers close every connection), so hundreds run in one light client process."""
+
+    async def request(self, method: str, path: str, data: dict | None = None):
+        """Return ``(status, location, body)``."""
+        sent, body = self.headers(data, {"Connection": "close"})
+        payload = (body or "").encode()
+        if body is not None:
+            sent["Content-Length"] = str(len(payload))
+        head = f"{method} {path} HTTP/1.1\r\n" + "".join(f"{k}: {v}\r\n" for k, v in sent.items())
+        reader, writer = await asyncio.open_connection(self.host, self.port)
+        try:
+            writer.write(head.encode() + b"\r\n" + payload)
+            status_line = await reader.readline()
+            if not status_line:
+                raise HttpError(f"{method} {path}: the server closed the connection")
+            status = int(status_line.split()[1])
+            headers = []
+            while (line := await reader.readline()) not in (b"\r\n", b"\n", b""):
+                name, _, value = line.decode("latin-1").partition(":")
+                headers.append((name.strip(), value.strip()))
+            text = (await reader.read()).decode(errors="replace")
+        finally:
+            writer.close()
+        self.keep_cookies(headers)
+        location = next((v for k, v in headers if k.lower() == "location"), "")
+        return status, location, text
+
+    async def get(self, path: str) -> str:
+        for _ in range(5):
+            status, location, text = await self.request("GET", path)
+            if status not in (301, 302):
+                break
+            path = location
+        if status != 200:
+            raise HttpError(f"GET {path}: HTTP {status}")
+        self.at = path
+        return text
+
+    async def step(self, name: str, data: dict) -> None:
+        """POST the form of page ``name`` and follow the redirect."""
+        status, location, _ = await self.request("POST", self.path(name), self.form(data))
+        if status != 302:
+            raise HttpError(f"{name}: HTTP {status}")
+        self.page = await self.get(location)
+
+    async def run(self, think: float = 0.0) -> None:
+        """Take the whole study; wait about ``think`` seconds on every trial first."""
+        self.page = await self.get(self.path() + "?" + urlencode({"PROLIFIC_PID": self.person}))
+        await self.step("consent", {"agree": "1"})
+        await self.step("instructions", {})
         while self.on_trial():
-            self.answer()
-        self.close()
+            if think:
+                await asyncio.sleep(self.rng.uniform(0.5, 1.5) * think)
+            data = self.answer_data()
+            begun = time.perf_counter()
+            status, location, _ = await self.request("POST", self.path("trial"), self.form(data))
+            self.submits.append((int(data["trial"]), status, time.perf_counter() - begun))
+            if status != 302:
+                raise HttpError(f"answer to trial {data['trial']}: HTTP {status}")
+            self.page = await self.get(location)
 
 
 def make_study(slug: str, media_root: Path, actions=("walk", "wave", "jump"),
@@ -219,6 +298,14 @@ def check(study, acknowledged: list[int]) -> dict:
             "judged_max": max(per_stimulus.values() or [0])}
 
 
+def cpu_seconds() -> tuple[float, float]:
+    """Return CPU seconds used so far by the whole machine and by this process."""
+    with open("/proc/stat") as f:
+        fields = [int(x) for x in f.readline().split()[1:]]
+    busy = sum(fields) - fields[3] - fields[4]  # all but idle and iowait
+    return busy / os.sysconf("SC_CLK_TCK"), time.process_time()
+
+
 def percentile(values: list[float], q: float) -> float:
     if not values:
         return float("nan")
@@ -231,6 +318,9 @@ def main(argv=None) -> int:
     parser.add_argument("--concurrency", type=int, default=500, help="Bots running at once.")
     parser.add_argument("--trials", type=int, default=6, help="Trials per participant.")
     parser.add_argument("--workers", type=int, default=(os.cpu_count() or 1) * 2 + 1)
+    parser.add_argument("--think", type=float, default=0.0,
+                        help="Mean seconds a bot watches each trial before answering "
+                             "(0: answer at once, a closed loop measuring throughput).")
     parser.add_argument("--time-limit", type=float, default=300, help="Seconds before bots give up.")
     parser.add_argument("--keep-db", action="store_true")
     args = parser.parse_args(argv)
@@ -251,32 +341,36 @@ def main(argv=None) -> int:
         server = Server(env, workers=args.workers, settings="benchmarks.loadtest_settings",
                         log=var / "gunicorn.log")
         server.collectstatic()
-        bots = [Participant("http://x:1", study.slug, f"load-{i}") for i in range(args.participants)]
+        bots = [AsyncParticipant("http://x:1", study.slug, f"load-{i}")
+                for i in range(args.participants)]
         errors: list[str] = []
-        gate = threading.Semaphore(args.concurrency)
-        deadline = time.monotonic() + args.time_limit
 
-        def play(bot):
-            with gate:
+        async def play(bot, gate, deadline):
+            async with gate:
                 if time.monotonic() > deadline:
                     errors.append(f"{bot.person}: time limit")
                     return
                 try:
-                    bot.run()
+                    await asyncio.wait_for(bot.run(args.think), max(0.1, deadline - time.monotonic()))
                 except Exception as exc:  # a bot's failure is a finding, not a crash
                     errors.append(f"{bot.person}: {type(exc).__name__}: {exc}")
+
+        async def crowd():
+            gate = asyncio.Semaphore(args.concurrency)
+            deadline = time.monotonic() + args.time_limit
+            await asyncio.gather(*(play(bot, gate, deadline) for bot in bots))
 
         with server:
             for bot in bots:
                 bot.host, bot.port = "127.0.0.1", server.port
-            threads = [threading.Thread(target=play, args=(bot,), daemon=True) for bot in bots]
-            threading.stack_size(256 * 1024)
+            machine, client = cpu_seconds()
             begun = time.perf_counter()
-            for t in threads:
-                t.start()
-            for t in threads:
-                t.join(max(0.0, deadline - time.monotonic()) + 5)
+            asyncio.run(crowd())
             elapsed = time.perf_counter() - begun
+            machine_after, client_after = cpu_seconds()
+        cores = os.cpu_count() or 1
+        busy = (machine_after - machine) / (elapsed * cores)
+        own = (client_after - client) / (elapsed * cores)
         submits = [s for bot in bots for s in bot.submits]
         acknowledged = [trial for trial, status, _ in submits if status == 302]
         latencies = sorted(seconds * 1000 for _, status, seconds in submits if status == 302)
@@ -284,7 +378,9 @@ def main(argv=None) -> int:
         completed = sum(1 for bot in bots if bot.submits and not bot.on_trial())
         print(f"participants={args.participants} concurrency={args.concurrency} "
               f"workers={args.workers} trials/participant={args.trials} completed={completed} "
-              f"errors={len(errors)} elapsed_s={elapsed:.1f}")
+              f"think_s={args.think:g} errors={len(errors)} elapsed_s={elapsed:.1f}")
+        print(f"cpu of {cores} cores: {100 * busy:.0f}% busy, of which this client "
+              f"{100 * own:.0f}% (the rest: gunicorn, PostgreSQL, anything else running)")
         for line in errors[:5]:
             print("  error:", line)
         print(f"missing={figures['missing']} bad_rankings={figures['bad_rankings']} "
