@@ -149,3 +149,42 @@ MEDIA_ROOT = VAR_DIR / "media"
 
 # Upper bound on a participant's POST body, so a tampered request cannot be huge.
 DATA_UPLOAD_MAX_MEMORY_SIZE = 256 * 1024
+
+
+# --- Media storage ---------------------------------------------------------------------
+# Stimulus files are read and written only through ``default_storage``
+# (survey.stimuli, survey.media). By default that is the FileSystemStorage above, at
+# MEDIA_ROOT. With ``STUDY_S3_BUCKET`` set they live in an S3-compatible bucket
+# (django-storages): ``STUDY_S3_ENDPOINT_URL`` (MinIO and other non-AWS services),
+# ``STUDY_S3_REGION``, ``STUDY_S3_PREFIX`` (key prefix, default ``media``); credentials
+# come from boto3's usual chain (``AWS_ACCESS_KEY_ID``/``AWS_SECRET_ACCESS_KEY``, a
+# profile or an instance role). The app still streams every clip itself under its
+# opaque token (survey.views.clip): no bucket URL is ever handed out, so keep the bucket
+# private. Static files stay with whitenoise.
+
+
+def s3_storage_from_env(environ) -> dict | None:
+    """Return the ``STORAGES["default"]`` entry for S3 from the environment, or None."""
+    bucket = environ.get("STUDY_S3_BUCKET", "").strip()
+    if not bucket:
+        return None
+    return {
+        "BACKEND": "storages.backends.s3.S3Storage",
+        "OPTIONS": {
+            "bucket_name": bucket,
+            "endpoint_url": environ.get("STUDY_S3_ENDPOINT_URL") or None,
+            "region_name": environ.get("STUDY_S3_REGION") or None,
+            "location": environ.get("STUDY_S3_PREFIX", "media").strip("/"),
+            # No ACL on upload: objects are as private as the bucket (and buckets with
+            # ACLs disabled refuse uploads that set one).
+            "default_acl": None,
+            # Names are content hashes: the same name is the same file, never a
+            # renamed copy.
+            "file_overwrite": True,
+        },
+    }
+
+
+_S3_STORAGE = s3_storage_from_env(os.environ)
+if _S3_STORAGE:
+    STORAGES = {**STORAGES, "default": _S3_STORAGE}

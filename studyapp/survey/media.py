@@ -3,26 +3,71 @@
 Browsers fetch video in byte ranges (to seek and to read the moov atom); Django's
 FileResponse answers every request in full and adds a filename header, so clips are
 served here instead. No Last-Modified either: render times could differ by source.
+
+Files are read through Django's storage API (``default_storage``: the file system under
+``MEDIA_ROOT``, or S3-compatible object storage), never from a public storage URL.
 """
 
 import re
-from pathlib import Path
 
+from django.core.files.storage import default_storage
 from django.http import HttpResponse, HttpResponseNotModified, StreamingHttpResponse
 
 RANGE = re.compile(r"^bytes=(\d*)-(\d*)$")
 CHUNK = 64 * 1024
+FOLDER = "stimuli"
 
 
-def _read(path: Path, start: int, length: int):
-    with open(path, "rb") as f:
-        f.seek(start)
+def is_stimulus_name(name) -> bool:
+    """Whether ``name`` is a plain relative storage name under ``stimuli/``.
+
+    No absolute names, no ``..`` or ``.`` parts, no empty parts, no backslashes.
+    """
+    if not isinstance(name, str) or "\\" in name or "\x00" in name:
+        return False
+    parts = name.split("/")
+    return (
+        len(parts) >= 2
+        and parts[0] == FOLDER
+        and all(part not in ("", ".", "..") for part in parts)
+    )
+
+
+class _Span:
+    """``length`` bytes of an open storage file from ``start``; ``close`` closes the file.
+
+    A file of django-storages' S3 backend (it has the boto3 ``obj``) is read with a
+    ranged GET, so a seek in a long clip does not download all of it.
+    """
+
+    def __init__(self, f, start: int, length: int):
+        self.f, self.start, self.length = f, start, length
+        self.body = None
+
+    def __iter__(self):
+        length = self.length
+        if length <= 0:
+            return
+        obj = getattr(self.f, "obj", None)
+        if obj is not None and hasattr(obj, "get"):
+            self.body = obj.get(Range=f"bytes={self.start}-{self.start + length - 1}")["Body"]
+            read = self.body.read
+        else:
+            self.f.seek(self.start)
+            read = self.f.read
         while length > 0:
-            chunk = f.read(min(CHUNK, length))
+            chunk = read(min(CHUNK, length))
             if not chunk:
                 return
             length -= len(chunk)
             yield chunk
+
+    def close(self):
+        try:
+            if self.body is not None:
+                self.body.close()
+        finally:
+            self.f.close()
 
 
 def parse_range(header: str, size: int):
@@ -43,15 +88,32 @@ def parse_range(header: str, size: int):
     return start, end
 
 
-def file_response(request, path: Path, content_type: str, etag: str):
-    """Return the file (or the requested byte range of it) as an anonymous response."""
-    size = path.stat().st_size
+def file_response(request, source, content_type: str, etag: str, size=None, storage=None):
+    """Return the file (or the requested byte range of it) as an anonymous response.
+
+    ``source`` is a storage name under ``stimuli/`` (opened through ``storage``, by
+    default ``default_storage``) or an open binary file (its ``size`` given or known to
+    it); the response closes it. Raise FileNotFoundError when the name is not a
+    stimulus name or nothing is stored under it.
+    """
+    if isinstance(source, str):
+        if not is_stimulus_name(source):
+            raise FileNotFoundError(f"not a stimulus name: {source!r}")
+        f = (storage or default_storage).open(source, "rb")
+    else:
+        f = source
+    try:
+        size = f.size if size is None else size
+    except BaseException:
+        f.close()
+        raise
     headers = {
         "Accept-Ranges": "bytes",
         "ETag": etag,
         "Cache-Control": "private, max-age=86400",
     }
     if request.headers.get("If-None-Match") == etag:
+        f.close()
         return HttpResponseNotModified(headers=headers)
     span = None
     if_range = request.headers.get("If-Range")
@@ -59,6 +121,7 @@ def file_response(request, path: Path, content_type: str, etag: str):
         try:
             span = parse_range(request.headers["Range"], size)
         except ValueError:
+            f.close()
             return HttpResponse(status=416, headers={**headers, "Content-Range": f"bytes */{size}"})
     start, end = span or (0, size - 1)
     headers["Content-Length"] = str(end - start + 1)
@@ -66,6 +129,7 @@ def file_response(request, path: Path, content_type: str, etag: str):
         headers["Content-Range"] = f"bytes {start}-{end}/{size}"
     status = 206 if span else 200
     if request.method == "HEAD":
+        f.close()
         return HttpResponse(status=status, content_type=content_type, headers=headers)
-    body = _read(path, start, end - start + 1)
+    body = _Span(f, start, end - start + 1)
     return StreamingHttpResponse(body, status=status, content_type=content_type, headers=headers)

@@ -1,8 +1,9 @@
 """Register rendered clips as the stimuli of a study.
 
-Files are copied to ``MEDIA_ROOT/stimuli/<video_hash>.mp4`` (poster ``.png``): the name
-carries no source, and the same video registered twice is stored once. Participants
-only ever see the stimulus token (see ``views.clip``).
+Files are stored through Django's ``default_storage`` (``MEDIA_ROOT`` on the file
+system, or an S3-compatible bucket: ``STUDY_S3_BUCKET``) as ``stimuli/<video_hash>.mp4``
+(poster ``.png``): the name carries no source, and the same video registered twice is
+stored once. Participants only ever see the stimulus token (see ``views.clip``).
 """
 
 import hashlib
@@ -13,7 +14,8 @@ import tempfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
-from django.conf import settings
+from django.core.files import File
+from django.core.files.storage import default_storage
 from django.db import transaction
 
 from studyapp.survey.models import Stimulus
@@ -40,22 +42,51 @@ def _read(clip, *names, default=None):
     return default
 
 
-def _store(src: Path, name: str) -> str:
-    """Copy ``src`` to ``MEDIA_ROOT/stimuli/name`` once; return the relative path."""
-    relative = f"stimuli/{name}"
-    dst = Path(settings.MEDIA_ROOT) / relative
-    if dst.is_file() and dst.stat().st_size == src.stat().st_size:
-        return relative
-    dst.parent.mkdir(parents=True, exist_ok=True)
-    # Copy beside the target, then rename: a half-written file is never served.
-    fd, tmp = tempfile.mkstemp(dir=dst.parent, prefix=".incoming-")
+class _Staged(File):
+    """A complete copy beside the target, which FileSystemStorage renames into place."""
+
+    def temporary_file_path(self):
+        return self.file.name
+
+
+def _save(relative: str, src: Path) -> str:
+    """Save ``src`` as ``relative`` in ``default_storage``; return the name it chose."""
+    try:
+        target = Path(default_storage.path(relative))
+    except NotImplementedError:  # object storage: an upload appears whole when done
+        with open(src, "rb") as f:
+            return default_storage.save(relative, File(f, name=relative))
+    # Copy beside the target, then let the storage rename it: a half-written file is
+    # never served.
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=".incoming-")
     try:
         with os.fdopen(fd, "wb") as out, open(src, "rb") as f:
             shutil.copyfileobj(f, out)
-        os.replace(tmp, dst)
-    except BaseException:
+        with open(tmp, "rb") as f:
+            return default_storage.save(relative, _Staged(f, name=relative))
+    finally:
         Path(tmp).unlink(missing_ok=True)
-        raise
+
+
+def _store(src: Path, name: str) -> str:
+    """Store ``src`` as ``stimuli/name`` in ``default_storage`` once; return that name.
+
+    ``name`` is the content hash, so a stored file of the same size is this file and
+    is not uploaded again. The name is never changed: a storage that would save under
+    another name (the name was taken meanwhile by the same file) has that copy removed.
+    """
+    relative = f"stimuli/{name}"
+    size = Path(src).stat().st_size
+    if default_storage.exists(relative):
+        if default_storage.size(relative) == size:
+            return relative
+        default_storage.delete(relative)  # a broken copy: store it again
+    saved = _save(relative, Path(src))
+    if saved != relative:
+        default_storage.delete(saved)
+        if not (default_storage.exists(relative) and default_storage.size(relative) == size):
+            raise RuntimeError(f"the storage saved {relative} as {saved}")
     return relative
 
 

@@ -1,9 +1,6 @@
 """Participant pages, the staff preview and clip serving; the flows live in ``flow``
 and ``preview``."""
 
-from pathlib import Path
-
-from django.conf import settings
 from django.contrib.admin.views.decorators import staff_member_required
 from django.http import Http404
 from django.shortcuts import get_object_or_404
@@ -50,11 +47,11 @@ def preview_page(request, slug, name):
 def clip(request, token, ext):
     """Serve a stimulus video or poster under its opaque token only."""
     stimulus = get_object_or_404(Stimulus, token=token)
-    relative = stimulus.video if ext == "mp4" else stimulus.poster
-    root = Path(settings.MEDIA_ROOT).resolve()
-    path = (root / relative).resolve() if relative else None
-    if path is None or not path.is_relative_to(root) or not path.is_file():
-        raise Http404("no such clip")
+    name = stimulus.video if ext == "mp4" else stimulus.poster
     tag = stimulus.video_hash or stimulus.token
     etag = f'"{tag}"' if ext == "mp4" else f'"{tag}-p"'
-    return media.file_response(request, path, CONTENT_TYPES[ext], etag)
+    try:
+        # Only names under stimuli/ are opened, through default_storage (media.file_response).
+        return media.file_response(request, name, CONTENT_TYPES[ext], etag)
+    except (FileNotFoundError, IsADirectoryError, NotADirectoryError):
+        raise Http404("no such clip") from None
