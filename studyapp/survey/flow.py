@@ -14,6 +14,7 @@ from studyapp.survey.models import (
     Participant,
     Study,
     Trial,
+    TrialItem,
     Unavailable,
     external_key,
 )
@@ -49,6 +50,23 @@ def session_participant(request, study):
     if participant is not None:
         participant.study = study  # already read: spare the query
     return participant
+
+
+def trial_with_items(participant, trial_id):
+    """Return ``(trial, items)`` of one of the participant's trials, read in one query
+    (items in screen order, with their stimuli), or ``(None, [])``."""
+    items = list(
+        TrialItem.objects.filter(trial_id=trial_id, trial__participant=participant)
+        .select_related("trial", "stimulus")
+        .order_by("position")
+    )
+    if not items:
+        return None, []
+    trial = items[0].trial
+    trial.participant = participant
+    for item in items:
+        item.trial = trial
+    return trial, items
 
 
 def remember(request, participant) -> None:
@@ -162,11 +180,10 @@ class Trials(Page):
         return participant.completed_at is not None
 
     def get(self, request, study, participant):
-        trial = participant.trials.filter(pk=participant.current_id).first()
+        trial, items = trial_with_items(participant, participant.current_id)
         if trial is None:  # answered in another tab since this request began
             return redirect(page_url(study, self.name))
         Trial.objects.mark_shown(trial)
-        items = list(trial.items.select_related("stimulus"))
         practice = participant.n_practice
         total = participant.n_trials - practice
         number = None if trial.kind == Trial.Kind.PRACTICE else trial.index + 1 - practice
@@ -176,9 +193,9 @@ class Trials(Page):
 
     def post(self, request, study, participant):
         trial_id = request.POST.get("trial", "")
-        if not trial_id.isdigit():
+        if not (trial_id.isascii() and trial_id.isdigit() and len(trial_id) <= 18):
             return bad_answer(request, study, ["The answer does not say which question it is for."])
-        trial = participant.trials.filter(pk=int(trial_id)).first()
+        trial, items = trial_with_items(participant, int(trial_id))
         if trial is None:
             return bad_answer(request, study, ["This question is not part of your session."])
         if trial.answered_at is not None:
@@ -188,7 +205,6 @@ class Trials(Page):
         # ``record_answer``, which stores one and tells the other).
         if trial.pk != participant.current_id:
             return bad_answer(request, study, ["This is not the question you are on."])
-        items = list(trial.items.select_related("stimulus"))
         form = study.kind.answer_form(trial, items, request.POST)
         if not form.is_valid():
             return bad_answer(request, study, form.messages())
