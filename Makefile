@@ -17,6 +17,7 @@ test: setup
 serve: setup
 	@bash scripts/serve.sh
 
-# 500 concurrent bots against gunicorn + a fresh PostgreSQL database (docs/BENCHMARKS.md, "Load").
+# 500 concurrent bots against gunicorn + a fresh PostgreSQL database (docs/BENCHMARKS.md, "Load");
+# add ARGS="--think 10" for participants who take about 10 s per trial.
 loadtest: setup
-	$(PY) benchmarks/loadtest.py --participants 500 --trials 2 --time-limit 300
+	$(PY) benchmarks/loadtest.py --participants 500 --trials 6 --time-limit 600 $(ARGS)

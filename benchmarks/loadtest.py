@@ -306,6 +306,21 @@ def cpu_seconds() -> tuple[float, float]:
     return busy / os.sysconf("SC_CLK_TCK"), time.process_time()
 
 
+def cpu_by_command() -> Counter:
+    """Return CPU seconds used so far by the live processes, by command name."""
+    used = Counter()
+    tick = os.sysconf("SC_CLK_TCK")
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            text = stat.read_text()
+        except OSError:
+            continue  # gone meanwhile
+        name = text[text.index("(") + 1:text.rindex(")")]
+        fields = text[text.rindex(")") + 2:].split()
+        used[name] += (int(fields[11]) + int(fields[12])) / tick  # utime + stime
+    return used
+
+
 def percentile(values: list[float], q: float) -> float:
     if not values:
         return float("nan")
@@ -364,10 +379,12 @@ def main(argv=None) -> int:
             for bot in bots:
                 bot.host, bot.port = "127.0.0.1", server.port
             machine, client = cpu_seconds()
+            by_command = cpu_by_command()
             begun = time.perf_counter()
             asyncio.run(crowd())
             elapsed = time.perf_counter() - begun
             machine_after, client_after = cpu_seconds()
+            by_command = cpu_by_command() - by_command
         cores = os.cpu_count() or 1
         busy = (machine_after - machine) / (elapsed * cores)
         own = (client_after - client) / (elapsed * cores)
@@ -380,7 +397,8 @@ def main(argv=None) -> int:
               f"workers={args.workers} trials/participant={args.trials} completed={completed} "
               f"think_s={args.think:g} errors={len(errors)} elapsed_s={elapsed:.1f}")
         print(f"cpu of {cores} cores: {100 * busy:.0f}% busy, of which this client "
-              f"{100 * own:.0f}% (the rest: gunicorn, PostgreSQL, anything else running)")
+              f"{100 * own:.0f}%; CPU seconds by process: "
+              + ", ".join(f"{name} {seconds:.1f}" for name, seconds in by_command.most_common(4)))
         for line in errors[:5]:
             print("  error:", line)
         print(f"missing={figures['missing']} bad_rankings={figures['bad_rankings']} "

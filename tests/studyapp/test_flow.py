@@ -395,3 +395,23 @@ def test_by_token_counts_trials_and_finds_the_current_one(ranking_study, make_bo
             assert bot.answer(bot.answer_data(trials[answered])).status_code == 302
     assert Participant.objects.by_token(ranking_study, "no-such-token") is None
     assert read.completed_at is not None and read.external_ids == {"PROLIFIC_PID": "progress"}
+
+
+def test_an_answer_and_the_next_trial_cost_twelve_statements(ranking_study, make_bot):
+    from django.db import connection
+    from django.test.utils import CaptureQueriesContext
+
+    # study, session, participant with progress, trial with items on each page; the
+    # answer's conditional UPDATE, the items' UPDATE and the completion check; the GET's
+    # shown_at (docs/BENCHMARKS.md, "Load"). Transaction control is not counted.
+    bot = make_bot(ranking_study)
+    bot.join(PROLIFIC_PID="statements")
+    trial = bot.participant().current_trial()
+    bot.trial_page()
+    data = bot.answer_data(trial)
+    with CaptureQueriesContext(connection) as captured:
+        assert bot.answer(data).status_code == 302
+        assert bot.trial_page().status_code == 200
+    statements = [q["sql"] for q in captured.captured_queries
+                  if not q["sql"].startswith(("SAVEPOINT", "RELEASE SAVEPOINT"))]
+    assert len(statements) == 12, "\n".join(statements)
