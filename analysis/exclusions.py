@@ -3,8 +3,8 @@
 Rules, in order:
 
 1. (optional) participants who did not complete the study;
-2. participants who failed more than ``max_failed_catch`` catch trials: all their
-   judgements go;
+2. participants who failed more than ``max_failed_catch`` checks (catch trials, and
+   repeated trials answered differently the second time): all their judgements go;
 3. trials answered faster than ``min_time_factor`` times the length of their longest
    clip (``time_ms < factor * duration * 1000``): the trial goes. Skipped, with a note,
    when the table has no clip durations.
@@ -47,7 +47,7 @@ def apply(rows: pd.DataFrame, config) -> tuple[pd.DataFrame, pd.DataFrame, list[
         rows["pcode"].to_numpy()[failed]).nunique()
     failing = failed_trials.index[failed_trials > config.max_failed_catch]
     flagged = rows["pcode"].isin(failing).to_numpy()
-    label = f"Failed more than {config.max_failed_catch} catch trial(s)"
+    label = f"Failed more than {config.max_failed_catch} catch or repeated trial(s)"
     records.append(_count(label, _applied(config), rows, main & flagged))
     if config.exclusions:
         keep &= ~flagged

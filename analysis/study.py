@@ -232,7 +232,7 @@ def _prepare(table: pd.DataFrame, kind) -> tuple[pd.DataFrame, list[str]]:
 def _quality(rows, kept, main, kind) -> pd.DataFrame:
     """Return catch-trial pass rates and the consistency of repeated trials."""
     records = []
-    catch = rows.loc[rows["catch_passed"].notna()]
+    catch = rows.loc[rows["catch_passed"].notna() & (rows["trial_kind"] != "repeat")]
     if len(catch):
         trials = catch.groupby("trial_key")["catch_passed"].all()
         records.append({"check": "catch trials passed", "n": len(trials),

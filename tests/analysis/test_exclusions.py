@@ -39,21 +39,21 @@ def test_rules_are_applied_and_counted():
     result = analyse(study_table(), config())
     assert counts(result) == {
         "Main-trial judgements before exclusions": (4, 8, 24),
-        "Failed more than 0 catch trial(s)": (1, 2, 6),
+        "Failed more than 0 catch or repeated trial(s)": (1, 2, 6),
         "Answered faster than 1 x the clip length": (2, 2, 6),
         "Analysed": (3, 4, 12),
     }
     assert result.counts["judgements"] == 12 and result.counts["participants"] == 3
     quality = result.quality.set_index("check")
     assert quality.loc["catch trials passed", "value"] == pytest.approx(3 / 4)
-    assert "failed more than 0 catch trial(s): 1 participants" in result.methods()
+    assert "failed more than 0 catch or repeated trial(s): 1 participants" in result.methods()
 
 
 def test_no_exclusions_keeps_everything_but_still_counts():
     result = analyse(study_table(), config(exclusions=False))
     table = counts(result)
     assert table["Analysed"] == (4, 8, 24)
-    assert table["Failed more than 0 catch trial(s)"] == (1, 2, 6)
+    assert table["Failed more than 0 catch or repeated trial(s)"] == (1, 2, 6)
     assert result.exclusions.set_index("rule").loc["Analysed", "judgements"] == 24
     assert "No exclusions were applied" in result.methods()
 
@@ -62,7 +62,7 @@ def test_time_factor_and_catch_tolerance_are_configurable():
     lenient = analyse(study_table(), config(min_time_factor=0.5, max_failed_catch=1))
     table = counts(lenient)
     assert table["Answered faster than 0.5 x the clip length"] == (0, 0, 0)
-    assert table["Failed more than 1 catch trial(s)"] == (0, 0, 0)
+    assert table["Failed more than 1 catch or repeated trial(s)"] == (0, 0, 0)
     assert table["Analysed"] == (4, 8, 24)
 
 

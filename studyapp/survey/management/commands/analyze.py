@@ -32,7 +32,7 @@ class Command(BaseCommand):
         parser.add_argument("--min-time-factor", type=float, default=1.0, metavar="F",
                             help="Exclude trials answered in less than F x the clip length (default 1).")
         parser.add_argument("--max-failed-catch", type=int, default=0, metavar="N",
-                            help="Exclude participants who failed more than N catch trials (default 0).")
+                            help="Exclude participants who failed more than N catch or repeated trials (default 0).")
         parser.add_argument("--bootstrap", type=int, default=1000, metavar="N",
                             help="Bootstrap resamples for intervals (default 1000; 0 = none).")
         parser.add_argument("--seed", type=int, default=0, help="Seed of the bootstrap.")
