@@ -3,8 +3,12 @@
 Everything a deployment changes comes from the environment:
 
 - ``STUDY_DATABASE_URL`` / ``DATABASE_URL``: ``postgres://user:pass@host:port/name`` or
-  ``sqlite:///path``; default: SQLite at ``var/db.sqlite3``;
+  ``sqlite:///relative/path`` or ``sqlite:////absolute/path``; default: SQLite at
+  ``var/db.sqlite3``;
 - ``STUDY_VAR_DIR``: where the database, media and demo artefacts live (default ``var/``);
+- ``STUDY_CACHE_URL``: ``redis://host:6379/1`` shares the cache (rate limits) between
+  workers; ``STUDY_CELERY_BROKER``: background jobs through Celery;
+  ``STUDY_S3_BUCKET`` and friends: media in S3-compatible storage (end of this file);
 - ``DJANGO_SECRET_KEY``, ``DJANGO_DEBUG``, ``DJANGO_ALLOWED_HOSTS``;
 - with ``DJANGO_DEBUG=0`` (production, ``make serve``): ``DJANGO_SECRET_KEY`` is required,
   cookies are secure and HTTPS is enforced; ``STUDY_BEHIND_PROXY=1`` trusts the proxy's
@@ -22,7 +26,10 @@ DEBUG = os.environ.get("DJANGO_DEBUG", "1") == "1"
 SECRET_KEY = os.environ.get("DJANGO_SECRET_KEY", "")
 if not SECRET_KEY:
     if not DEBUG:
-        raise RuntimeError("DJANGO_SECRET_KEY must be set when DJANGO_DEBUG=0 (production)")
+        raise RuntimeError(
+            "DJANGO_SECRET_KEY must be set when DJANGO_DEBUG=0 (production): a long random "
+            "string, e.g. from python3 -c 'import secrets; print(secrets.token_urlsafe(50))'"
+        )
     SECRET_KEY = "dev-only-insecure-key-set-DJANGO_SECRET_KEY"
 ALLOWED_HOSTS = os.environ.get("DJANGO_ALLOWED_HOSTS", "127.0.0.1,localhost,testserver").split(",")
 
@@ -67,6 +74,20 @@ STUDY_ENTRY_RATE_LIMIT = os.environ.get("STUDY_ENTRY_RATE_LIMIT", "120/min")
 # e.g. redis://127.0.0.1:6379/0; otherwise they run in a thread of the web process.
 STUDY_CELERY_BROKER = os.environ.get("STUDY_CELERY_BROKER", "")
 
+
+def cache_from_url(url: str) -> dict:
+    """Return Django's CACHES: per-process memory, or Redis for ``redis://...``."""
+    if not url:
+        return {"default": {"BACKEND": "django.core.cache.backends.locmem.LocMemCache"}}
+    if urlparse(url).scheme not in ("redis", "rediss", "unix"):
+        raise ValueError(f"STUDY_CACHE_URL {url!r}: use redis://host:6379/1 (or rediss://, unix://)")
+    return {"default": {"BACKEND": "django.core.cache.backends.redis.RedisCache", "LOCATION": url}}
+
+
+# The cache holds the participant-creation rate limit: set STUDY_CACHE_URL (e.g.
+# redis://127.0.0.1:6379/1) so that every gunicorn worker shares it.
+CACHES = cache_from_url(os.environ.get("STUDY_CACHE_URL", ""))
+
 ROOT_URLCONF = "studyapp.urls"
 
 TEMPLATES = [
@@ -103,10 +124,12 @@ def database_from_url(url: str) -> dict:
     if parsed.scheme == "sqlite":
         return {
             "ENGINE": "django.db.backends.sqlite3",
-            "NAME": unquote(parsed.path) or ":memory:",
+            # sqlite:///db.sqlite3 is relative, sqlite:////srv/db.sqlite3 absolute.
+            "NAME": unquote(parsed.path)[1:] or ":memory:",
             "OPTIONS": {"timeout": 30, "transaction_mode": "IMMEDIATE"},
         }
-    raise ValueError(f"DATABASE_URL {url!r}: use postgres://... or sqlite:///path")
+    raise ValueError(f"DATABASE_URL {url!r}: use postgres://user@host:5432/name or "
+                     f"sqlite:////absolute/path")
 
 
 _DATABASE_URL = os.environ.get("STUDY_DATABASE_URL") or os.environ.get("DATABASE_URL")

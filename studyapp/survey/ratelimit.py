@@ -1,10 +1,9 @@
 """A per-IP token bucket on the URLs that create participants (entry link, consent).
 
 ``STUDY_ENTRY_RATE_LIMIT`` (default ``"120/min"``; ``"N/s"``, ``"N/min"``, ``"N/h"``)
-is the sustained rate; a burst of the same size is allowed. Buckets live in Django's
-cache: per process with the default local-memory cache, shared by every worker with a
-Redis cache (docs/PRODUCTION.md). The read-modify-write is not atomic across workers,
-so the limit is approximate, which is enough to stop a script creating participants.
+counts requests per address in fixed windows of the period. The counts live in
+Django's cache: per process with the default local-memory cache, shared by every
+worker with Redis (``STUDY_CACHE_URL``, docs/PRODUCTION.md), where the limit is exact.
 """
 
 import functools
@@ -44,16 +43,23 @@ def client_ip(request) -> str:
 
 
 def allow(key: str, rate: str | None = None, now: float | None = None) -> bool:
-    """Take one token from bucket ``key``; return False when it is empty."""
+    """Count one request against ``key`` in the current window; False past the limit.
+
+    Windows are fixed periods of the rate ("120/min": at most 120 in each clock
+    minute). The count is an atomic increment in the cache (Redis INCR; a lock in the
+    local-memory cache), so workers sharing a cache never let more through together.
+    """
     capacity, refill = parse_rate(rate or getattr(settings, "STUDY_ENTRY_RATE_LIMIT", DEFAULT))
+    period = capacity / refill
     now = time.time() if now is None else now
-    tokens, then = cache.get(key, (capacity, now))
-    tokens = min(capacity, tokens + (now - then) * refill)
-    if tokens < 1:
-        cache.set(key, (tokens, now), timeout=int(capacity / refill) + 60)
-        return False
-    cache.set(key, (tokens - 1, now), timeout=int(capacity / refill) + 60)
-    return True
+    window = f"{key}:{int(now // period)}"
+    cache.add(window, 0, timeout=int(period) + 60)
+    try:
+        count = cache.incr(window)
+    except ValueError:  # expired between add and incr
+        cache.add(window, 1, timeout=int(period) + 60)
+        count = 1
+    return count <= capacity
 
 
 def too_many() -> HttpResponse:

@@ -4,15 +4,18 @@ The server tests start real gunicorn (production settings) on the test database,
 they run on SQLite and on PostgreSQL (``DATABASE_URL=postgres://...``) alike.
 """
 
+import os
 import threading
 from pathlib import Path
 
 import pytest
+import redis
 from django.db import OperationalError, connection
 
 from benchmarks.loadtest import Participant
 from benchmarks.server import Server, server_env
 from tests.studyapp.conftest import make_ranking_study
+from tests.studyapp.test_tasks import redis_up
 
 pytestmark = [pytest.mark.slow, pytest.mark.django_db(transaction=True)]
 
@@ -169,3 +172,35 @@ def test_server_error_handler_maps_database_errors_to_503(rf):
     except OperationalError:
         assert sys.exc_info()[0] is OperationalError
         assert server_error(rf.get("/")).status_code == 503
+
+
+@pytest.mark.skipif(not redis_up(), reason="no Redis on 127.0.0.1:6379")
+def test_entry_rate_limit_is_shared_by_every_worker_through_redis(clips, tmp_path, media_root):
+    # Two gunicorn workers, twelve people at once from one address: with the
+    # per-process cache each worker would let 4 through; with STUDY_CACHE_URL it is 4
+    # in all (an atomic count in Redis).
+    study = make_ranking_study(clips)
+    cache_url = f"redis://127.0.0.1:6379/{8 + os.getpid() % 7}"
+    redis.Redis.from_url(cache_url).flushdb()
+    env = server_env(database_url(), tmp_path / "var", STUDY_CACHE_URL=cache_url,
+                     STUDY_ENTRY_RATE_LIMIT="4/h")
+    server = Server(env, workers=2, settings="benchmarks.loadtest_settings",
+                    log=tmp_path / "gunicorn.log")
+    server.collectstatic()
+    with server:
+        statuses = []
+        ready = threading.Barrier(12)
+
+        def enter(i):  # at once, so that both workers answer some
+            bot = Participant(server.url, study.slug, f"limited-{i}")
+            ready.wait(10)
+            statuses.append(bot.request("GET", bot.path() + f"?PROLIFIC_PID=limited-{i}")[0])
+            bot.close()
+
+        threads = [threading.Thread(target=enter, args=(i,)) for i in range(12)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(30)
+    redis.Redis.from_url(cache_url).flushdb()
+    assert sorted(statuses) == [302] * 4 + [429] * 8, statuses

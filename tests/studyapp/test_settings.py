@@ -1,0 +1,62 @@
+"""Production settings: `check --deploy` is clean, and the environment is read as documented."""
+
+import os
+import secrets
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from studyapp.settings import cache_from_url, database_from_url
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def manage(*args, **env):
+    environ = {k: v for k, v in os.environ.items() if not k.startswith(("DJANGO_", "STUDY_"))}
+    environ.update(env)
+    return subprocess.run([sys.executable, "manage.py", *args], cwd=ROOT, env=environ,
+                          capture_output=True, text=True, timeout=120)
+
+
+def test_check_deploy_is_clean_with_production_settings(tmp_path):
+    done = manage("check", "--deploy", "--fail-level", "WARNING", DJANGO_DEBUG="0",
+                  DJANGO_SECRET_KEY=secrets.token_urlsafe(50),
+                  DJANGO_ALLOWED_HOSTS="study.example.org", STUDY_VAR_DIR=str(tmp_path))
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "no issues" in done.stdout
+
+
+def test_production_without_a_secret_key_says_how_to_make_one(tmp_path):
+    done = manage("check", DJANGO_DEBUG="0", STUDY_VAR_DIR=str(tmp_path))
+    assert done.returncode != 0
+    assert "DJANGO_SECRET_KEY must be set" in done.stderr and "token_urlsafe" in done.stderr
+
+
+def test_development_settings_are_not_deploy_clean(tmp_path):
+    # The check is not vacuous: DEBUG on and the built-in key are reported.
+    done = manage("check", "--deploy", "--fail-level", "WARNING", STUDY_VAR_DIR=str(tmp_path))
+    assert done.returncode != 0
+    assert "DEBUG" in done.stderr + done.stdout
+
+
+def test_database_urls():
+    pg = database_from_url("postgres://ann:p%40ss@db.example.org:6543/studies")
+    assert (pg["ENGINE"], pg["NAME"], pg["USER"], pg["PASSWORD"], pg["HOST"], pg["PORT"]) == (
+        "django.db.backends.postgresql", "studies", "ann", "p@ss", "db.example.org", "6543")
+    lite = database_from_url("sqlite:////tmp/x.sqlite3")
+    assert lite["NAME"] == "/tmp/x.sqlite3" and lite["OPTIONS"]["transaction_mode"] == "IMMEDIATE"
+    assert database_from_url("sqlite:///var/db.sqlite3")["NAME"] == "var/db.sqlite3"
+    assert database_from_url("sqlite://")["NAME"] == ":memory:"
+    with pytest.raises(ValueError, match="DATABASE_URL 'mysql://x'"):
+        database_from_url("mysql://x")
+
+
+def test_cache_urls():
+    assert cache_from_url("")["default"]["BACKEND"].endswith("LocMemCache")
+    redis = cache_from_url("redis://127.0.0.1:6379/1")["default"]
+    assert redis == {"BACKEND": "django.core.cache.backends.redis.RedisCache",
+                     "LOCATION": "redis://127.0.0.1:6379/1"}
+    with pytest.raises(ValueError, match="STUDY_CACHE_URL 'memcached://x'.*redis://"):
+        cache_from_url("memcached://x")
