@@ -43,7 +43,14 @@ import torch
 from torch import nn
 
 from generation.methods.base import Method, MethodConfig, MethodError, register_method
-from generation.methods.common import gaussian_kl, horizontal_start, loss_unit, mean_std, one_hot
+from generation.methods.common import (
+    gaussian_kl,
+    horizontal_start,
+    loss_unit,
+    mean_std,
+    one_hot,
+    relative_to_start,
+)
 from generation.methods.kinematics import Kinematics, clip_bone_lengths, rest_directions
 from generation.skeletons import get_skeleton
 
@@ -107,18 +114,16 @@ class GaussianGRU(nn.Module):
         return self.mu_net(hidden), self.logvar_net(hidden), [hidden]
 
 
-class LieGenerator(nn.Module):
-    """Encoder, stacked GRU cells, decoder to (root, Lie parameters)."""
+class GRUGenerator(nn.Module):
+    """Encoder, stacked GRU cells, linear decoder ``D_e``: the generator ``GRU_θ``."""
 
-    def __init__(self, inputs: int, embed: int, hidden: int, layers: int, root: int, params: int):
+    def __init__(self, inputs: int, embed: int, hidden: int, layers: int, outputs: int):
         super().__init__()
-        self.root = root
         self.encoder = nn.Linear(inputs, embed)
         self.gru = nn.ModuleList(
             [nn.GRUCell(embed if i == 0 else hidden, hidden) for i in range(layers)]
         )
-        self.decoder = nn.Linear(hidden, root + params)
-        self.lie_output = nn.Linear(params, params)
+        self.decoder = nn.Linear(hidden, outputs)
 
     def forward(self, x: torch.Tensor, state: list[torch.Tensor]):
         hidden = self.encoder(x)
@@ -126,7 +131,19 @@ class LieGenerator(nn.Module):
         for cell, previous in zip(self.gru, state):
             hidden = cell(hidden, previous)
             new_state.append(hidden)
-        out = self.decoder(hidden)
+        return self.decoder(hidden), new_state
+
+
+class LieGenerator(GRUGenerator):
+    """The generator with ``D_e`` to (root, Lie parameters), the Lie part through ``π·tanh``."""
+
+    def __init__(self, inputs: int, embed: int, hidden: int, layers: int, root: int, params: int):
+        super().__init__(inputs, embed, hidden, layers, root + params)
+        self.root = root
+        self.lie_output = nn.Linear(params, params)
+
+    def forward(self, x: torch.Tensor, state: list[torch.Tensor]):
+        out, new_state = super().forward(x, state)
         lie = math.pi * torch.tanh(self.lie_output(torch.tanh(out[:, self.root:])))
         return torch.cat([out[:, : self.root], lie], dim=-1), new_state
 
@@ -139,20 +156,28 @@ class A2M(Method):
 
     def build(self):
         skeleton = get_skeleton(self.skeleton)
-        cfg = self.config
         self.root_size = skeleton.dims
         self.param_size = 3 if skeleton.dims == 3 else 2
         self.n_params = (skeleton.n_joints - 1) * self.param_size
         self.pose_size = self.root_size + self.n_params
-        condition = len(self.actions) + 1
         self._kinematics = None
+        return self._vae_networks()
+
+    def _vae_networks(self) -> dict[str, nn.Module]:
+        """Return posterior, prior and generator over pose vectors ``p_t`` of ``pose_size``."""
+        cfg = self.config
+        inputs = self.pose_size + len(self.actions) + 1  # p_t or p_{t-1}, a, c_t
         return {
-            "posterior": GaussianGRU(self.pose_size + condition, cfg.embed, cfg.hidden, cfg.latent),
-            "prior": GaussianGRU(self.pose_size + condition, cfg.embed, cfg.hidden, cfg.latent),
-            "generator": LieGenerator(self.pose_size + condition + cfg.latent, cfg.embed,
-                                      cfg.hidden, cfg.generator_layers, self.root_size,
-                                      self.n_params),
+            "posterior": GaussianGRU(inputs, cfg.embed, cfg.hidden, cfg.latent),
+            "prior": GaussianGRU(inputs, cfg.embed, cfg.hidden, cfg.latent),
+            "generator": self._generator(inputs + cfg.latent),
         }
+
+    def _generator(self, inputs: int) -> nn.Module:
+        """Return the generator ``GRU_θ`` of ``inputs`` ``(p_{t-1}, a, c_t, z_t)``."""
+        cfg = self.config
+        return LieGenerator(inputs, cfg.embed, cfg.hidden, cfg.generator_layers, self.root_size,
+                            self.n_params)
 
     def build_optimizers(self):
         # One Adam over all three networks equals the code's three Adams with equal settings.
@@ -191,7 +216,7 @@ class A2M(Method):
     def encode(self, clips):
         skeleton = get_skeleton(self.skeleton)
         joints = self.clip_array(clips)
-        relative = joints - horizontal_start(skeleton, joints)[:, None, None]
+        relative = relative_to_start(skeleton, joints)
         lengths = clip_bone_lengths(skeleton, joints)
         poses = []
         for i in range(0, len(clips), _IK_CHUNK):

@@ -21,31 +21,16 @@ import numpy as np
 import torch
 from torch import nn
 
-from generation.methods.a2m import A2M, A2MConfig, GaussianGRU
+from generation.methods.a2m import A2M, A2MConfig, GRUGenerator
 from generation.methods.base import register_method
-from generation.methods.common import horizontal_start, loss_unit, mean_std
+from generation.methods.common import (
+    loss_unit,
+    pose_statistics,
+    pose_vectors,
+    relative_to_start,
+)
 from generation.methods.kinematics import clip_bone_lengths
 from generation.skeletons import get_skeleton
-
-
-class JointGenerator(nn.Module):
-    """Encoder, stacked GRU cells, linear decoder to a pose vector of joint positions."""
-
-    def __init__(self, inputs: int, embed: int, hidden: int, layers: int, pose: int):
-        super().__init__()
-        self.encoder = nn.Linear(inputs, embed)
-        self.gru = nn.ModuleList(
-            [nn.GRUCell(embed if i == 0 else hidden, hidden) for i in range(layers)]
-        )
-        self.decoder = nn.Linear(hidden, pose)
-
-    def forward(self, x: torch.Tensor, state: list[torch.Tensor]):
-        hidden = self.encoder(x)
-        new_state = []
-        for cell, previous in zip(self.gru, state):
-            hidden = cell(hidden, previous)
-            new_state.append(hidden)
-        return self.decoder(hidden), new_state
 
 
 @register_method("a2m_xyz")
@@ -55,29 +40,21 @@ class A2MXYZ(A2M):
     Config = A2MConfig
 
     def build(self):
-        skeleton = get_skeleton(self.skeleton)
+        self.pose_size = self.pose_width
+        return self._vae_networks()
+
+    def _generator(self, inputs: int) -> nn.Module:
+        """Return the generator ``GRU_θ`` with ``D_e`` to the joint positions."""
         cfg = self.config
-        self.pose_size = skeleton.n_joints * skeleton.dims
-        condition = len(self.actions) + 1
-        return {
-            "posterior": GaussianGRU(self.pose_size + condition, cfg.embed, cfg.hidden, cfg.latent),
-            "prior": GaussianGRU(self.pose_size + condition, cfg.embed, cfg.hidden, cfg.latent),
-            "generator": JointGenerator(self.pose_size + condition + cfg.latent, cfg.embed,
-                                        cfg.hidden, cfg.generator_layers, self.pose_size),
-        }
+        return GRUGenerator(inputs, cfg.embed, cfg.hidden, cfg.generator_layers, self.pose_size)
 
     def prepare(self, clips):
         skeleton = get_skeleton(self.skeleton)
         joints = self.clip_array(clips)
-        starts = horizontal_start(skeleton, joints)
-        flat = (joints - starts[:, None, None]).reshape(-1, self.pose_size)
-        mean, std = mean_std(flat, floor=1e-3 * float(flat.std()) + 1e-9)
         # Median bone lengths are kept for reference and for A2M's sampling path; unused by it.
         bone_lengths = np.median(clip_bone_lengths(skeleton, joints), axis=0)
         return {
-            "mean": mean,
-            "std": std,
-            "origin": starts.mean(axis=0),
+            **pose_statistics(skeleton, joints),  # origin, mean and std of the pose vectors
             "bone_lengths": bone_lengths,
             "unit": loss_unit(skeleton, bone_lengths),
         }
@@ -85,11 +62,9 @@ class A2MXYZ(A2M):
     def encode(self, clips):
         skeleton = get_skeleton(self.skeleton)
         joints = self.clip_array(clips)
-        relative = joints - horizontal_start(skeleton, joints)[:, None, None]
-        flat = relative.reshape(relative.shape[:2] + (self.pose_size,))
         return {
-            "pose": torch.from_numpy((flat - self.extras["mean"]) / self.extras["std"]).float(),
-            "target": torch.from_numpy(relative).float(),
+            "pose": pose_vectors(skeleton, joints, self.extras),
+            "target": torch.from_numpy(relative_to_start(skeleton, joints)).float(),
             # A2M's training step passes lengths to _joints, which ignores them here.
             "lengths": torch.from_numpy(clip_bone_lengths(skeleton, joints)).float(),
             "label": self.action_indices([clip.action for clip in clips]),

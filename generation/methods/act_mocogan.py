@@ -21,7 +21,8 @@ generator, per iteration. Documented choices where neither says:
 
 - ``G_I`` is an MLP (two hidden layers of 128, leaky ReLU) instead of MoCoGAN's image
   deconvolutions; ``D_I`` an MLP of the same widths; ``D_V`` Action2Motion's motion
-  discriminator (GRU 128 -> 30 -> outputs); poses as in :mod:`generation.methods.gan_common`;
+  discriminator (GRU 128 -> 30 -> outputs); poses as in
+  :class:`~generation.methods.common.PoseVectors`;
 - ``D_V`` sees the whole training length (Action2Motion's code does so too; MoCoGAN
   sees 16-frame clips); ``D_I`` one random frame of each motion of the batch;
 - fake motions are drawn for the actions of the real batch, so classes stay balanced
@@ -40,19 +41,14 @@ import torch.nn.functional as F
 from torch import nn
 
 from generation.methods.base import Method, MethodConfig, register_method
-from generation.methods.common import one_hot
+from generation.methods.common import PoseVectors, adam, one_hot
 from generation.methods.gan_common import (
     MotionDiscriminator,
     PoseDiscriminator,
-    adam,
     mlp,
-    normalise_clips,
-    place_poses,
-    pose_statistics,
     random_frames,
     set_trainable,
 )
-from generation.skeletons import get_skeleton
 
 
 @dataclass
@@ -110,16 +106,13 @@ class MotionContentGenerator(nn.Module):
 
 
 @register_method("act_mocogan")
-class ActMoCoGAN(Method):
+class ActMoCoGAN(PoseVectors, Method):
     """MoCoGAN for actions: content and motion noise, pose and motion discriminators."""
 
     Config = ActMoCoGANConfig
 
     def build(self):
-        skeleton = get_skeleton(self.skeleton)
-        cfg = self.config
-        pose = skeleton.n_joints * skeleton.dims
-        classes = len(self.actions)
+        cfg, classes, pose = self.config, len(self.actions), self.pose_width
         return {
             "generator": MotionContentGenerator(cfg.content, cfg.motion, classes, cfg.hidden, pose),
             "pose_discriminator": PoseDiscriminator(
@@ -131,16 +124,6 @@ class ActMoCoGAN(Method):
         cfg = self.config
         return {key: adam([net], cfg.lr, (cfg.beta1, cfg.beta2), cfg.weight_decay)
                 for key, net in self.networks.items()}
-
-    def prepare(self, clips):
-        return pose_statistics(get_skeleton(self.skeleton), self.clip_array(clips))
-
-    def encode(self, clips):
-        skeleton = get_skeleton(self.skeleton)
-        return {
-            "pose": normalise_clips(skeleton, self.clip_array(clips), self.extras),
-            "label": self.action_indices([clip.action for clip in clips]),
-        }
 
     def _scores(self, key: str, inputs: torch.Tensor):
         """Return real/fake logits ``(N,)`` and class logits ``(N, C)`` or None."""
@@ -192,4 +175,4 @@ class ActMoCoGAN(Method):
 
     def generate(self, labels, frames, generator):
         poses = self.networks["generator"](one_hot(labels, len(self.actions)), frames, generator)
-        return place_poses(get_skeleton(self.skeleton), poses, self.extras)
+        return self.poses_to_joints(poses)

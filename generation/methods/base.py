@@ -183,6 +183,12 @@ class Method:
         return sum(p.numel() for net in self.networks.values() for p in net.parameters())
 
     @property
+    def pose_width(self) -> int:
+        """Return the numbers in one flattened pose, ``J * D`` of the method's skeleton."""
+        skeleton = get_skeleton(self.skeleton)
+        return skeleton.n_joints * skeleton.dims
+
+    @property
     def trained(self) -> bool:
         return bool(self.extras)
 

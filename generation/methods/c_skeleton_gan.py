@@ -42,24 +42,19 @@ import torch
 import torch.nn.functional as F
 
 from generation.methods.base import Method, MethodConfig, register_method
-from generation.methods.common import one_hot
+from generation.methods.common import PoseVectors, adam, one_hot
 from generation.methods.seq_gan_common import (
     FrameCritic,
     FrameDecoder,
     LatentTransitions,
     SequenceLSTM,
     SoftLabelSampling,
-    adam,
     bce,
     class_rows,
     frame_wgan_gp_step,
     latent_prior,
-    place_poses,
-    pose_statistics,
-    pose_vectors,
     smoothness,
 )
-from generation.skeletons import get_skeleton
 
 BETAS = (0.5, 0.9)
 
@@ -106,15 +101,13 @@ class CSkeletonGANConfig(MethodConfig):
 
 
 @register_method("c_skeleton_gan")
-class CSkeletonGAN(SoftLabelSampling, Method):
+class CSkeletonGAN(SoftLabelSampling, PoseVectors, Method):
     """Implicit LSTM of latent shifts, frozen pretrained frame decoder, D and C bi-LSTMs."""
 
     Config = CSkeletonGANConfig
 
     def build(self):
-        skeleton = get_skeleton(self.skeleton)
-        cfg, classes = self.config, len(self.actions)
-        pose = skeleton.n_joints * skeleton.dims
+        cfg, classes, pose = self.config, len(self.actions), self.pose_width
         return {
             "decoder": FrameDecoder(cfg.latent, classes, pose, cfg.decoder_hidden),
             "frame_critic": FrameCritic(pose, classes, cfg.critic_hidden),
@@ -131,13 +124,6 @@ class CSkeletonGAN(SoftLabelSampling, Method):
             "generator": adam([nets["transitions"], nets["classifier"]], cfg.lr, BETAS),
             "discriminator": adam([nets["discriminator"]], cfg.lr, BETAS),
         }
-
-    def prepare(self, clips):
-        return pose_statistics(self, clips)
-
-    def encode(self, clips):
-        return {"pose": pose_vectors(self, clips),
-                "label": self.action_indices([clip.action for clip in clips])}
 
     def train_step(self, batch, generator):
         classes = one_hot(batch["label"], len(self.actions))
@@ -196,4 +182,4 @@ class CSkeletonGAN(SoftLabelSampling, Method):
     def generate(self, labels, frames, generator, mix=None):
         """Sample motions; ``mix`` (action -> weight) replaces every label by that soft label."""
         classes = class_rows(self, labels, mix)
-        return place_poses(self, self._generate(classes, frames, generator)[1])
+        return self.poses_to_joints(self._generate(classes, frames, generator)[1])

@@ -21,7 +21,13 @@ import torch
 from torch import nn
 
 from generation.methods.base import Method, MethodConfig, MethodError, register_method
-from generation.methods.common import horizontal_start, mean_std, one_hot
+from generation.methods.common import (
+    PoseVectors,
+    horizontal_start,
+    one_hot,
+    standardise_poses,
+    unstandardise_poses,
+)
 from generation.skeletons import get_skeleton
 
 
@@ -65,15 +71,13 @@ class ConditionalGRU(nn.Module):
 
 
 @register_method("cond_gru")
-class CondGRU(Method):
+class CondGRU(PoseVectors, Method):
     """Conditional GRU: deterministic, starts from a real first pose of the action."""
 
     Config = CondGRUConfig
 
     def build(self):
-        skeleton = get_skeleton(self.skeleton)
-        self.pose_size = skeleton.n_joints * skeleton.dims
-        return {"gru": ConditionalGRU(self.pose_size, len(self.actions), self.config.hidden,
+        return {"gru": ConditionalGRU(self.pose_width, len(self.actions), self.config.hidden,
                                       self.config.layers)}
 
     def build_optimizers(self):
@@ -81,11 +85,9 @@ class CondGRU(Method):
                                          weight_decay=self.config.weight_decay)}
 
     def prepare(self, clips):
+        """Return the poses' mean and std, and a bank of first poses per action."""
         skeleton = get_skeleton(self.skeleton)
-        joints = self.clip_array(clips)
-        relative = joints - horizontal_start(skeleton, joints)[:, None, None]
-        flat = relative.reshape(-1, self.pose_size)
-        mean, std = mean_std(flat, floor=1e-3 * float(flat.std()) + 1e-9)
+        stats = super().prepare(clips)  # its origin is unused: samples start at real poses
         bank = {}
         for action in self.actions:
             firsts = np.array([clip.joints[0] for clip in clips if clip.action == action],
@@ -95,20 +97,7 @@ class CondGRU(Method):
                 pick = np.linspace(0, len(firsts) - 1, self.config.first_poses).round().astype(int)
                 firsts = firsts[pick]
             bank[action] = firsts.reshape(-1, skeleton.n_joints, skeleton.dims)
-        return {"mean": mean, "std": std, "first_poses": bank}
-
-    def _normalise(self, relative: np.ndarray) -> np.ndarray:
-        flat = relative.reshape(relative.shape[:-2] + (self.pose_size,))
-        return (flat - self.extras["mean"]) / self.extras["std"]
-
-    def encode(self, clips):
-        skeleton = get_skeleton(self.skeleton)
-        joints = self.clip_array(clips)
-        relative = joints - horizontal_start(skeleton, joints)[:, None, None]
-        return {
-            "pose": torch.from_numpy(self._normalise(relative)).float(),
-            "label": self.action_indices([clip.action for clip in clips]),
-        }
+        return {"mean": stats["mean"], "std": stats["std"], "first_poses": bank}
 
     def train_step(self, batch, generator):
         pose = batch["pose"]
@@ -142,13 +131,14 @@ class CondGRU(Method):
         first = self.first_pose_choices(labels, generator)
         start = horizontal_start(skeleton, first[:, None])
         classes = one_hot(labels, len(self.actions))
-        pose = torch.from_numpy(self._normalise(first - start[:, None])).float()[:, None]
+        standardised = standardise_poses(first - start[:, None], self.extras)
+        pose = torch.from_numpy(standardised).float()[:, None]
         outputs, state = [pose], None
         net = self.networks["gru"]
         for _ in range(frames - 1):
             pose, state = net(pose, classes, state)
             outputs.append(pose)
-        flat = torch.cat(outputs, dim=1).double().numpy() * self.extras["std"] + self.extras["mean"]
-        joints = flat.reshape(len(labels), frames, skeleton.n_joints, skeleton.dims) + start[:, None, None]
+        relative = unstandardise_poses(skeleton, torch.cat(outputs, dim=1), self.extras)
+        joints = relative + start[:, None, None]
         joints[:, 0] = first  # exactly the real first pose, not its normalised round trip
         return joints.astype(np.float32)

@@ -1,9 +1,9 @@
-"""Pieces shared by the GAN methods: pose scaling, discriminators, WGAN-GP, frame picking.
+"""Pieces shared by the GAN methods: discriminators, WGAN-GP, frame picking.
 
 Every GAN here models a motion as a sequence of pose vectors: joint positions relative
-to the clip's first root position on the floor (height kept, see
-:func:`~generation.methods.common.horizontal_start`), standardised per coordinate over
-the training frames. Samples are placed at the training clips' mean start.
+to the clip's first root position on the floor (height kept), standardised per
+coordinate over the training frames (:class:`~generation.methods.common.PoseVectors`).
+Samples are placed at the training clips' mean start.
 
 This module defines no method; it is imported with the method modules and registers
 nothing.
@@ -13,40 +13,11 @@ from __future__ import annotations
 
 from typing import Iterable
 
-import numpy as np
 import torch
 from torch import nn
 
-from generation.methods.common import horizontal_start, mean_std
-from generation.skeletons import Skeleton
-
 # Width of the last hidden layer of the motion discriminator (as in Action2Motion's code).
 MOTION_HEAD = 30
-
-
-def pose_statistics(skeleton: Skeleton, joints: np.ndarray) -> dict:
-    """Return the placement and scaling of clips ``(N, T, J, D)``: origin, mean and std.
-
-    ``mean`` and ``std`` are per coordinate of the flattened pose ``(J * D,)``.
-    """
-    starts = horizontal_start(skeleton, joints)
-    flat = (joints - starts[:, None, None]).reshape(-1, skeleton.n_joints * skeleton.dims)
-    mean, std = mean_std(flat, floor=1e-3 * float(flat.std()) + 1e-9)
-    return {"origin": starts.mean(axis=0), "mean": mean, "std": std}
-
-
-def normalise_clips(skeleton: Skeleton, joints: np.ndarray, stats: dict) -> torch.Tensor:
-    """Return the pose vectors ``(N, T, J * D)`` float32 of clips ``(N, T, J, D)``."""
-    relative = joints - horizontal_start(skeleton, joints)[:, None, None]
-    flat = relative.reshape(joints.shape[:2] + (-1,))
-    return torch.from_numpy((flat - stats["mean"]) / stats["std"]).float()
-
-
-def place_poses(skeleton: Skeleton, poses: torch.Tensor, stats: dict) -> np.ndarray:
-    """Return joints ``(N, T, J, D)`` float32 of pose vectors ``(N, T, J * D)``, at the origin."""
-    flat = poses.double().numpy() * stats["std"] + stats["mean"]
-    joints = flat.reshape(poses.shape[:2] + (skeleton.n_joints, skeleton.dims))
-    return (joints + np.asarray(stats["origin"])).astype(np.float32)
 
 
 def mlp(sizes: list[int], slope: float = 0.2) -> nn.Sequential:
@@ -136,10 +107,3 @@ def set_trainable(networks: Iterable[nn.Module], flag: bool) -> None:
     for net in networks:
         for param in net.parameters():
             param.requires_grad_(flag)
-
-
-def adam(networks: Iterable[nn.Module], lr: float, betas: tuple[float, float],
-         weight_decay: float = 0.0) -> torch.optim.Adam:
-    """Return one Adam over the parameters of the networks."""
-    params = [p for net in networks for p in net.parameters()]
-    return torch.optim.Adam(params, lr=lr, betas=betas, weight_decay=weight_decay)

@@ -132,7 +132,6 @@ class ODMO(Method):
         skeleton = get_skeleton(self.skeleton)
         cfg = self.config
         self.dims = skeleton.dims
-        self.pose_size = skeleton.n_joints * skeleton.dims
         root = skeleton.root * skeleton.dims
         self.root_slice = slice(root, root + skeleton.dims)
         weights = torch.ones(skeleton.n_joints, skeleton.dims)
@@ -141,10 +140,10 @@ class ODMO(Method):
         self.root_weights = weights[0]
         condition = len(self.actions) * cfg.latent
         return {
-            "encoder": LMPEncoder(self.pose_size - skeleton.dims, cfg.encoder_hidden, cfg.feature,
+            "encoder": LMPEncoder(self.pose_width - skeleton.dims, cfg.encoder_hidden, cfg.feature,
                                   cfg.latent),
             "trajectory": TrajectoryGenerator(condition, skeleton.dims, cfg.hidden, cfg.layers),
-            "motion": MotionGenerator(self.pose_size, condition, skeleton.dims, cfg.hidden, cfg.layers),
+            "motion": MotionGenerator(self.pose_width, condition, skeleton.dims, cfg.hidden, cfg.layers),
         }
 
     def build_optimizers(self):

@@ -54,15 +54,11 @@ import torch
 from torch import nn
 
 from generation.methods.base import Method, MethodConfig, register_method
-from generation.methods.common import one_hot
+from generation.methods.common import PoseVectors, adam, one_hot
 from generation.methods.seq_gan_common import (
     SoftLabelSampling,
-    adam,
     bce,
     class_rows,
-    place_poses,
-    pose_statistics,
-    pose_vectors,
     random_frames,
 )
 from generation.skeletons import Skeleton, get_skeleton
@@ -275,7 +271,7 @@ class FrameDiscriminator(nn.Module):
 
 
 @register_method("sa_gcn")
-class SAGCN(SoftLabelSampling, Method):
+class SAGCN(SoftLabelSampling, PoseVectors, Method):
     """SA-GCN: GRU of residuals, causal attention sparsifying a skeleton-sequence graph, GCN."""
 
     Config = SAGCNConfig
@@ -284,11 +280,9 @@ class SAGCN(SoftLabelSampling, Method):
     sample_chunk = 32
 
     def build(self):
-        skeleton = get_skeleton(self.skeleton)
-        cfg, classes = self.config, len(self.actions)
-        pose = skeleton.n_joints * skeleton.dims
+        cfg, classes, pose = self.config, len(self.actions), self.pose_width
         return {
-            "generator": SAGCNGenerator(skeleton, classes, cfg),
+            "generator": SAGCNGenerator(get_skeleton(self.skeleton), classes, cfg),
             "video_discriminator": VideoDiscriminator(pose, classes, self.frames, cfg.d_hidden,
                                                       cfg.d_features),
             "frame_discriminator": FrameDiscriminator(pose, classes, cfg.frame_k, cfg.d_hidden,
@@ -298,13 +292,6 @@ class SAGCN(SoftLabelSampling, Method):
     def build_optimizers(self):
         lr = self.config.lr
         return {key: adam([net], lr, BETAS) for key, net in self.networks.items()}
-
-    def prepare(self, clips):
-        return pose_statistics(self, clips)
-
-    def encode(self, clips):
-        return {"pose": pose_vectors(self, clips),
-                "label": self.action_indices([clip.action for clip in clips])}
 
     def _generate(self, classes: torch.Tensor, frames: int, generator: torch.Generator):
         noise = torch.randn(len(classes), frames, self.config.noise, generator=generator)
@@ -341,4 +328,4 @@ class SAGCN(SoftLabelSampling, Method):
     def generate(self, labels, frames, generator, mix=None):
         """Sample motions; ``mix`` (action -> weight) replaces every label by that soft label."""
         classes = class_rows(self, labels, mix)
-        return place_poses(self, self._generate(classes, frames, generator))
+        return self.poses_to_joints(self._generate(classes, frames, generator))

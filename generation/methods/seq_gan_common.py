@@ -1,11 +1,11 @@
-"""Pieces shared by the baselines of seeds 003/004: pose space, soft labels, frame GAN, LSTM critics.
+"""Pieces shared by the baselines of seeds 003/004: soft labels, frame GAN, LSTM critics.
 
 Poses are joint positions relative to the clip's first root position on the floor
-(height kept, see :func:`~generation.methods.common.horizontal_start`), flattened to
-``F = J * D`` numbers and standardised per coordinate over the training frames;
-samples are placed at the training clips' mean start. Class conditions are rows of
-``C`` weights: one-hot for an action, or a soft label mixing several (seed 003,
-"novel action generation by mixing action classes"; seed 004 Eq. 8).
+(height kept), flattened to ``F = J * D`` numbers and standardised per coordinate over
+the training frames (:class:`~generation.methods.common.PoseVectors`); samples are
+placed at the training clips' mean start. Class conditions are rows of ``C`` weights:
+one-hot for an action, or a soft label mixing several (seed 003, "novel action
+generation by mixing action classes"; seed 004 Eq. 8).
 
 This module defines no method; it registers nothing.
 """
@@ -13,47 +13,17 @@ This module defines no method; it registers nothing.
 from __future__ import annotations
 
 import math
-from typing import Mapping, Sequence
+from typing import Mapping
 
-import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import nn
 
 from generation.methods.base import Method, MethodError
-from generation.methods.common import horizontal_start, mean_std, one_hot
-from generation.motion import Motion
-from generation.skeletons import get_skeleton
+from generation.methods.common import one_hot
 
 # Joins the names of mixed actions in the action of a mixed motion ("Walking+Phoning").
 MIX_JOINER = "+"
-
-
-def pose_statistics(method: Method, clips: Sequence[Motion]) -> dict:
-    """Return the placement and scaling of the training clips: origin, mean and std ``(F,)``."""
-    skeleton = get_skeleton(method.skeleton)
-    joints = method.clip_array(clips)
-    starts = horizontal_start(skeleton, joints)
-    flat = (joints - starts[:, None, None]).reshape(-1, skeleton.n_joints * skeleton.dims)
-    mean, std = mean_std(flat, floor=1e-3 * float(flat.std()) + 1e-9)
-    return {"origin": starts.mean(axis=0), "mean": mean, "std": std}
-
-
-def pose_vectors(method: Method, clips: Sequence[Motion]) -> torch.Tensor:
-    """Return the standardised pose vectors ``(N, T, F)`` float32 of the clips."""
-    skeleton = get_skeleton(method.skeleton)
-    joints = method.clip_array(clips)
-    relative = joints - horizontal_start(skeleton, joints)[:, None, None]
-    flat = relative.reshape(relative.shape[:2] + (-1,))
-    return torch.from_numpy((flat - method.extras["mean"]) / method.extras["std"]).float()
-
-
-def place_poses(method: Method, poses: torch.Tensor) -> np.ndarray:
-    """Return joints ``(N, T, J, D)`` float32 of standardised pose vectors ``(N, T, F)``."""
-    skeleton = get_skeleton(method.skeleton)
-    flat = poses.double().numpy() * method.extras["std"] + method.extras["mean"]
-    joints = flat.reshape(poses.shape[:2] + (skeleton.n_joints, skeleton.dims))
-    return (joints + method.extras["origin"]).astype(np.float32)
 
 
 def mix_weights(method: Method, mix: Mapping[str, float]) -> dict[str, float]:
@@ -238,8 +208,3 @@ class SequenceLSTM(nn.Module):
         half = out.shape[-1] // 2
         summary = torch.cat([out[:, -1, :half], out[:, 0, half:]], dim=-1)
         return self.head(summary).squeeze(-1)
-
-
-def adam(modules: Sequence[nn.Module], lr: float, betas: tuple[float, float]) -> torch.optim.Adam:
-    """Return one Adam over the parameters of several modules."""
-    return torch.optim.Adam([p for m in modules for p in m.parameters()], lr=lr, betas=betas)

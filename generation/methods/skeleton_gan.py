@@ -35,22 +35,17 @@ from typing import ClassVar
 import torch
 
 from generation.methods.base import Method, MethodConfig, register_method
-from generation.methods.common import one_hot
+from generation.methods.common import PoseVectors, adam, one_hot
 from generation.methods.seq_gan_common import (
     FrameCritic,
     FrameDecoder,
     LatentTransitions,
     SequenceLSTM,
-    adam,
     bce,
     frame_wgan_gp_step,
     latent_prior,
-    place_poses,
-    pose_statistics,
-    pose_vectors,
     smoothness,
 )
-from generation.skeletons import get_skeleton
 
 BETAS = (0.5, 0.9)
 
@@ -89,15 +84,13 @@ class SkeletonGANConfig(MethodConfig):
 
 
 @register_method("skeleton_gan")
-class SkeletonGAN(Method):
+class SkeletonGAN(PoseVectors, Method):
     """Pretrained single-pose WGAN-GP generator driven by an LSTM of latent shifts."""
 
     Config = SkeletonGANConfig
 
     def build(self):
-        skeleton = get_skeleton(self.skeleton)
-        cfg, classes = self.config, len(self.actions)
-        pose = skeleton.n_joints * skeleton.dims
+        cfg, classes, pose = self.config, len(self.actions), self.pose_width
         return {
             "pose_generator": FrameDecoder(cfg.latent, classes, pose, cfg.decoder_hidden),
             "pose_critic": FrameCritic(pose, classes, cfg.critic_hidden),
@@ -113,13 +106,6 @@ class SkeletonGAN(Method):
             "sequence_generator": adam([nets["sequence_generator"]], cfg.lr, BETAS),
             "discriminator": adam([nets["discriminator"]], cfg.lr, BETAS),
         }
-
-    def prepare(self, clips):
-        return pose_statistics(self, clips)
-
-    def encode(self, clips):
-        return {"pose": pose_vectors(self, clips),
-                "label": self.action_indices([clip.action for clip in clips])}
 
     def train_step(self, batch, generator):
         classes = one_hot(batch["label"], len(self.actions))
@@ -164,4 +150,4 @@ class SkeletonGAN(Method):
 
     def generate(self, labels, frames, generator):
         classes = one_hot(labels, len(self.actions))
-        return place_poses(self, self._generate(classes, frames, generator)[1])
+        return self.poses_to_joints(self._generate(classes, frames, generator)[1])

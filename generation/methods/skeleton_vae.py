@@ -29,9 +29,7 @@ import torch
 from torch import nn
 
 from generation.methods.base import Method, MethodConfig, register_method
-from generation.methods.common import gaussian_kl, one_hot
-from generation.methods.seq_gan_common import place_poses, pose_statistics, pose_vectors
-from generation.skeletons import get_skeleton
+from generation.methods.common import PoseVectors, gaussian_kl, one_hot
 
 
 @dataclass
@@ -98,15 +96,13 @@ class MotionDecoder(nn.Module):
 
 
 @register_method("skeleton_vae")
-class SkeletonVAE(Method):
+class SkeletonVAE(PoseVectors, Method):
     """Recurrent VAE: convolutional encoder, per-frame Gaussian latents, LSTM decoder."""
 
     Config = SkeletonVAEConfig
 
     def build(self):
-        skeleton = get_skeleton(self.skeleton)
-        cfg, classes = self.config, len(self.actions)
-        pose = skeleton.n_joints * skeleton.dims
+        cfg, classes, pose = self.config, len(self.actions), self.pose_width
         return {
             "encoder": MotionEncoder(pose, classes, cfg.channels, cfg.kernel, cfg.latent),
             "decoder": MotionDecoder(cfg.latent, classes, cfg.control, cfg.hidden, cfg.layers, pose),
@@ -115,13 +111,6 @@ class SkeletonVAE(Method):
     def build_optimizers(self):
         params = [p for net in self.networks.values() for p in net.parameters()]
         return {"adam": torch.optim.Adam(params, lr=self.config.lr)}
-
-    def prepare(self, clips):
-        return pose_statistics(self, clips)
-
-    def encode(self, clips):
-        return {"pose": pose_vectors(self, clips),
-                "label": self.action_indices([clip.action for clip in clips])}
 
     def train_step(self, batch, generator):
         poses = batch["pose"]
@@ -142,4 +131,4 @@ class SkeletonVAE(Method):
     def generate(self, labels, frames, generator):
         classes = one_hot(labels, len(self.actions))
         latents = torch.randn(len(labels), frames, self.config.latent, generator=generator)
-        return place_poses(self, self.networks["decoder"](latents, classes))
+        return self.poses_to_joints(self.networks["decoder"](latents, classes))

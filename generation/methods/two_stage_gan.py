@@ -12,8 +12,8 @@ sequence), which is what enforces temporal coherence.
 
 Neither seed 000 nor Cai et al. give sizes for this adaptation; documented choices:
 
-- poses are joint positions (see :mod:`generation.methods.gan_common`), so the method
-  works alike in 3D and 2D ("necessary modifications ... to work in 3D");
+- poses are joint positions (see :class:`~generation.methods.common.PoseVectors`), so the
+  method works alike in 3D and 2D ("necessary modifications ... to work in 3D");
 - widths as A2M's (128): ``G_p`` and ``D_p`` are MLPs with two hidden layers of 128 and
   leaky ReLUs, no batch normalisation (a frozen generator then behaves the same in
   training and sampling, and WGAN-GP critics must not mix samples); ``z`` has 32
@@ -37,19 +37,14 @@ import torch
 from torch import nn
 
 from generation.methods.base import Method, MethodConfig, register_method
-from generation.methods.common import one_hot
+from generation.methods.common import PoseVectors, adam, one_hot
 from generation.methods.gan_common import (
     MotionDiscriminator,
     PoseDiscriminator,
-    adam,
     mlp,
-    normalise_clips,
-    place_poses,
-    pose_statistics,
     set_trainable,
     wgan_critic_step,
 )
-from generation.skeletons import get_skeleton
 
 
 @dataclass
@@ -112,16 +107,13 @@ class NoiseSequencer(nn.Module):
 
 
 @register_method("two_stage_gan")
-class TwoStageGAN(Method):
+class TwoStageGAN(PoseVectors, Method):
     """Pose WGAN, then a motion generator that drives the frozen pose generator with noise."""
 
     Config = TwoStageGANConfig
 
     def build(self):
-        skeleton = get_skeleton(self.skeleton)
-        cfg = self.config
-        pose = skeleton.n_joints * skeleton.dims
-        classes = len(self.actions)
+        cfg, classes, pose = self.config, len(self.actions), self.pose_width
         return {
             "pose_generator": PoseGenerator(cfg.noise, classes, cfg.hidden, pose),
             "pose_critic": PoseDiscriminator(pose, classes, cfg.hidden),
@@ -132,16 +124,6 @@ class TwoStageGAN(Method):
     def build_optimizers(self):
         betas = (self.config.beta1, self.config.beta2)
         return {key: adam([net], self.config.lr, betas) for key, net in self.networks.items()}
-
-    def prepare(self, clips):
-        return pose_statistics(get_skeleton(self.skeleton), self.clip_array(clips))
-
-    def encode(self, clips):
-        skeleton = get_skeleton(self.skeleton)
-        return {
-            "pose": normalise_clips(skeleton, self.clip_array(clips), self.extras),
-            "label": self.action_indices([clip.action for clip in clips]),
-        }
 
     @property
     def stage(self) -> int:
@@ -207,4 +189,4 @@ class TwoStageGAN(Method):
     def generate(self, labels, frames, generator):
         classes = one_hot(labels, len(self.actions))
         poses = self._motions(classes, frames, generator)
-        return place_poses(get_skeleton(self.skeleton), poses, self.extras)
+        return self.poses_to_joints(poses)
