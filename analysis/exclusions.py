@@ -3,8 +3,13 @@
 Rules, in order:
 
 1. (optional) participants who did not complete the study;
-2. participants who failed more than ``max_failed_catch`` checks (catch trials, and
-   repeated trials answered differently the second time): all their judgements go;
+2. participants who failed more than ``max_failed_catch`` catch trials: all their
+   judgements go;
+2b. (optional, ``max_failed_repeats``) participants who answered more than that many
+   repeated trials differently the second time: all their judgements go. Counted
+   (with 0) but not applied by default: between two equally good clips a person may
+   fairly choose differently, so a changed repeat is a reliability figure (the
+   quality table) more than an attention check;
 3. trials answered faster than ``min_time_factor`` times the length of their longest
    clip (``time_ms < factor * duration * 1000``): the trial goes. Skipped, with a note,
    when the table has no clip durations.
@@ -43,13 +48,22 @@ def apply(rows: pd.DataFrame, config) -> tuple[pd.DataFrame, pd.DataFrame, list[
             notes.append("the table has no 'completed' column: all participants were kept")
 
     failed = rows["catch_passed"].eq(False).fillna(False).to_numpy(dtype=bool)
-    failed_trials = pd.Series(rows["trial_key"].to_numpy()[failed]).groupby(
-        rows["pcode"].to_numpy()[failed]).nunique()
-    failing = failed_trials.index[failed_trials > config.max_failed_catch]
-    flagged = rows["pcode"].isin(failing).to_numpy()
-    label = f"Failed more than {config.max_failed_catch} catch or repeated trial(s)"
+    kind = rows["trial_kind"].to_numpy()
+    flagged = _failing(rows, failed & (kind == "catch"), config.max_failed_catch)
+    label = f"Failed more than {config.max_failed_catch} catch trial(s)"
     records.append(_count(label, _applied(config), rows, main & flagged))
     if config.exclusions:
+        keep &= ~flagged
+
+    limit = config.max_failed_repeats
+    flagged = _failing(rows, failed & (kind == "repeat"), 0 if limit is None else limit)
+    label = f"Answered more than {0 if limit is None else limit} repeated trial(s) differently"
+    if limit is None:
+        applied = "no (counted only; --max-failed-repeats N applies it)"
+    else:
+        applied = _applied(config)
+    records.append(_count(label, applied, rows, main & flagged))
+    if config.exclusions and limit is not None:
         keep &= ~flagged
 
     speed = f"Answered faster than {config.min_time_factor:g} x the clip length"
@@ -76,6 +90,13 @@ def apply(rows: pd.DataFrame, config) -> tuple[pd.DataFrame, pd.DataFrame, list[
 
     records.append(_count("Analysed", "", rows, main & keep))
     return rows.loc[keep], pd.DataFrame(records, columns=COLUMNS), notes
+
+
+def _failing(rows, failed, limit: int):
+    """Return the rows of participants with more than ``limit`` failed trials."""
+    per_participant = pd.Series(rows["trial_key"].to_numpy()[failed]).groupby(
+        rows["pcode"].to_numpy()[failed]).nunique()
+    return rows["pcode"].isin(per_participant.index[per_participant > limit]).to_numpy()
 
 
 def _applied(config) -> str:

@@ -61,6 +61,12 @@ def _exclusions(result) -> str:
                                                if flagged else "")
     else:
         text = "No judgement met an exclusion rule"
+    counted = rules.loc[rules["applied"].str.startswith("no (counted only")
+                        & (rules["participants"] > 0)]
+    if result.config.exclusions and len(counted):
+        text += "; " + "; ".join(
+            f"{row.participants} participants {row.Index[0].lower() + row.Index[1:]} (reported, "
+            f"not excluded)" for row in counted.itertuples())
     skipped = rules.loc[rules["applied"].str.startswith("skipped")]
     if len(skipped):
         text += ("; the rule on answering faster than the clip length could not be applied because "

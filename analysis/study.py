@@ -29,6 +29,7 @@ class AnalysisConfig:
     exclusions: bool = True
     min_time_factor: float = 1.0
     max_failed_catch: int = 0
+    max_failed_repeats: int | None = None  # None: counted, not applied
     completed_only: bool = False
     bootstrap: int = 1000
     confidence: float = 0.95
@@ -40,8 +41,9 @@ class AnalysisConfig:
             raise AnalysisError(f"confidence must lie between 0 and 1; got {self.confidence}")
         if self.min_time_factor < 0:
             raise AnalysisError(f"min_time_factor must be 0 or more; got {self.min_time_factor}")
-        if self.bootstrap < 0 or self.max_failed_catch < 0:
-            raise AnalysisError("bootstrap and max_failed_catch must be 0 or more")
+        if self.bootstrap < 0 or self.max_failed_catch < 0 or (self.max_failed_repeats or 0) < 0:
+            raise AnalysisError("bootstrap, max_failed_catch and max_failed_repeats must be 0 "
+                                "or more")
 
 
 @dataclass

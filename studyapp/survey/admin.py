@@ -162,8 +162,7 @@ class StudyAdmin(admin.ModelAdmin):
             ((s.action, s.source, role(s), s.n_judgements) for s in stimuli),
         )
         return format_html(
-            "<p>{} started, {} completed, {} excluded (failed a catch trial or changed the "
-            "answer to a repeated one), "
+            "<p>{} started, {} completed, {} excluded (failed a catch trial), "
             "{} judgements.</p><table><thead><tr><th>Action</th><th>Source</th>"
             "<th>Role</th><th>Judgements</th></tr></thead><tbody>{}</tbody></table>",
             counts.n_started,

@@ -80,7 +80,7 @@ class StudyManager(models.Manager):
         judgements = TrialItem.objects.filter(
             trial__participant__study=OuterRef("pk"), trial__answered_at__isnull=False
         )
-        failed = Trial.objects.filter(kind__in=CHECK_KINDS, catch_passed=False)
+        failed = Trial.objects.filter(kind=Trial.Kind.CATCH, catch_passed=False)
         return self.annotate(
             n_started=_count(participants, "study"),
             n_completed=_count(participants.filter(completed_at__isnull=False), "study"),
@@ -414,9 +414,10 @@ class Participant(models.Model):
         return self.trials.exists() if n_trials is None else n_trials > 0
 
     def excluded(self) -> bool:
-        """Return whether the participant failed a catch trial or changed their answer to
-        a repeated one: the analysis's default exclusion (``max_failed_catch`` 0)."""
-        return self.trials.filter(kind__in=CHECK_KINDS, catch_passed=False).exists()
+        """Return whether the participant failed a catch trial: the analysis's default
+        exclusion (``max_failed_catch`` 0). A repeated trial answered differently is a
+        reliability figure, not an exclusion, unless the analysis is told so."""
+        return self.trials.filter(kind=Trial.Kind.CATCH, catch_passed=False).exists()
 
 
 class TrialManager(models.Manager):
@@ -523,11 +524,6 @@ class Trial(models.Model):
 
     def __str__(self):
         return f"{self.participant}: trial {self.index}"
-
-
-# Trials that check attention (STUDIES.md: "an obviously broken clip, or a repeated
-# clip"): failing one excludes the participant, in the admin and in the analysis.
-CHECK_KINDS = (Trial.Kind.CATCH, Trial.Kind.REPEAT)
 
 
 class TrialItem(models.Model):

@@ -39,21 +39,22 @@ def test_rules_are_applied_and_counted():
     result = analyse(study_table(), config())
     assert counts(result) == {
         "Main-trial judgements before exclusions": (4, 8, 24),
-        "Failed more than 0 catch or repeated trial(s)": (1, 2, 6),
+        "Failed more than 0 catch trial(s)": (1, 2, 6),
+        "Answered more than 0 repeated trial(s) differently": (0, 0, 0),
         "Answered faster than 1 x the clip length": (2, 2, 6),
         "Analysed": (3, 4, 12),
     }
     assert result.counts["judgements"] == 12 and result.counts["participants"] == 3
     quality = result.quality.set_index("check")
     assert quality.loc["catch trials passed", "value"] == pytest.approx(3 / 4)
-    assert "failed more than 0 catch or repeated trial(s): 1 participants" in result.methods()
+    assert "failed more than 0 catch trial(s): 1 participants" in result.methods()
 
 
 def test_no_exclusions_keeps_everything_but_still_counts():
     result = analyse(study_table(), config(exclusions=False))
     table = counts(result)
     assert table["Analysed"] == (4, 8, 24)
-    assert table["Failed more than 0 catch or repeated trial(s)"] == (1, 2, 6)
+    assert table["Failed more than 0 catch trial(s)"] == (1, 2, 6)
     assert result.exclusions.set_index("rule").loc["Analysed", "judgements"] == 24
     assert "No exclusions were applied" in result.methods()
 
@@ -62,7 +63,7 @@ def test_time_factor_and_catch_tolerance_are_configurable():
     lenient = analyse(study_table(), config(min_time_factor=0.5, max_failed_catch=1))
     table = counts(lenient)
     assert table["Answered faster than 0.5 x the clip length"] == (0, 0, 0)
-    assert table["Failed more than 1 catch or repeated trial(s)"] == (0, 0, 0)
+    assert table["Failed more than 1 catch trial(s)"] == (0, 0, 0)
     assert table["Analysed"] == (4, 8, 24)
 
 
@@ -103,3 +104,24 @@ def test_repeats_match_their_participant_after_exclusions():
     result = analyse(make_table("fake_or_real", trials), config())
     repeat = result.quality.set_index("check").loc["repeated judgements identical"]
     assert repeat["value"] == pytest.approx(0.5) and repeat["participants"] == 2
+
+
+def test_changed_repeats_are_counted_and_excluded_only_when_asked():
+    trials = []
+    for participant in (1, 2, 3):
+        trials.append(trial(participant, RANKS, action="eat"))
+        trials.append(trial(participant, RANKS, action="walk"))
+        trials.append(trial(participant, RANKS, action="eat", kind="repeat",
+                            catch_passed=participant != 3))
+    table = make_table("ranking", trials)
+    rule = "Answered more than 0 repeated trial(s) differently"
+    default = analyse(table, config())
+    rows = default.exclusions.set_index("rule")
+    assert counts(default)[rule] == (1, 2, 6)  # p3's main judgements
+    assert rows.loc[rule, "applied"].startswith("no (counted only")
+    assert counts(default)["Analysed"] == (3, 6, 18)
+    assert "1 participants answered more than 0 repeated trial(s) differently (reported, " \
+           "not excluded)" in default.methods()
+    strict = analyse(table, config(max_failed_repeats=0))
+    assert counts(strict)[rule] == (1, 2, 6) and counts(strict)["Analysed"] == (2, 4, 12)
+    assert counts(analyse(table, config(max_failed_repeats=1)))["Analysed"] == (3, 6, 18)

@@ -48,7 +48,7 @@ def test_bots_with_known_strengths_are_recovered(study_type, tmp_path):
     summary = json.loads((tmp_path / "summary.json").read_text())
     tau = scipy_stats.kendalltau([TRUE_ORDER.index(s) for s in summary["order"]], range(4)).statistic
     assert tau >= 0.9, summary["order"]
-    excluded = result.exclusions.set_index("rule").loc["Failed more than 0 catch or repeated trial(s)", "participants"]
+    excluded = result.exclusions.set_index("rule").loc["Failed more than 0 catch trial(s)", "participants"]
     assert excluded == table.loc[table["catch_passed"].eq(False), "participant"].nunique() > 0
     for source, entry in summary["sources"].items():
         assert entry["ci"][0] <= entry["score"] <= entry["ci"][1], source

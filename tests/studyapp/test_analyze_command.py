@@ -35,10 +35,12 @@ def test_analyze_an_exported_table(responses, tmp_path, capsys):
 def test_options_reach_the_analysis(responses, tmp_path):
     out = tmp_path / "report"
     call_command("analyze", responses=str(responses), out=str(out), no_exclusions=True,
-                 min_time_factor=0.5, max_failed_catch=2, bootstrap=0, real_source="real")
+                 min_time_factor=0.5, max_failed_catch=2, max_failed_repeats=1, bootstrap=0,
+                 real_source="real")
     summary = json.loads((out / "summary.json").read_text())
     assert summary["config"]["exclusions"] is False and summary["config"]["min_time_factor"] == 0.5
     assert summary["config"]["max_failed_catch"] == 2
+    assert summary["config"]["max_failed_repeats"] == 1
     assert summary["sources"]["real"]["ci"][0] is not None  # Wilson intervals need no bootstrap
     rules = pd.read_csv(out / "exclusions.csv").set_index("rule")
     assert rules.loc["Analysed", "judgements"] == rules.iloc[0]["judgements"]

@@ -244,9 +244,10 @@ def test_a_repeated_trial_shows_the_same_clips_later_and_records_consistency(
             bot.answer(bot.answer_data(trial, **answers))
             assert Trial.objects.get(pk=trial.pk).answered_at is not None
         assert Trial.objects.get(pk=repeat.pk).catch_passed is consistent
-        # A changed answer excludes the participant, live in the admin as in the analysis.
-        assert Study.objects.with_counts().get().n_excluded == (0 if consistent else 1)
-        assert bot.participant().excluded() is not consistent
+        # A changed answer is a reliability figure, not an exclusion (as in the analysis
+        # by default): between two equally good clips a person may fairly change.
+        assert Study.objects.with_counts().get().n_excluded == 0
+        assert not bot.participant().excluded()
 
 
 def mirrored(answers: dict, n: int) -> dict:

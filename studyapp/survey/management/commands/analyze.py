@@ -32,7 +32,10 @@ class Command(BaseCommand):
         parser.add_argument("--min-time-factor", type=float, default=1.0, metavar="F",
                             help="Exclude trials answered in less than F x the clip length (default 1).")
         parser.add_argument("--max-failed-catch", type=int, default=0, metavar="N",
-                            help="Exclude participants who failed more than N catch or repeated trials (default 0).")
+                            help="Exclude participants who failed more than N catch trials (default 0).")
+        parser.add_argument("--max-failed-repeats", type=int, default=None, metavar="N",
+                            help="Also exclude participants who answered more than N repeated "
+                                 "trials differently (default: counted, not applied).")
         parser.add_argument("--bootstrap", type=int, default=1000, metavar="N",
                             help="Bootstrap resamples for intervals (default 1000; 0 = none).")
         parser.add_argument("--seed", type=int, default=0, help="Seed of the bootstrap.")
@@ -60,7 +63,8 @@ class Command(BaseCommand):
         try:
             config = AnalysisConfig(
                 exclusions=not options["no_exclusions"], min_time_factor=options["min_time_factor"],
-                max_failed_catch=options["max_failed_catch"], completed_only=options["completed_only"],
+                max_failed_catch=options["max_failed_catch"],
+                max_failed_repeats=options["max_failed_repeats"], completed_only=options["completed_only"],
                 bootstrap=options["bootstrap"], seed=options["seed"], real_source=options["real_source"],
             )
             result = analyse(table, config, participants=participants)
