@@ -2,9 +2,12 @@
 
 ``PAGE_SEQUENCE`` lists the pages; the participant is always sent to the first page
 they have not finished, so a reload, a back button or a stale tab lands where they
-are. The participant is found through their token in the session cookie.
+are. The participant is found through their token in a signed cookie of the study
+(no session row is read or written on a participant's pages).
 """
 
+from django.conf import settings
+from django.core import signing
 from django.shortcuts import redirect, render
 from django.urls import reverse
 
@@ -22,12 +25,54 @@ from studyapp.survey.models import (
 MAX_ID_LENGTH = 100
 
 
-def session_key(study) -> str:
-    return f"survey:{study.pk}"
+COOKIE_SALT = "studyapp.survey.participant"
+COOKIE_AGE_S = 60 * 60 * 24 * 30
 
 
-def pending_key(study) -> str:
-    return f"survey:{study.pk}:external"
+def cookie_name(study) -> str:
+    return f"study{study.pk}"
+
+
+def browser_state(request, study) -> dict:
+    """Return what this browser's cookie says about ``study``: ``{"p": token}`` for a
+    participant, ``{"x": {...}}`` for the platform ids of someone not yet consenting,
+    or ``{}`` (no cookie, or one that was not signed here)."""
+    states = request.__dict__.setdefault("survey_states", {})
+    if study.pk not in states:
+        raw = request.COOKIES.get(cookie_name(study), "")
+        try:
+            state = signing.loads(raw, salt=COOKIE_SALT, max_age=COOKIE_AGE_S) if raw else {}
+        except signing.BadSignature:
+            state = {}
+        states[study.pk] = state if isinstance(state, dict) else {}
+    return states[study.pk]
+
+
+def set_browser_state(request, study, state: dict) -> None:
+    """Change the cookie of ``study``; ``keep_browser_state`` writes it on the response."""
+    browser_state(request, study)
+    request.survey_states[study.pk] = state
+    request.__dict__.setdefault("survey_changed", set()).add(study)
+
+
+def keep_browser_state(request, response):
+    """Write the cookies changed while answering ``request`` onto ``response``."""
+    for study in getattr(request, "survey_changed", ()):
+        state = request.survey_states[study.pk]
+        if state:
+            response.set_cookie(
+                cookie_name(study), signing.dumps(state, salt=COOKIE_SALT, compress=True),
+                max_age=COOKIE_AGE_S, secure=settings.SESSION_COOKIE_SECURE, httponly=True,
+                samesite="Lax",
+            )
+        else:
+            response.delete_cookie(cookie_name(study), samesite="Lax")
+    return response
+
+
+def token_from_cookie(value: str) -> str | None:
+    """Return the participant token in a study cookie's value (for tests and tools)."""
+    return signing.loads(value, salt=COOKIE_SALT).get("p")
 
 
 def external_ids_from(query) -> dict:
@@ -43,7 +88,7 @@ def external_ids_from(query) -> dict:
 
 def session_participant(request, study):
     """Return the participant of this browser (read with ``by_token``), or None."""
-    token = request.session.get(session_key(study))
+    token = browser_state(request, study).get("p")
     if not token:
         return None
     participant = Participant.objects.by_token(study, token)
@@ -70,8 +115,7 @@ def trial_with_items(participant, trial_id):
 
 
 def remember(request, participant) -> None:
-    request.session[session_key(participant.study)] = participant.token
-    request.session.pop(pending_key(participant.study), None)
+    set_browser_state(request, participant.study, {"p": participant.token})
 
 
 def unavailable(request, study, reason: str):
@@ -147,7 +191,7 @@ class Consent(Page):
         form = ConsentForm(request.POST)
         if not form.is_valid():
             return render(request, self.template_name, {"study": study, "form": form})
-        external = request.session.get(pending_key(study), {})
+        external = browser_state(request, study).get("x", {})
         try:
             participant = Participant.objects.enroll(
                 study, external, request.headers.get("User-Agent", "")
@@ -262,8 +306,7 @@ def enter(request, study):
         taken = participant is not None and participant.completed_at is not None
         if participant is None or taken:
             # Consent re-checks these ids, so skipping this page changes nothing.
-            request.session.pop(session_key(study), None)
-            request.session[pending_key(study)] = external
+            set_browser_state(request, study, {"x": external})
             if taken:
                 return unavailable(request, study, "taken")
             if study.status != Study.Status.OPEN:

@@ -16,7 +16,8 @@ CONTENT_TYPES = {"mp4": "video/mp4", "png": "image/png"}
 @never_cache
 @require_safe
 def entry(request, slug):
-    return flow.enter(request, get_object_or_404(Study, slug=slug))
+    response = flow.enter(request, get_object_or_404(Study, slug=slug))
+    return flow.keep_browser_state(request, response)
 
 
 @never_cache
@@ -24,7 +25,8 @@ def entry(request, slug):
 def page(request, slug, name):
     if name not in flow.PAGES:
         raise Http404("no such page")
-    return flow.show(request, get_object_or_404(Study, slug=slug), name)
+    response = flow.show(request, get_object_or_404(Study, slug=slug), name)
+    return flow.keep_browser_state(request, response)
 
 
 @staff_member_required

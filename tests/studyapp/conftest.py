@@ -245,7 +245,9 @@ class Bot:
     def participant(self):
         from studyapp.survey.models import Participant
 
-        token = self.client.session[f"survey:{self.study.pk}"]
+        from studyapp.survey.flow import cookie_name, token_from_cookie
+
+        token = token_from_cookie(self.client.cookies[cookie_name(self.study)].value)
         return Participant.objects.get(token=token)
 
     def trial_page(self):

@@ -397,11 +397,12 @@ def test_by_token_counts_trials_and_finds_the_current_one(ranking_study, make_bo
     assert read.completed_at is not None and read.external_ids == {"PROLIFIC_PID": "progress"}
 
 
-def test_an_answer_and_the_next_trial_cost_twelve_statements(ranking_study, make_bot):
+def test_an_answer_and_the_next_trial_cost_ten_statements(ranking_study, make_bot):
     from django.db import connection
     from django.test.utils import CaptureQueriesContext
 
-    # study, session, participant with progress, trial with items on each page; the
+    # study, participant with progress, trial with items on each page (no session: the
+    # participant is in a signed cookie); the
     # answer's conditional UPDATE, the items' UPDATE and the completion check; the GET's
     # shown_at (docs/BENCHMARKS.md, "Load"). Transaction control is not counted.
     bot = make_bot(ranking_study)
@@ -414,4 +415,26 @@ def test_an_answer_and_the_next_trial_cost_twelve_statements(ranking_study, make
         assert bot.trial_page().status_code == 200
     statements = [q["sql"] for q in captured.captured_queries
                   if not q["sql"].startswith(("SAVEPOINT", "RELEASE SAVEPOINT"))]
-    assert len(statements) == 12, "\n".join(statements)
+    assert len(statements) == 10, "\n".join(statements)
+    assert not any("django_session" in sql for sql in statements)
+
+
+def test_the_participant_cookie_is_signed_and_no_session_is_made(ranking_study, make_bot):
+    from django.core import signing
+
+    from studyapp.survey.flow import COOKIE_SALT, cookie_name
+
+    bot = make_bot(ranking_study)
+    bot.join(PROLIFIC_PID="signed")
+    token = bot.participant().token
+    assert bot.trial_page().status_code == 200
+    assert "sessionid" not in bot.client.cookies  # nothing server-side per participant
+    name = cookie_name(ranking_study)
+    value = bot.client.cookies[name].value
+    assert signing.loads(value, salt=COOKIE_SALT) == {"p": token}
+    for forged in (value[:-2] + ("AA" if not value.endswith("AA") else "BB"),
+                   signing.dumps({"p": token}, salt="another-salt"), "garbage", ""):
+        stranger = make_bot(ranking_study)
+        stranger.client.cookies[name] = forged
+        response = stranger.client.get(stranger.url("trial"))
+        assert response.status_code == 302 and response["Location"].endswith("/consent/")
