@@ -122,6 +122,20 @@ def test_a_clip_is_uploaded_once(db, s3, clips, uploads):
     )
 
 
+def first_exists_misses(monkeypatch, storage_class):
+    """Make the storage's next ``exists`` answer False, as when another process stores
+    the file between our ``exists`` and ``save``; return the function that undoes it."""
+    real = storage_class.exists
+    calls = []
+
+    def racing(self, key):
+        calls.append(key)
+        return False if len(calls) == 1 else real(self, key)
+
+    monkeypatch.setattr(storage_class, "exists", racing)
+    return lambda: monkeypatch.setattr(storage_class, "exists", real)
+
+
 def test_the_name_is_never_changed(db, s3, clips, uploads, monkeypatch):
     """A storage that renames (file_overwrite off) never leaves a suffixed copy."""
     from studyapp.survey.stimuli import _store
@@ -132,16 +146,9 @@ def test_the_name_is_never_changed(db, s3, clips, uploads, monkeypatch):
     assert _store(clip.video, name) == f"stimuli/{name}"
     # Another process stored it between our exists() and save(): the storage picks
     # another name; that copy is removed and the content-hash name kept.
-    real_exists = S3Storage.exists
-    calls = []
-
-    def racing_exists(self, key):
-        calls.append(key)
-        return False if len(calls) == 1 else real_exists(self, key)
-
-    monkeypatch.setattr(S3Storage, "exists", racing_exists)
+    restore = first_exists_misses(monkeypatch, S3Storage)
     assert _store(clip.video, name) == f"stimuli/{name}"
-    monkeypatch.setattr(S3Storage, "exists", real_exists)
+    restore()
     assert keys(s3) == [f"{PREFIX}/stimuli/{name}"]
     # A broken copy (wrong size) is replaced under the same name.
     s3.put_object(Bucket=BUCKET, Key=f"{PREFIX}/stimuli/{name}", Body=b"half")
@@ -174,16 +181,9 @@ def test_fs_storage_keeps_the_name_and_leaves_no_temporary_files(db, media_root,
     assert isinstance(default_storage, FileSystemStorage)  # STORAGES restored after the S3 tests
     name = "1" * 64 + ".mp4"
     assert _store(clips[0].video, name) == f"stimuli/{name}"
-    real_exists = FileSystemStorage.exists
-    calls = []
-
-    def racing_exists(self, key):
-        calls.append(key)
-        return False if len(calls) == 1 else real_exists(self, key)
-
-    monkeypatch.setattr(FileSystemStorage, "exists", racing_exists)
+    restore = first_exists_misses(monkeypatch, FileSystemStorage)
     assert _store(clips[0].video, name) == f"stimuli/{name}"
-    monkeypatch.setattr(FileSystemStorage, "exists", real_exists)
+    restore()
     (Path(media_root) / "stimuli" / name).write_bytes(b"half")
     assert _store(clips[0].video, name) == f"stimuli/{name}"
     assert [p.name for p in (Path(media_root) / "stimuli").iterdir()] == [name]
