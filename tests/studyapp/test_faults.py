@@ -4,15 +4,17 @@ The server tests start real gunicorn (production settings) on the test database,
 they run on SQLite and on PostgreSQL (``DATABASE_URL=postgres://...``) alike.
 """
 
+import asyncio
 import os
 import threading
+import time
 from pathlib import Path
 
 import pytest
 import redis
 from django.db import OperationalError, connection
 
-from benchmarks.loadtest import Participant
+from benchmarks.loadtest import AsyncParticipant, Participant
 from benchmarks.server import Server, server_env
 from tests.studyapp.conftest import make_ranking_study
 from tests.studyapp.test_tasks import redis_up
@@ -78,6 +80,55 @@ def test_kill_9_mid_study_keeps_every_acknowledged_answer_and_sessions_resume(cl
     assert sum(len(answered(row.token)) for row in rows) == 16
 
 
+def test_kill_9_under_load_loses_no_acknowledged_answer_and_writes_nothing_half(clips, server):
+    from studyapp.survey.models import Participant as Row
+    from studyapp.survey.models import Trial, TrialItem
+
+    study = make_ranking_study(clips, trials_per_participant=6)
+    server.start()
+    bots = [AsyncParticipant(server.url, study.slug, f"crowd-{i}") for i in range(16)]
+
+    async def crowd():  # a bot cut off by the kill ends with its error
+        await asyncio.gather(*(bot.run() for bot in bots), return_exceptions=True)
+
+    def acknowledged():
+        return {trial for bot in bots for trial, status, _ in bot.submits if status == 302}
+
+    running = threading.Thread(target=asyncio.run, args=(crowd(),))
+    running.start()
+    deadline = time.monotonic() + 60
+    while len(acknowledged()) < 20 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    server.kill()  # with requests in flight
+    running.join(60)
+    before = acknowledged()
+    assert 20 <= len(before) < 16 * 7  # killed mid-study
+
+    def check_nothing_half_written():
+        for trial in Trial.objects.filter(participant__study=study).prefetch_related("items"):
+            ranks = sorted(item.rank or 0 for item in trial.items.all())
+            if trial.answered_at is None:
+                assert ranks == [0, 0, 0], trial.pk
+            elif trial.kind != Trial.Kind.PRACTICE:
+                assert ranks == [1, 2, 3], trial.pk
+
+    stored = set(Trial.objects.filter(participant__study=study, answered_at__isnull=False)
+                 .values_list("pk", flat=True))
+    assert before <= stored  # every acknowledged answer survived kill -9
+    check_nothing_half_written()
+
+    server.start()  # everyone comes back with their cookie and finishes
+    asyncio.run(crowd())
+    rows = Row.objects.filter(study=study)
+    assert rows.count() == 16 and all(row.completed_at for row in rows)
+    total = Trial.objects.filter(participant__study=study).count()
+    assert Trial.objects.filter(participant__study=study, answered_at__isnull=False).count() == total
+    assert acknowledged() <= set(Trial.objects.filter(participant__study=study)
+                                 .values_list("pk", flat=True))
+    check_nothing_half_written()
+    assert TrialItem.objects.filter(trial__participant__study=study).count() == total * 3
+
+
 def test_double_submit_concurrently_stores_one_answer(clips, server):
     from studyapp.survey.models import Trial, TrialItem
 
@@ -115,7 +166,7 @@ def test_database_unavailable_shows_503_page_and_writes_nothing(clips, make_bot,
                                                                settings, monkeypatch):
     from studyapp.survey.models import Trial, TrialItem
 
-    settings.MIDDLEWARE = [*settings.MIDDLEWARE, "studyapp.survey.middleware.DatabaseUnavailableMiddleware"]
+    assert "studyapp.survey.middleware.DatabaseUnavailableMiddleware" in settings.MIDDLEWARE
     study = make_ranking_study(clips)
     bot = make_bot(study)
     bot.join(PROLIFIC_PID="db-down")
@@ -145,7 +196,7 @@ def test_database_unavailable_shows_503_page_and_writes_nothing(clips, make_bot,
 
 
 def test_database_unreachable_everywhere_is_503(clips, make_bot, media_root, settings, monkeypatch):
-    settings.MIDDLEWARE = [*settings.MIDDLEWARE, "studyapp.survey.middleware.DatabaseUnavailableMiddleware"]
+    assert "studyapp.survey.middleware.DatabaseUnavailableMiddleware" in settings.MIDDLEWARE
     study = make_ranking_study(clips)
     bot = make_bot(study)
     bot.join(PROLIFIC_PID="db-gone")

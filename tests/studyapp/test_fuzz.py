@@ -3,6 +3,8 @@
 Every refusal is a 4xx with a message, stores nothing, and reflects nothing unescaped.
 """
 
+import os
+
 import pytest
 from django.test import Client
 from hypothesis import HealthCheck, example, given, settings, strategies as st
@@ -12,7 +14,8 @@ from tests.studyapp.conftest import make_ranking_study
 pytestmark = pytest.mark.django_db
 
 SCRIPT = "<script>alert(1)</script>"
-FUZZ = settings(max_examples=50, deadline=None,
+# STUDY_FUZZ_EXAMPLES=2000 for a longer campaign (docs/FAULTS.md).
+FUZZ = settings(max_examples=int(os.environ.get("STUDY_FUZZ_EXAMPLES", "50")), deadline=None,
                 suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 
 
