@@ -49,7 +49,9 @@ def apply(rows: pd.DataFrame, config) -> tuple[pd.DataFrame, pd.DataFrame, list[
 
     failed = rows["catch_passed"].eq(False).fillna(False).to_numpy(dtype=bool)
     kind = rows["trial_kind"].to_numpy()
-    flagged = _failing(rows, failed & (kind == "catch"), config.max_failed_catch)
+    # Catch trials: every graded trial but the repeats (a table without ``trial_kind``
+    # has its catch results and nothing else graded).
+    flagged = _failing(rows, failed & (kind != "repeat"), config.max_failed_catch)
     label = f"Failed more than {config.max_failed_catch} catch trial(s)"
     records.append(_count(label, _applied(config), rows, main & flagged))
     if config.exclusions:

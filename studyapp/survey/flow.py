@@ -6,6 +6,8 @@ are. The participant is found through their token in a signed cookie of the stud
 (no session row is read or written on a participant's pages).
 """
 
+import logging
+
 from django.conf import settings
 from django.core import signing
 from django.shortcuts import redirect, render
@@ -23,6 +25,11 @@ from studyapp.survey.models import (
 )
 
 MAX_ID_LENGTH = 100
+# Browsers drop cookies over 4 KB; crowd ids are short, so longer ones are cut further.
+MAX_COOKIE_BYTES = 3000
+SHORT_ID_LENGTH = 30
+
+log = logging.getLogger(__name__)
 
 
 COOKIE_SALT = "studyapp.survey.participant"
@@ -59,9 +66,13 @@ def keep_browser_state(request, response):
     """Write the cookies changed while answering ``request`` onto ``response``."""
     for study in getattr(request, "survey_changed", ()):
         state = request.survey_states[study.pk]
+        value = signing.dumps(state, salt=COOKIE_SALT, compress=True)
+        if len(value) > MAX_COOKIE_BYTES and "x" in state:
+            short = {name: id_[:SHORT_ID_LENGTH] for name, id_ in state["x"].items()}
+            value = signing.dumps({"x": short}, salt=COOKIE_SALT, compress=True)
         if state:
             response.set_cookie(
-                cookie_name(study), signing.dumps(state, salt=COOKIE_SALT, compress=True),
+                cookie_name(study), value,
                 max_age=COOKIE_AGE_S, secure=settings.SESSION_COOKIE_SECURE, httponly=True,
                 samesite="Lax",
             )
@@ -86,7 +97,7 @@ def external_ids_from(query) -> dict:
     return {name: value[:MAX_ID_LENGTH] for name, value in clean.items() if value.strip()}
 
 
-def session_participant(request, study):
+def browser_participant(request, study):
     """Return the participant of this browser (read with ``by_token``), or None."""
     token = browser_state(request, study).get("p")
     if not token:
@@ -118,8 +129,9 @@ def remember(request, participant) -> None:
     set_browser_state(request, participant.study, {"p": participant.token})
 
 
-def unavailable(request, study, reason: str):
-    return render(request, "survey/unavailable.html", {"study": study, "reason": reason})
+def unavailable(request, study, reason: str, status: int = 200):
+    context = {"study": study, "reason": reason}
+    return render(request, "survey/unavailable.html", context, status=status)
 
 
 def bad_answer(request, study, messages: list[str]):
@@ -225,8 +237,10 @@ class Trials(Page):
 
     def get(self, request, study, participant):
         trial, items = trial_with_items(participant, participant.current_id)
-        if trial is None:  # answered in another tab since this request began
-            return redirect(page_url(study, self.name))
+        if trial is None:  # no unanswered trial with clips: broken data, not the person's fault
+            log.error("participant %s of %s: no trial to show (current %s)",
+                      participant.pk, study.slug, participant.current_id)
+            return unavailable(request, study, "broken", status=500)
         Trial.objects.mark_shown(trial)
         practice = participant.n_practice
         total = participant.n_trials - practice
@@ -252,7 +266,9 @@ class Trials(Page):
         form = study.kind.answer_form(trial, items, request.POST)
         if not form.is_valid():
             return bad_answer(request, study, form.messages())
-        Trial.objects.record_answer(trial, form.answers(), form.trial_answer(), items=items)
+        if not Trial.objects.record_answer(trial, form.answers(), form.trial_answer(), items=items):
+            # A simultaneous copy stored it, and may have completed the study meanwhile.
+            participant.refresh_from_db(fields=["completed_at"])
         return super().post(request, study, participant)
 
 
@@ -298,7 +314,7 @@ def current_page(participant) -> Page:
 def enter(request, study):
     """Start or resume a participant from the study link; return the redirect."""
     external = external_ids_from(request.GET)
-    participant = session_participant(request, study)
+    participant = browser_participant(request, study)
     if participant is not None and external_key(external) not in ("", participant.external_key):
         participant = None  # another person on the same browser
     if participant is None:
@@ -320,7 +336,7 @@ def enter(request, study):
 
 def show(request, study, name: str):
     """Render or submit page ``name``, or redirect to the page the participant is on."""
-    participant = session_participant(request, study)
+    participant = browser_participant(request, study)
     page = current_page(participant)
     if name != page.name:
         return redirect(page_url(study, page.name))

@@ -1,17 +1,22 @@
-"""A per-IP token bucket on the URLs that create participants (entry link, consent).
+"""A per-IP request limit on the URLs that create participants (entry link, consent).
 
 ``STUDY_ENTRY_RATE_LIMIT`` (default ``"120/min"``; ``"N/s"``, ``"N/min"``, ``"N/h"``)
 counts requests per address in fixed windows of the period. The counts live in
 Django's cache: per process with the default local-memory cache, shared by every
 worker with Redis (``STUDY_CACHE_URL``, docs/PRODUCTION.md), where the limit is exact.
+When the cache cannot be reached, requests are let through (and logged): the limit
+stops scripts, and an outage of it must not stop the study.
 """
 
-import functools
+import logging
+import math
 import time
 
 from django.conf import settings
 from django.core.cache import cache
 from django.http import HttpResponse
+
+log = logging.getLogger(__name__)
 
 DEFAULT = "120/min"
 PERIODS = {"s": 1, "sec": 1, "min": 60, "m": 60, "h": 3600, "hour": 3600}
@@ -26,7 +31,7 @@ Please wait a minute and open your study link again.</p>
 
 
 def parse_rate(text: str) -> tuple[float, float]:
-    """Return ``(capacity, tokens per second)`` of ``"120/min"``; raise ValueError."""
+    """Return ``(requests, requests per second)`` of ``"120/min"``; raise ValueError."""
     count, _, period = text.strip().partition("/")
     if period not in PERIODS or not count.isdigit() or int(count) < 1:
         raise ValueError(f"rate {text!r}: use N/s, N/min or N/h")
@@ -53,18 +58,33 @@ def allow(key: str, rate: str | None = None, now: float | None = None) -> bool:
     period = capacity / refill
     now = time.time() if now is None else now
     window = f"{key}:{int(now // period)}"
-    cache.add(window, 0, timeout=int(period) + 60)
     try:
-        count = cache.incr(window)
-    except ValueError:  # expired between add and incr
-        cache.add(window, 1, timeout=int(period) + 60)
-        count = 1
+        cache.add(window, 0, timeout=int(period) + 60)
+        try:
+            count = cache.incr(window)
+        except ValueError:  # expired between add and incr
+            cache.add(window, 1, timeout=int(period) + 60)
+            count = 1
+    except Exception as error:  # the cache (Redis) is down: fail open
+        log.warning("rate limit not applied, the cache is unavailable: %s", error)
+        return True
     return count <= capacity
 
 
+def retry_after(rate: str | None = None, now: float | None = None) -> int:
+    """Seconds until the current window of ``rate`` ends."""
+    capacity, refill = parse_rate(rate or getattr(settings, "STUDY_ENTRY_RATE_LIMIT", DEFAULT))
+    period = capacity / refill
+    now = time.time() if now is None else now
+    return max(1, math.ceil(period - now % period))
+
+
 def too_many() -> HttpResponse:
-    response = HttpResponse(LIMITED, status=429, content_type="text/html; charset=utf-8")
-    response["Retry-After"] = "60"
+    wait = retry_after()
+    when = f"{wait} seconds" if wait < 120 else f"{math.ceil(wait / 60)} minutes"
+    page = LIMITED.replace("Please wait a minute", f"Please wait {when}")
+    response = HttpResponse(page, status=429, content_type="text/html; charset=utf-8")
+    response["Retry-After"] = str(wait)
     return response
 
 
@@ -76,18 +96,6 @@ def creates_participants(request) -> bool:
         return True
     return (match.view_name == "survey:page" and match.kwargs.get("name") == "consent"
             and request.method == "POST")
-
-
-def rate_limited(view):
-    """Decorate a participant-creating view with the per-IP limit."""
-
-    @functools.wraps(view)
-    def wrapped(request, *args, **kwargs):
-        if not allow(f"ratelimit:entry:{client_ip(request)}"):
-            return too_many()
-        return view(request, *args, **kwargs)
-
-    return wrapped
 
 
 class EntryRateLimitMiddleware:

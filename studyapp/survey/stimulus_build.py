@@ -41,7 +41,7 @@ from generation.formats import load_motions, npz
 from generation.sampling import SamplingError, choose
 from rendering import Framing, get_style, render_set
 from studyapp.survey.demo import CATCH_NOISE, CATCH_SOURCE, STANDARD_NOISE, degrade
-from studyapp.survey.models import ScoringStandard, Stimulus, Study
+from studyapp.survey.models import ScoringStandard, Study
 from studyapp.survey.stimuli import file_hash, register_clips
 from studyapp.survey.stimulus_config import ConfigError, StudyConfig
 from studyapp.survey.study_types.rating_standards import default_descriptions

@@ -125,3 +125,8 @@ def test_changed_repeats_are_counted_and_excluded_only_when_asked():
     strict = analyse(table, config(max_failed_repeats=0))
     assert counts(strict)[rule] == (1, 2, 6) and counts(strict)["Analysed"] == (2, 4, 12)
     assert counts(analyse(table, config(max_failed_repeats=1)))["Analysed"] == (3, 6, 18)
+
+
+def test_a_table_without_trial_kinds_still_excludes_failed_catch_trials():
+    result = analyse(study_table().drop(columns=["trial_kind"]), config())
+    assert counts(result)["Failed more than 0 catch trial(s)"][0] == 1

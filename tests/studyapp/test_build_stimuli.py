@@ -1,6 +1,5 @@
 """Stimulus sets from one config: validation, build, incremental rebuilds, imports, presets."""
 
-import os
 import time
 from pathlib import Path
 

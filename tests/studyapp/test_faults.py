@@ -8,7 +8,6 @@ import asyncio
 import os
 import threading
 import time
-from pathlib import Path
 
 import pytest
 import redis
@@ -167,7 +166,7 @@ def test_double_submit_concurrently_stores_one_answer(clips, server):
 
 def test_database_unavailable_shows_503_page_and_writes_nothing(clips, make_bot, media_root,
                                                                settings, monkeypatch):
-    from studyapp.survey.models import Trial, TrialItem
+    from studyapp.survey.models import TrialItem
 
     assert "studyapp.survey.middleware.DatabaseUnavailableMiddleware" in settings.MIDDLEWARE
     study = make_ranking_study(clips)

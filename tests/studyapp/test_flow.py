@@ -438,3 +438,14 @@ def test_the_participant_cookie_is_signed_and_no_session_is_made(ranking_study, 
         stranger.client.cookies[name] = forged
         response = stranger.client.get(stranger.url("trial"))
         assert response.status_code == 302 and response["Location"].endswith("/consent/")
+
+
+def test_a_trial_without_clips_shows_an_error_page_not_a_redirect_loop(ranking_study, make_bot):
+    from studyapp.survey.models import TrialItem
+
+    bot = make_bot(ranking_study)
+    bot.join(PROLIFIC_PID="broken")
+    TrialItem.objects.filter(trial=bot.participant().current_trial()).delete()  # broken data
+    response = bot.trial_page()
+    assert response.status_code == 500
+    assert b"Something is wrong with this study" in response.content

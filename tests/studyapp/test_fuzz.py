@@ -9,7 +9,6 @@ import pytest
 from django.test import Client
 from hypothesis import HealthCheck, example, given, settings, strategies as st
 
-from tests.studyapp.conftest import make_ranking_study
 
 pytestmark = pytest.mark.django_db
 
@@ -188,3 +187,44 @@ def test_entry_rate_limit_per_ip(ranking_study, settings):
     with pytest.raises(ValueError):
         ratelimit.parse_rate("lots")
     cache.clear()
+
+
+def test_the_rate_limit_fails_open_when_its_cache_is_down(ranking_study, settings, caplog):
+    # A Redis outage must not stop the study: entries go through, and it is logged.
+    settings.CACHES = {"default": {"BACKEND": "django.core.cache.backends.redis.RedisCache",
+                                   "LOCATION": "redis://127.0.0.1:9/0"}}  # nothing listens
+    settings.STUDY_ENTRY_RATE_LIMIT = "1/h"
+    statuses = [Client().get(f"/s/{ranking_study.slug}/", {"PROLIFIC_PID": f"down{i}"}).status_code
+                for i in range(3)]
+    assert statuses == [302] * 3
+    assert "rate limit not applied" in caplog.text
+
+
+def test_a_refusal_says_how_long_to_wait(ranking_study, settings):
+    from django.core.cache import cache
+
+    from studyapp.survey import ratelimit
+
+    settings.STUDY_ENTRY_RATE_LIMIT = "1/h"
+    cache.clear()
+    client = Client()
+    assert client.get(f"/s/{ranking_study.slug}/", {"PROLIFIC_PID": "w1"}).status_code == 302
+    refused = client.get(f"/s/{ranking_study.slug}/", {"PROLIFIC_PID": "w2"})
+    assert refused.status_code == 429 and 1 <= int(refused["Retry-After"]) <= 3600
+    assert ratelimit.retry_after("1/h", now=7200.0 + 600) == 3000
+    assert ratelimit.retry_after("120/min", now=59.5) == 1
+    cache.clear()
+
+
+def test_long_crowd_ids_still_fit_in_the_cookie(ranking_study):
+    from studyapp.survey.flow import cookie_name
+    from studyapp.survey.models import Participant
+
+    ids = {name: "\u00e9\u4e2d" * 60 for name in ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID",
+                                                 "assignmentId", "hitId")}
+    client = Client()
+    client.get(f"/s/{ranking_study.slug}/", ids)
+    assert len(client.cookies[cookie_name(ranking_study)].value) < 4000
+    assert client.post(f"/s/{ranking_study.slug}/consent/", {"agree": "1"}).status_code == 302
+    stored = Participant.objects.get(study=ranking_study)
+    assert stored.external_ids["PROLIFIC_PID"].startswith("\u00e9\u4e2d")
