@@ -88,22 +88,19 @@ def parse_range(header: str, size: int):
     return start, end
 
 
-def file_response(request, source, content_type: str, etag: str, size=None, storage=None):
-    """Return the file (or the requested byte range of it) as an anonymous response.
+def file_response(request, name: str, content_type: str, etag: str):
+    """Return the stored file ``name`` (or the requested byte range of it) as an
+    anonymous response; the response closes the file.
 
-    ``source`` is a storage name under ``stimuli/`` (opened through ``storage``, by
-    default ``default_storage``) or an open binary file (its ``size`` given or known to
-    it); the response closes it. Raise FileNotFoundError when the name is not a
-    stimulus name or nothing is stored under it.
+    ``name`` must be a stimulus name under ``stimuli/``, opened through
+    ``default_storage``. Raise FileNotFoundError when it is not one, or nothing is
+    stored under it.
     """
-    if isinstance(source, str):
-        if not is_stimulus_name(source):
-            raise FileNotFoundError(f"not a stimulus name: {source!r}")
-        f = (storage or default_storage).open(source, "rb")
-    else:
-        f = source
+    if not is_stimulus_name(name):
+        raise FileNotFoundError(f"not a stimulus name: {name!r}")
+    f = default_storage.open(name, "rb")
     try:
-        size = f.size if size is None else size
+        size = f.size
     except BaseException:
         f.close()
         raise
