@@ -1,14 +1,18 @@
 # The two commands of the README: `make demo` and `make test`.
 PY := .venv/bin/python
 export PYOPENGL_PLATFORM ?= egl
+# Where `make demo` serves: make demo PORT=8010, or ADDR=0.0.0.0:8010 (all interfaces).
+PORT ?= 8000
+ADDR ?= 127.0.0.1:$(PORT)
 
 .PHONY: setup demo test serve loadtest
 
 setup:
 	@bash scripts/setup.sh
 
+# ARGS: more options of `manage.py demo`, e.g. ARGS=--no-serve (build only, as CI does).
 demo: setup
-	$(PY) manage.py demo
+	$(PY) manage.py demo --addr $(ADDR) $(ARGS)
 
 test: setup
 	$(PY) -m pytest

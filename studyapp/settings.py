@@ -145,6 +145,29 @@ DATABASES = {
     }
 }
 
+
+
+def ensure_folders(var_dir: Path, databases: dict) -> None:
+    """Create ``var_dir`` and the folder of every SQLite file before anything opens them.
+
+    A fresh clone has no ``var/`` (git ignores it); SQLite cannot create a file in a
+    missing folder ("unable to open database file"). A folder that cannot be made (a
+    read-only deployment using PostgreSQL and S3, say) is left for the first use to report.
+    """
+    folders = [Path(var_dir)]
+    for db in databases.values():
+        name = str(db.get("NAME", ""))
+        if db.get("ENGINE", "").endswith("sqlite3") and name and name != ":memory:":
+            folders.append(Path(name).parent)
+    for folder in folders:
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError:
+            pass
+
+
+ensure_folders(VAR_DIR, DATABASES)
+
 DEFAULT_AUTO_FIELD = "django.db.models.BigAutoField"
 
 AUTH_PASSWORD_VALIDATORS = []

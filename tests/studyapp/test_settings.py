@@ -60,3 +60,53 @@ def test_cache_urls():
                      "LOCATION": "redis://127.0.0.1:6379/1"}
     with pytest.raises(ValueError, match="STUDY_CACHE_URL 'memcached://x'.*redis://"):
         cache_from_url("memcached://x")
+
+
+def test_a_fresh_clone_without_var_migrates(tmp_path):
+    # git ignores var/: the first command must make it (and the SQLite file's folder).
+    var = tmp_path / "fresh" / "var"
+    done = manage("migrate", "--noinput", STUDY_VAR_DIR=str(var))
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert (var / "db.sqlite3").is_file()
+    nested = tmp_path / "elsewhere" / "deeper" / "db.sqlite3"
+    done = manage("migrate", "--noinput", STUDY_VAR_DIR=str(var),
+                  DATABASE_URL=f"sqlite:///{nested}")
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert nested.is_file()
+
+
+def test_demo_refuses_a_taken_port_before_building(tmp_path):
+    import socket
+    import time
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        start = time.monotonic()
+        done = manage("demo", "--addr", f"127.0.0.1:{port}", STUDY_VAR_DIR=str(tmp_path))
+        assert done.returncode != 0
+        assert f"port {port} on 127.0.0.1 is in use" in done.stderr
+        assert f"make demo PORT={port + 10}" in done.stderr
+        assert not (tmp_path / "demo").exists()  # nothing was built
+        assert time.monotonic() - start < 60
+
+
+def test_studies_links_use_the_address_served(tmp_path):
+    from studyapp.survey import site
+
+    assert site.url_of("0.0.0.0:8010") == "http://127.0.0.1:8010"
+    with pytest.raises(site.AddressError, match="HOST:PORT"):
+        site.split_addr("localhost:http")
+    (tmp_path / "served.json").write_text('{"base_url": "http://127.0.0.1:8010"}')
+    done = manage("studies", STUDY_VAR_DIR=str(tmp_path))
+    assert done.returncode != 0 and "run `python manage.py migrate`" in done.stderr
+    assert "Traceback" not in done.stderr
+    assert manage("migrate", "--noinput", STUDY_VAR_DIR=str(tmp_path)).returncode == 0
+    make = ("from studyapp.survey.models import Study; "
+            "Study.objects.create_study('ranking', 'links', 'Links', clips_per_trial=3)")
+    assert manage("shell", "-c", make, STUDY_VAR_DIR=str(tmp_path)).returncode == 0
+    done = manage("studies", STUDY_VAR_DIR=str(tmp_path))
+    assert "http://127.0.0.1:8010/s/links/" in done.stdout, done.stderr
+    done = manage("studies", STUDY_VAR_DIR=str(tmp_path), STUDY_BASE_URL="https://study.example.org/")
+    assert "https://study.example.org/s/links/" in done.stdout, done.stderr

@@ -1,9 +1,11 @@
 import json
 
-from django.core.management.base import BaseCommand
+from django.core.management.base import BaseCommand, CommandError
+from django.db import DatabaseError
 from django.urls import reverse
 
 from studyapp.survey.models import Stimulus, Study
+from studyapp.survey import site
 
 
 class Command(BaseCommand):
@@ -14,11 +16,18 @@ class Command(BaseCommand):
             "--json", action="store_true", dest="as_json", help="One JSON list, for scripts."
         )
         parser.add_argument(
-            "--base-url", default="http://127.0.0.1:8000", help="Site the links start with."
+            "--base-url", default=None,
+            help="Site the links start with (default: STUDY_BASE_URL, else the address the "
+                 "last `demo` served on, else http://127.0.0.1:8000).",
         )
 
-    def handle(self, *args, as_json=False, base_url="", **options):
-        rows = [self.describe(study, base_url) for study in Study.objects.with_counts()]
+    def handle(self, *args, as_json=False, base_url=None, **options):
+        base_url = base_url or site.base_url()
+        try:
+            rows = [self.describe(study, base_url) for study in Study.objects.with_counts()]
+        except DatabaseError as error:
+            raise CommandError(f"cannot read the studies ({error}); run `python manage.py "
+                               f"migrate` first (make demo does)") from None
         if as_json:
             self.stdout.write(json.dumps(rows, indent=2))
             return
