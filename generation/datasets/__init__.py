@@ -13,7 +13,7 @@ from generation.datasets.base import (
     register_dataset,
 )
 # Importing the dataset modules registers them.
-from generation.datasets import demo, h36m, h36m2d, humanact12  # noqa: F401, E402
+from generation.datasets import h36m, h36m2d, humanact12, synthetic  # noqa: F401, E402
 
 __all__ = ["Dataset", "DatasetError", "LoadReport", "get_dataset", "list_datasets",
            "register_dataset"]

@@ -9,7 +9,7 @@ from django.core.management import CommandError, call_command
 
 from generation.datasets import DatasetError, get_dataset, list_datasets
 from generation.datasets.cameras import load_cameras
-from generation.datasets.demo import ACTIONS, generate
+from generation.datasets.synthetic import ACTIONS, generate
 from generation.datasets.h36m import H36M, action_of
 from generation.datasets.h36m2d import H36M2D
 from generation.datasets.humanact12 import HumanAct12
