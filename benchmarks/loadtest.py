@@ -34,7 +34,11 @@ from benchmarks.server import Server, create_database, drop_database, server_env
 CSRF = re.compile(r'name="csrfmiddlewaretoken" value="([^"]+)"')
 TRIAL = re.compile(r'name="trial" value="(\d+)"')
 RANK = re.compile(r'name="rank_([A-Za-z0-9_-]+)"')
+CLIP = re.compile(r'<video src="(/c/[A-Za-z0-9_-]+\.mp4)"')
 TIMEOUT = 60
+# The server takes an answer only once the clips were fetched whole and have had time to
+# play (their length: the tiny load-test clips last 0.4 s) since the page was served.
+CLIP_SECONDS = 0.4
 
 
 class HttpError(RuntimeError):
@@ -99,6 +103,10 @@ class Bot:
     def on_trial(self) -> bool:
         return self.at.endswith("/trial/")
 
+    def clips(self) -> list[str]:
+        """Return the clip URLs of the trial on the page (fetched as a browser does)."""
+        return CLIP.findall(self.page)
+
 
 class Participant(Bot):
     """A blocking bot on one kept-alive ``http.client`` connection (for tests)."""
@@ -160,8 +168,18 @@ class Participant(Bot):
             raise HttpError(f"instructions: HTTP {status}")
         self.page = self.get(location)
 
+    def watch(self) -> None:
+        """Fetch the page's clips whole and wait as long as they play."""
+        shown = time.monotonic()
+        for url in self.clips():
+            status, _, _ = self.request("GET", url)
+            if status != 200:
+                raise HttpError(f"GET {url}: HTTP {status}")
+        time.sleep(max(0.0, CLIP_SECONDS - (time.monotonic() - shown)))
+
     def answer(self) -> str:
-        """Submit the trial on the page; return where the server sent us."""
+        """Watch the trial on the page, submit it; return where the server sent us."""
+        self.watch()
         data = self.answer_data()
         begun = time.perf_counter()
         status, location = self.post(self.path("trial"), data)
@@ -187,6 +205,7 @@ class AsyncParticipant(Bot):
         reader, writer = await asyncio.open_connection(self.host, self.port)
         try:
             writer.write(head.encode() + b"\r\n" + payload)
+            await writer.drain()
             status_line = await reader.readline()
             if not status_line:
                 raise HttpError(f"{method} {path}: the server closed the connection")
@@ -195,7 +214,8 @@ class AsyncParticipant(Bot):
             while (line := await reader.readline()) not in (b"\r\n", b"\n", b""):
                 name, _, value = line.decode("latin-1").partition(":")
                 headers.append((name.strip(), value.strip()))
-            text = (await reader.read()).decode(errors="replace")
+            text = (await reader.read()).decode("latin-1" if path.startswith("/c/") else "utf-8",
+                                                errors="replace")
         finally:
             writer.close()
         self.keep_cookies(headers)
@@ -226,8 +246,13 @@ class AsyncParticipant(Bot):
         await self.step("consent", {"agree": "1"})
         await self.step("instructions", {})
         while self.on_trial():
-            if think:
-                await asyncio.sleep(self.rng.uniform(0.5, 1.5) * think)
+            shown = time.monotonic()
+            for url in self.clips():  # as a browser's media player: each clip whole
+                status, _, _ = await self.request("GET", url)
+                if status != 200:
+                    raise HttpError(f"GET {url}: HTTP {status}")
+            wait = self.rng.uniform(0.5, 1.5) * think if think else 0.0
+            await asyncio.sleep(max(wait, CLIP_SECONDS) - (time.monotonic() - shown))
             data = self.answer_data()
             begun = time.perf_counter()
             status, location, _ = await self.request("POST", self.path("trial"), self.form(data))
@@ -243,7 +268,7 @@ def make_study(slug: str, media_root: Path, actions=("walk", "wave", "jump"),
     from django.conf import settings
 
     from studyapp.survey.models import Study
-    from studyapp.survey.stimuli import register_clips
+    from studyapp.survey.stimuli import Clip, register_clips
     from tests.studyapp.conftest import FPS, FRAMES, write_clip
 
     settings.MEDIA_ROOT = media_root
@@ -254,10 +279,9 @@ def make_study(slug: str, media_root: Path, actions=("walk", "wave", "jump"),
         for source in sources:
             path = clips_dir / f"{action}-{source}.mp4"
             write_clip(path, tuple(rng.randrange(30, 225) for _ in range(3)))
-            clips.append({"action": action, "source": source, "video": path,
-                          "duration": FRAMES / FPS, "motion_hash": f"{action}-{source}"})
-    study = Study.objects.create_ranking(
-        slug, "Movement study", clips_per_trial=3, trials_per_participant=trials,
+            clips.append(Clip(action, source, path, FRAMES / FPS, motion_hash=f"{action}-{source}"))
+    study = Study.objects.create_study(
+        "ranking", slug, "Movement study", clips_per_trial=3, trials_per_participant=trials,
         data_note="Synthetic load-test data.",
     )
     register_clips(study, clips)
@@ -275,8 +299,9 @@ def check(study, acknowledged: list[int]) -> dict:
     missing = set(ack) - set(answered.values_list("pk", flat=True))
     bad = 0
     ranks: dict[int, list] = {}
-    for trial_id, rank in TrialItem.objects.filter(trial__in=answered).values_list("trial", "rank"):
-        ranks.setdefault(trial_id, []).append(rank)
+    rows = TrialItem.objects.filter(trial__in=answered).values_list("trial", "answers")
+    for trial_id, answers in rows:
+        ranks.setdefault(trial_id, []).append(answers.get("preference"))
     for values in ranks.values():
         bad += sorted(values) != list(range(1, len(values) + 1))
     per_stimulus = Counter(

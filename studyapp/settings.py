@@ -70,6 +70,10 @@ MIDDLEWARE = [
 
 # New participants per IP address (entry link and consent); generous for shared NATs.
 STUDY_ENTRY_RATE_LIMIT = os.environ.get("STUDY_ENTRY_RATE_LIMIT", "120/min")
+# An answer is taken only this many times the clips' length after its page was served
+# (and once every clip was fetched whole). 1: as long as the clips play. Tests of other
+# things lower it; a study should not.
+STUDY_WATCH_TIME_FACTOR = 1.0
 # Background jobs (stimulus builds, long analyses) go to Celery when a broker is set,
 # e.g. redis://127.0.0.1:6379/0; otherwise they run in a thread of the web process.
 STUDY_CELERY_BROKER = os.environ.get("STUDY_CELERY_BROKER", "")
@@ -93,7 +97,8 @@ ROOT_URLCONF = "studyapp.urls"
 TEMPLATES = [
     {
         "BACKEND": "django.template.backends.django.DjangoTemplates",
-        "DIRS": [],
+        # Each study type's trial template lives beside its module (study_types/<key>.html).
+        "DIRS": [BASE_DIR / "studyapp" / "survey" / "study_types"],
         "APP_DIRS": True,
         "OPTIONS": {
             "context_processors": [
@@ -154,7 +159,7 @@ def ensure_folders(var_dir: Path, databases: dict) -> None:
     missing folder ("unable to open database file"). A folder that cannot be made (a
     read-only deployment using PostgreSQL and S3, say) is left for the first use to report.
     """
-    folders = [Path(var_dir)]
+    folders = [Path(var_dir), Path(var_dir) / "static"]
     for db in databases.values():
         name = str(db.get("NAME", ""))
         if db.get("ENGINE", "").endswith("sqlite3") and name and name != ":memory:":

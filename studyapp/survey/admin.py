@@ -24,16 +24,6 @@ from studyapp.survey.models import (
 )
 
 
-def role(stimulus) -> str:
-    """Return what a stimulus is for, as shown to the researcher."""
-    flags = [
-        (stimulus.is_catch, "catch"),
-        (stimulus.is_reference, "reference"),
-        (stimulus.is_standard_example, "standard example"),
-    ]
-    return next((name for flag, name in flags if flag), "judged")
-
-
 class ReadOnlyAdmin(admin.ModelAdmin):
     def has_add_permission(self, request, obj=None):
         return False
@@ -52,7 +42,7 @@ class ScoringStandardInline(admin.TabularInline):
         if db_field.name == "stimulus":
             study_id = request.resolver_match.kwargs.get("object_id")
             kwargs["queryset"] = Stimulus.objects.filter(
-                study_id=study_id, is_standard_example=True
+                study_id=study_id, role=Stimulus.Role.EXAMPLE
             )
         return super().formfield_for_foreignkey(db_field, request, **kwargs)
 
@@ -87,14 +77,16 @@ class StudyAdmin(admin.ModelAdmin):
                     "trials_per_participant",
                     "practice",
                     "catch_trials",
+                    "max_failed_catch",
                     "repeat_trials",
-                    "allow_ties",
                     "ask_demographics",
+                    "options",
+                    "criteria",
                 ]
             },
         ),
         ("Texts", {"fields": ["instructions", "consent_text"], "classes": ["collapse"]}),
-        ("Crowd platform", {"fields": ["completion_url", "max_participants"]}),
+        ("Crowd platform", {"fields": ["crowd", "completion_url", "max_participants"]}),
         ("Progress", {"fields": ["participant_link", "preview_link", "results_link", "progress",
                                  "created_at"]}),
     ]
@@ -153,16 +145,17 @@ class StudyAdmin(admin.ModelAdmin):
         # Reference and example clips are never judged: only judged and catch clips count.
         stimuli = (
             Stimulus.objects.with_judgements()
-            .filter(study=obj, is_reference=False, is_standard_example=False)
+            .filter(study=obj)
+            .exclude(role__in=[Stimulus.Role.REFERENCE, Stimulus.Role.EXAMPLE])
             .order_by("action", "source", "pk")
         )
         rows = format_html_join(
             "",
             "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
-            ((s.action, s.source, role(s), s.n_judgements) for s in stimuli),
+            ((s.action, s.source, s.get_role_display(), s.n_judgements) for s in stimuli),
         )
         return format_html(
-            "<p>{} started, {} completed, {} excluded (failed a catch trial), "
+            "<p>{} started, {} completed, {} excluded (failed the attention checks), "
             "{} judgements.</p><table><thead><tr><th>Action</th><th>Source</th>"
             "<th>Role</th><th>Judgements</th></tr></thead><tbody>{}</tbody></table>",
             counts.n_started,
@@ -205,7 +198,7 @@ class StimulusAdmin(admin.ModelAdmin):
         "judgements",
         "token",
     ]
-    list_filter = ["study", "action", "source", "is_catch", "is_reference", "is_standard_example"]
+    list_filter = ["study", "action", "source", "role"]
     search_fields = ["token", "video_hash", "motion_hash"]
     readonly_fields = ["preview", "token", "video", "poster", "video_hash", "motion_hash"]
 
@@ -220,24 +213,20 @@ class StimulusAdmin(admin.ModelAdmin):
     def judgements(self, obj):
         return obj.n_judgements
 
-    @admin.display(description="Role")
-    def role(self, obj):
-        return role(obj)
-
     @admin.display(description="Clip")
     def preview(self, obj):
         return format_html(
             '<video src="{}" poster="{}" width="96" muted loop playsinline preload="none" '
             'onmouseover="this.play()" onmouseout="this.pause()"></video>',
-            obj.get_absolute_url(),
-            obj.poster_url(),
+            obj.preview_url("mp4"),
+            obj.preview_url("png") if obj.poster else "",
         )
 
 
 class TrialInline(admin.TabularInline):
     model = Trial
     fields = [
-        "index", "kind", "action", "choice", "catch_passed", "shown_at", "answered_at", "time_ms"
+        "index", "kind", "action", "answers", "catch_passed", "shown_at", "answered_at", "time_ms"
     ]
     readonly_fields = fields
     extra = 0
@@ -257,10 +246,11 @@ class ParticipantAdmin(admin.ModelAdmin):
         "consented_at",
         "answered",
         "failed_catch",
+        "outcome",
         "completed_at",
         "completion_code",
     ]
-    list_filter = ["study", ("completed_at", admin.EmptyFieldListFilter)]
+    list_filter = ["study", "outcome", ("completed_at", admin.EmptyFieldListFilter)]
     search_fields = ["external_key", "completion_code", "token"]
     readonly_fields = [
         "study",
@@ -271,6 +261,7 @@ class ParticipantAdmin(admin.ModelAdmin):
         "created_at",
         "consented_at",
         "completed_at",
+        "outcome",
         "completion_code",
         "user_agent",
         "demographics",
@@ -308,7 +299,7 @@ class ParticipantAdmin(admin.ModelAdmin):
 
 class TrialItemInline(admin.TabularInline):
     model = TrialItem
-    fields = ["position", "stimulus", "source", "rank", "rating", "judged_real", "plays"]
+    fields = ["position", "role", "stimulus", "source", "answers", "plays", "fetched_at"]
     readonly_fields = fields
     extra = 0
     can_delete = False
@@ -327,7 +318,7 @@ class TrialAdmin(ReadOnlyAdmin):
         "__str__",
         "kind",
         "action",
-        "choice",
+        "answers",
         "catch_passed",
         "shown_at",
         "answered_at",
@@ -352,9 +343,7 @@ class ResponseAdmin(ReadOnlyAdmin):
         "source",
         "kind",
         "position",
-        "rank",
-        "rating",
-        "judged_real",
+        "answers",
         "choice",
         "plays",
         "time_ms",
@@ -364,9 +353,6 @@ class ResponseAdmin(ReadOnlyAdmin):
         "trial__kind",
         "stimulus__action",
         "stimulus__source",
-        "rank",
-        "rating",
-        "judged_real",
     ]
     list_select_related = ["trial__participant__study", "stimulus"]
 
@@ -390,9 +376,9 @@ class ResponseAdmin(ReadOnlyAdmin):
     def kind(self, obj):
         return obj.trial.kind
 
-    @admin.display(ordering="trial__choice")
+    @admin.display(description="Answer on the trial")
     def choice(self, obj):
-        return obj.trial.choice
+        return obj.trial.answers
 
     @admin.display(description="Time (ms)", ordering="trial__time_ms")
     def time_ms(self, obj):

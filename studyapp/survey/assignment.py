@@ -33,7 +33,8 @@ def stimuli_by_action(study) -> dict[str, dict[str, list[Stimulus]]]:
 def item_counts(study) -> Counter:
     """Return how many main-trial items each stimulus (by id) has so far."""
     rows = (
-        TrialItem.objects.filter(stimulus__study=study, trial__kind=Trial.Kind.MAIN)
+        TrialItem.objects.judged()
+        .filter(stimulus__study=study, trial__kind=Trial.Kind.MAIN)
         .values("stimulus")
         .annotate(n=Count("pk"))
         .values_list("stimulus", "n")
@@ -44,7 +45,8 @@ def item_counts(study) -> Counter:
 def position_counts(study) -> Counter:
     """Return how often each ``(source, position)`` has been shown in main trials so far."""
     rows = (
-        TrialItem.objects.filter(stimulus__study=study, trial__kind=Trial.Kind.MAIN)
+        TrialItem.objects.judged()
+        .filter(stimulus__study=study, trial__kind=Trial.Kind.MAIN)
         .values("stimulus__source", "position")
         .annotate(n=Count("pk"))
         .values_list("stimulus__source", "position", "n")
@@ -105,12 +107,22 @@ class Pool:
     catches: list
     items: Counter
     positions: Counter
+    practice: list
+    shown: dict  # role -> {action: [stimuli]} (references, examples, anchors)
 
     @classmethod
     def of(cls, study) -> "Pool":
-        catches = Stimulus.objects.filter(study=study, is_catch=True).order_by("action", "pk")
+        others = Stimulus.objects.filter(study=study).exclude(role=Stimulus.Role.JUDGED)
+        by_role = defaultdict(list)
+        for stimulus in others.order_by("action", "pk"):
+            by_role[stimulus.role].append(stimulus)
+        shown = defaultdict(lambda: defaultdict(list))
+        for role, stimuli in by_role.items():
+            for stimulus in stimuli:
+                shown[role][stimulus.action].append(stimulus)
         return cls(
-            stimuli_by_action(study), list(catches), item_counts(study), position_counts(study)
+            stimuli_by_action(study), by_role[Stimulus.Role.CATCH], item_counts(study),
+            position_counts(study), by_role[Stimulus.Role.PRACTICE], shown,
         )
 
 
@@ -129,8 +141,6 @@ def arrange(main: list, catch: list, n_repeats: int, rng) -> list:
     clips in mirrored order (left and right swapped in a pair), at least
     ``REPEAT_GAP`` trials later when the session allows it.
     """
-    from studyapp.survey.study_types.base import TrialPlan
-
     session = list(main)
     for plan in catch:
         session.insert(rng.randint(1, len(session)) if session else 0, plan)
@@ -138,12 +148,5 @@ def arrange(main: list, catch: list, n_repeats: int, rng) -> list:
     for original in rng.sample(early, min(n_repeats, len(early))):
         at = session.index(original)
         later = min(at + 1 + REPEAT_GAP, len(session))
-        repeat = TrialPlan(
-            original.action,
-            original.stimuli[::-1],
-            Trial.Kind.REPEAT,
-            repeat_of=original,
-            reference=original.reference,
-        )
-        session.insert(rng.randint(later, len(session)), repeat)
+        session.insert(rng.randint(later, len(session)), original.repeated())
     return session

@@ -6,12 +6,9 @@ database connection, as any thread that uses the ORM must.
 
 from __future__ import annotations
 
-from pathlib import Path
-
-from django.conf import settings
 from django.db import close_old_connections
 
-from studyapp.survey.stimulus_build import build_stimuli
+from studyapp.survey.stimulus_build import build_stimuli, default_folders
 from studyapp.survey.stimulus_config import load_config
 
 
@@ -24,7 +21,7 @@ def run_build(config_path, progress_callback=None, overrides=(), folder=None):
     close_old_connections()
     try:
         config = load_config(config_path, overrides)
-        folder = Path(folder or Path(settings.VAR_DIR) / "stimuli" / config.slug)
-        return build_stimuli(config, folder, progress=progress_callback)
+        folder, cache = default_folders(config, folder)
+        return build_stimuli(config, folder, progress=progress_callback, cache=cache)
     finally:
         close_old_connections()

@@ -37,12 +37,14 @@ class _Span:
     """``length`` bytes of an open storage file from ``start``; ``close`` closes the file.
 
     A file of django-storages' S3 backend (it has the boto3 ``obj``) is read with a
-    ranged GET, so a seek in a long clip does not download all of it.
+    ranged GET, so a seek in a long clip does not download all of it. ``on_sent`` is
+    called once the last byte was handed to the server (not when the client went away).
     """
 
-    def __init__(self, f, start: int, length: int):
+    def __init__(self, f, start: int, length: int, on_sent=None):
         self.f, self.start, self.length = f, start, length
         self.body = None
+        self.on_sent = on_sent
 
     def __iter__(self):
         length = self.length
@@ -61,6 +63,8 @@ class _Span:
                 return
             length -= len(chunk)
             yield chunk
+        if self.on_sent is not None:
+            self.on_sent()
 
     def close(self):
         try:
@@ -88,13 +92,14 @@ def parse_range(header: str, size: int):
     return start, end
 
 
-def file_response(request, name: str, content_type: str, etag: str):
+def file_response(request, name: str, content_type: str, etag: str, on_sent=None):
     """Return the stored file ``name`` (or the requested byte range of it) as an
     anonymous response; the response closes the file.
 
     ``name`` must be a stimulus name under ``stimuli/``, opened through
     ``default_storage``. Raise FileNotFoundError when it is not one, or nothing is
-    stored under it.
+    stored under it. ``on_sent(start, end, size)`` is called when the bytes ``start``
+    to ``end`` (inclusive) of a GET were all sent.
     """
     if not is_stimulus_name(name):
         raise FileNotFoundError(f"not a stimulus name: {name!r}")
@@ -128,5 +133,6 @@ def file_response(request, name: str, content_type: str, etag: str):
     if request.method == "HEAD":
         f.close()
         return HttpResponse(status=status, content_type=content_type, headers=headers)
-    body = _Span(f, start, end - start + 1)
+    done = (lambda: on_sent(start, end, size)) if on_sent is not None else None
+    body = _Span(f, start, end - start + 1, done)
     return StreamingHttpResponse(body, status=status, content_type=content_type, headers=headers)

@@ -1,15 +1,20 @@
 """Studies, their stimuli, participants, trials and answers.
 
-A judgement is one :class:`TrialItem` of an answered trial that is not a practice
-trial, with its answer filled in: ``rank`` (ranking), ``rating`` (1..5) or
-``judged_real`` on the item, or ``choice`` on the trial (pairwise). Catch and repeated
-trials are judgements too, marked by ``Trial.kind`` and graded in
-``Trial.catch_passed``. What a trial asks and how its answer is checked belongs to the
-study's type (:mod:`studyapp.survey.study_types`).
+A trial shows items: the clips to judge (``TrialItem.role`` ``judged``) and the clips
+shown beside them for context (a real ``reference``, the ``example`` clips of a scoring
+standard). Every item has its own opaque token, so the same clip shown twice (a repeated
+trial) is two URLs, and the server knows which item's bytes a participant fetched.
+
+A judgement is one judged item of an answered trial that is not a practice trial. Its
+answer is stored per criterion: ``TrialItem.answers`` (``{"preference": 2}``, a rank) and
+``Trial.answers`` (``{"preference": "left"}``, a pairwise choice). What a trial asks, how
+its answer is checked, graded, exported and analysed belongs to the study's type
+(:mod:`studyapp.survey.study_types`); nothing here branches on it.
 """
 
 import random
 import secrets
+from datetime import timedelta
 
 from django.core.exceptions import ValidationError
 from django.core.validators import MaxValueValidator, MinValueValidator
@@ -18,11 +23,6 @@ from django.db.models import Count, F, OuterRef, Q, Subquery
 from django.db.models.functions import Coalesce
 from django.urls import reverse
 from django.utils import timezone
-
-# Query parameters crowd platforms append to the study link; the first group names a
-# person, so the same value cannot take a study twice.
-IDENTITY_PARAMS = ("PROLIFIC_PID", "workerId", "participant_label")
-EXTERNAL_PARAMS = IDENTITY_PARAMS + ("STUDY_ID", "SESSION_ID", "assignmentId", "hitId")
 
 
 def new_token() -> str:
@@ -58,11 +58,12 @@ def _count(queryset, group: str):
 
 class StudyManager(models.Manager):
     def create_study(self, study_type: str, slug: str, title: str, **fields) -> "Study":
-        """Create a study of a registered type, filling in its default texts."""
+        """Create a study of a registered type, filling in its default texts and options."""
         from studyapp.survey.study_types import get_study_type
 
         kind = get_study_type(study_type)
         fields.setdefault("clips_per_trial", kind.default_clips_per_trial)
+        fields["options"] = kind.check_options(fields.get("options") or {})
         study = self.model(study_type=study_type, slug=slug, title=title, **fields)
         study.instructions = study.instructions or kind.default_instructions(study)
         study.consent_text = study.consent_text or kind.default_consent
@@ -70,25 +71,20 @@ class StudyManager(models.Manager):
         study.save()
         return study
 
-    def create_ranking(self, slug: str, title: str, **fields) -> "Study":
-        """Create a preference-ranking study (seed 000, Sec. 4.2.5)."""
-        return self.create_study("ranking", slug, title, **fields)
-
     def with_counts(self):
         """Annotate participants started/completed and answered judgements."""
         participants = Participant.objects.filter(study=OuterRef("pk"))
-        judgements = TrialItem.objects.filter(
+        judgements = TrialItem.objects.judged().filter(
             trial__participant__study=OuterRef("pk"), trial__answered_at__isnull=False
         )
-        failed = Trial.objects.filter(kind=Trial.Kind.CATCH, catch_passed=False)
         return self.annotate(
-            n_started=_count(participants, "study"),
+            n_started=_count(participants.exclude(consented_at=None), "study"),
             n_completed=_count(participants.filter(completed_at__isnull=False), "study"),
             n_judgements=_count(
                 judgements.exclude(trial__kind=Trial.Kind.PRACTICE), "trial__participant__study"
             ),
             n_excluded=_count(
-                participants.filter(pk__in=failed.values("participant")), "study"
+                participants.filter(outcome=Participant.Outcome.FAILED_ATTENTION), "study"
             ),
         )
 
@@ -105,15 +101,6 @@ class StudyManager(models.Manager):
 
 
 class Study(models.Model):
-    class Type(models.TextChoices):
-        """Keys of the built-in study types; the registry in ``study_types`` decides."""
-
-        RANKING = "ranking", "Preference ranking"
-        FAKE_OR_REAL = "fake_or_real", "Fake or real"
-        RATING_STANDARDS = "rating_standards", "Realism rating with scoring standards"
-        RATING_REFERENCE = "rating_reference", "Realism rating with a real reference"
-        PAIRWISE = "pairwise", "Pairwise preference"
-
     class Status(models.TextChoices):
         DRAFT = "draft", "Draft"
         OPEN = "open", "Open"
@@ -121,7 +108,7 @@ class Study(models.Model):
 
     slug = models.SlugField(unique=True)
     title = models.CharField(max_length=200, help_text="Shown to participants: name no method.")
-    study_type = models.CharField(max_length=32, choices=study_type_choices, default=Type.RANKING)
+    study_type = models.CharField(max_length=32, choices=study_type_choices, default="ranking")
     status = models.CharField(max_length=16, choices=Status.choices, default=Status.OPEN)
     dataset = models.CharField(max_length=64, blank=True)
     data_note = models.CharField(
@@ -137,19 +124,38 @@ class Study(models.Model):
     catch_trials = models.PositiveSmallIntegerField(
         default=0, help_text="Trials per participant with a broken clip (stimuli marked catch)."
     )
+    max_failed_catch = models.PositiveSmallIntegerField(
+        default=0, help_text="More failed catch trials than this: the outcome is a failed "
+        "attention check (its own completion code)."
+    )
     repeat_trials = models.PositiveSmallIntegerField(
         default=0, help_text="Main trials shown again later, to measure consistency."
-    )
-    allow_ties = models.BooleanField(
-        default=False, help_text='Pairwise: also offer "both equally good" and "both equally bad".'
     )
     ask_demographics = models.BooleanField(
         default=False, help_text="Ask age range, gender and comments (all optional) at the end."
     )
+    options = models.JSONField(
+        default=dict, blank=True, help_text="The study type's own options (see README)."
+    )
+    criteria = models.JSONField(
+        default=list, blank=True,
+        help_text='Questions asked of the same clips, e.g. [{"key": "naturalness", "question": '
+        '"..."}, {"key": "fit", "question": "..."}]; empty: the type\'s one question.',
+    )
+    crowd = models.JSONField(
+        default=dict, blank=True,
+        help_text='Crowd platform: {"platform": "prolific", "codes": {"completed": ..., '
+        '"failed_attention": ..., "no_consent": ..., "screened_out": ...}, '
+        '"time_limit_minutes": 30}; see README, "Crowd platforms".',
+    )
     instructions = models.TextField(blank=True)
     consent_text = models.TextField(blank=True)
-    completion_url = models.URLField(blank=True, help_text="Where to send participants at the end.")
-    max_participants = models.PositiveIntegerField(null=True, blank=True)
+    completion_url = models.URLField(
+        blank=True, help_text="Where to send participants at the end (studies without a platform)."
+    )
+    max_participants = models.PositiveIntegerField(
+        null=True, blank=True, help_text="Finished and active participants at most."
+    )
     created_at = models.DateTimeField(auto_now_add=True)
 
     objects = StudyManager()
@@ -171,17 +177,25 @@ class Study(models.Model):
 
         return get_study_type(self.study_type)
 
+    @property
+    def platform(self):
+        """Return this study's crowd platform adapter (:mod:`studyapp.survey.crowd`)."""
+        from studyapp.survey.crowd import platform_of
+
+        return platform_of(self)
+
     def clean(self):
         try:
             kind = self.kind
         except KeyError:
             return  # the study_type field reports the unknown type
-        if not kind.min_items <= self.clips_per_trial <= (kind.max_items or self.clips_per_trial):
-            most = f" and at most {kind.max_items}" if kind.max_items else ""
-            raise ValidationError(
-                {"clips_per_trial": f"A {kind.label.lower()} trial shows at least "
-                 f"{kind.min_items}{most} clips."}
-            )
+        errors = kind.clean_study(self)
+        try:
+            self.platform
+        except ValueError as exc:
+            errors["crowd"] = str(exc)
+        if errors:
+            raise ValidationError(errors)
 
     def shown_instructions(self) -> str:
         """Return the instructions, or the study type's default when left blank."""
@@ -190,11 +204,19 @@ class Study(models.Model):
     def shown_consent(self) -> str:
         return self.consent_text or self.kind.default_consent
 
+    def option(self, name: str):
+        """Return the study type's option ``name`` (its default when not set)."""
+        return self.kind.option(self, name)
+
+    def time_limit(self) -> timedelta | None:
+        minutes = (self.crowd or {}).get("time_limit_minutes")
+        return timedelta(minutes=minutes) if minutes else None
+
     def is_full(self) -> bool:
-        return (
-            self.max_participants is not None
-            and self.participants.count() >= self.max_participants
-        )
+        """Whether finished and active participants fill ``max_participants``."""
+        if self.max_participants is None:
+            return False
+        return Participant.objects.holding_a_place(self).count() >= self.max_participants
 
     def participant_url(self, base: str = "") -> str:
         """Return the link participants open, absolute when ``base`` is a site URL."""
@@ -203,36 +225,45 @@ class Study(models.Model):
 
 class StimulusManager(models.Manager):
     def judged(self):
-        """Return the stimuli that can be judged: no catch, reference or example clips."""
-        return self.filter(is_catch=False, is_reference=False, is_standard_example=False)
+        """Return the stimuli that are judged in main trials."""
+        return self.filter(role=Stimulus.Role.JUDGED)
 
     def with_judgements(self):
-        """Annotate ``n_judgements``: answered, non-practice trial items of each stimulus."""
-        answered = Q(items__trial__answered_at__isnull=False) & ~Q(
-            items__trial__kind=Trial.Kind.PRACTICE
+        """Annotate ``n_judgements``: answered, non-practice judged items of each stimulus."""
+        answered = (
+            Q(items__trial__answered_at__isnull=False)
+            & ~Q(items__trial__kind=Trial.Kind.PRACTICE)
+            & Q(items__role=TrialItem.Role.JUDGED)
         )
         return self.annotate(n_judgements=Count("items", filter=answered))
 
 
 class Stimulus(models.Model):
+    class Role(models.TextChoices):
+        JUDGED = "judged", "Judged"
+        CATCH = "catch", "Catch (an obviously broken clip)"
+        REFERENCE = "reference", "Reference (a real clip shown or hidden for comparison)"
+        EXAMPLE = "example", "Scoring-standard example"
+        ANCHOR = "anchor", "Low anchor (a degraded clip rated among the others)"
+        PRACTICE = "practice", "Practice only"
+
     study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="stimuli")
-    token = models.CharField(max_length=32, unique=True, default=new_token, editable=False)
+    token = models.CharField(
+        max_length=32, unique=True, default=new_token, editable=False,
+        help_text="For staff previews only; participants see per-trial tokens.",
+    )
     action = models.CharField(max_length=100)
+    prompt = models.TextField(blank=True, help_text="The text prompt the motion answers, if any.")
     source = models.CharField(max_length=100, help_text="'real' or a method key; never shown.")
-    video = models.CharField(max_length=300, help_text="Path under MEDIA_ROOT.")
+    role = models.CharField(max_length=16, choices=Role.choices, default=Role.JUDGED)
+    video = models.CharField(max_length=300, help_text="Storage name of the mp4.")
     poster = models.CharField(max_length=300, blank=True)
+    motion = models.CharField(
+        max_length=300, blank=True, help_text="Storage name of the in-browser player's data."
+    )
     duration = models.FloatField(help_text="Seconds.")
     motion_hash = models.CharField(max_length=64, blank=True)
     video_hash = models.CharField(max_length=64, blank=True)
-    is_catch = models.BooleanField(
-        default=False, help_text="An obviously broken clip for attention checks."
-    )
-    is_reference = models.BooleanField(
-        default=False, help_text="A real clip shown for reference, never rated."
-    )
-    is_standard_example = models.BooleanField(
-        default=False, help_text="The example clip of a scoring standard, never rated."
-    )
     created_at = models.DateTimeField(auto_now_add=True)
 
     objects = StimulusManager()
@@ -247,49 +278,63 @@ class Stimulus(models.Model):
                 condition=~Q(video_hash=""),
                 name="one_stimulus_per_video",
             ),
-            models.CheckConstraint(
-                condition=Q(is_catch=False, is_reference=False)
-                | Q(is_catch=False, is_standard_example=False)
-                | Q(is_reference=False, is_standard_example=False),
-                name="at_most_one_stimulus_role",
-            ),
         ]
 
     def __str__(self):
         return f"{self.study.slug}:{self.action}:{self.source}:{self.pk}"
 
-    def get_absolute_url(self):
-        return reverse("survey:clip", args=[self.token, "mp4"])
+    @property
+    def is_catch(self) -> bool:
+        return self.role == self.Role.CATCH
 
-    def poster_url(self) -> str:
-        return reverse("survey:clip", args=[self.token, "png"]) if self.poster else ""
+    def preview_url(self, ext: str = "mp4") -> str:
+        """Return the staff-only URL of this stimulus' file (the admin, previews)."""
+        return reverse("survey:preview_clip", args=[self.token, ext])
 
 
 class ParticipantManager(models.Manager):
-    def find(self, study: Study, external_ids: dict):
-        """Return the participant whose platform id is in ``external_ids``, or None."""
-        key = external_key(external_ids)
+    def find(self, study: Study, key: str):
+        """Return the participant whose platform id is ``key``, or None."""
         return self.filter(study=study, external_key=key).first() if key else None
 
-    def enroll(self, study: Study, external_ids: dict, user_agent: str = "") -> "Participant":
-        """Admit a consenting participant, or raise :class:`Unavailable`."""
+    def holding_a_place(self, study: Study):
+        """Return the participants who count against ``max_participants``: finished, or
+        consented and still within the study's time limit."""
+        people = self.filter(study=study, consented_at__isnull=False)
+        finished = Q(completed_at__isnull=False)
+        active = Q(completed_at__isnull=True, outcome="")
+        limit = study.time_limit()
+        if limit is not None:
+            active &= Q(consented_at__gt=timezone.now() - limit)
+        return people.filter(finished | active)
+
+    def enroll(self, study: Study, external_ids: dict, key: str, user_agent: str = "",
+               outcome: str = "") -> "Participant":
+        """Admit a consenting participant (or record one who declined or was screened out
+        with ``outcome``), or raise :class:`Unavailable`."""
         with transaction.atomic():
             study = Study.objects.lock(study.pk)
-            existing = self.find(study, external_ids)
+            existing = self.find(study, key)
             if existing is not None:
-                if existing.completed_at is not None:
+                if existing.is_finished():
                     raise Unavailable("taken")
+                if existing.timed_out():
+                    raise Unavailable("timed_out")
                 return existing
             if study.status != Study.Status.OPEN:
                 raise Unavailable("closed")
-            if study.is_full():
+            if not outcome and study.is_full():
                 raise Unavailable("full")
+            now = timezone.now()
             return self.create(
                 study=study,
                 external_ids=external_ids,
-                external_key=external_key(external_ids),
+                external_key=key,
                 seed=secrets.randbits(62),
-                consented_at=timezone.now(),
+                consented_at=None if outcome else now,
+                completed_at=now if outcome else None,
+                outcome=outcome,
+                completion_code=study.platform.code_for(outcome) if outcome else "",
                 user_agent=user_agent[:300],
             )
 
@@ -306,15 +351,12 @@ class ParticipantManager(models.Manager):
                     participant=participant,
                     index=index,
                     action=plan.action,
+                    prompt=plan.prompt,
                     kind=plan.kind,
                     repeat_of=created.get(id(plan.repeat_of)),
-                    reference=plan.reference,
                 )
                 created[id(plan)] = trial
-                TrialItem.objects.bulk_create(
-                    TrialItem(trial=trial, stimulus=stimulus, position=position)
-                    for position, stimulus in enumerate(plan.stimuli)
-                )
+                TrialItem.objects.bulk_create(plan.items(trial))
 
     def by_token(self, study: Study, token: str):
         """Return the study's participant with ``token``, or None, with ``n_trials``,
@@ -345,6 +387,32 @@ class ParticipantManager(models.Manager):
         self.filter(pk=participant.pk, demographics__isnull=True).update(demographics=answers)
         participant.refresh_from_db(fields=["demographics"])
 
+    def mark_timed_out(self, participant: "Participant") -> None:
+        """Record that the participant ran out of time (as the platform times them out)."""
+        if self.filter(pk=participant.pk, outcome="", completed_at=None).update(
+            outcome=Participant.Outcome.TIMED_OUT
+        ):
+            participant.outcome = Participant.Outcome.TIMED_OUT
+
+    def finish(self, participant: "Participant", now) -> None:
+        """Decide the outcome after the last answer (the study's catch rule) and set the
+        completion code: the platform's code of that outcome, or a random code."""
+        study = participant.study
+        failed = Trial.objects.filter(
+            participant=participant, kind=Trial.Kind.CATCH, catch_passed=False
+        ).count()
+        outcome = (
+            Participant.Outcome.FAILED_ATTENTION
+            if failed > study.max_failed_catch
+            else Participant.Outcome.COMPLETED
+        )
+        code = study.platform.code_for(outcome)
+        if self.filter(pk=participant.pk, completed_at__isnull=True).update(
+            completed_at=now, completion_code=code, outcome=outcome
+        ):
+            participant.completed_at, participant.completion_code = now, code
+            participant.outcome = outcome
+
     def with_checks(self):
         """Annotate judgements and the catch / repeat trials answered and failed."""
         answered = Q(trials__answered_at__isnull=False)
@@ -355,7 +423,10 @@ class ParticipantManager(models.Manager):
 
         return self.annotate(
             n_judgements=Count(
-                "trials__items", filter=answered & ~Q(trials__kind=Trial.Kind.PRACTICE)
+                "trials__items",
+                filter=answered
+                & ~Q(trials__kind=Trial.Kind.PRACTICE)
+                & Q(trials__items__role=TrialItem.Role.JUDGED),
             ),
             n_catch=trials(Trial.Kind.CATCH, answered),
             failed_catch=trials(Trial.Kind.CATCH, failed),
@@ -364,15 +435,14 @@ class ParticipantManager(models.Manager):
         )
 
 
-def external_key(external_ids: dict) -> str:
-    """Return ``"PARAM:value"`` for the first identity parameter present, else ``""``."""
-    for param in IDENTITY_PARAMS:
-        if external_ids.get(param):
-            return f"{param}:{external_ids[param]}"
-    return ""
-
-
 class Participant(models.Model):
+    class Outcome(models.TextChoices):
+        COMPLETED = "completed", "Completed"
+        FAILED_ATTENTION = "failed_attention", "Failed the attention checks"
+        NO_CONSENT = "no_consent", "Did not consent"
+        SCREENED_OUT = "screened_out", "Screened out"
+        TIMED_OUT = "timed_out", "Ran out of time"
+
     study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="participants")
     token = models.CharField(max_length=32, unique=True, default=new_token, editable=False)
     external_ids = models.JSONField(default=dict, blank=True, help_text="Crowd-platform ids.")
@@ -383,7 +453,10 @@ class Participant(models.Model):
     created_at = models.DateTimeField(auto_now_add=True)
     consented_at = models.DateTimeField(null=True, blank=True)
     completed_at = models.DateTimeField(null=True, blank=True)
-    completion_code = models.CharField(max_length=32, blank=True)
+    outcome = models.CharField(
+        max_length=20, choices=Outcome.choices, blank=True, help_text="Blank while taking part."
+    )
+    completion_code = models.CharField(max_length=64, blank=True)
     user_agent = models.CharField(max_length=300, blank=True)
     demographics = models.JSONField(
         null=True, blank=True, help_text="Age range, gender, comments; empty until asked."
@@ -404,6 +477,19 @@ class Participant(models.Model):
     def __str__(self):
         return f"{self.study.slug}:participant {self.pk}"
 
+    def is_finished(self) -> bool:
+        """Whether the participant has an outcome that ends their session with a code."""
+        return self.completed_at is not None
+
+    def timed_out(self, now=None) -> bool:
+        """Whether the study's time limit passed before the participant finished."""
+        if self.outcome == self.Outcome.TIMED_OUT:
+            return True
+        limit = self.study.time_limit()
+        if limit is None or self.completed_at is not None or self.consented_at is None:
+            return False
+        return (now or timezone.now()) - self.consented_at > limit
+
     def current_trial(self):
         """Return the first unanswered trial, or None."""
         return self.trials.filter(answered_at__isnull=True).order_by("index").first()
@@ -414,69 +500,60 @@ class Participant(models.Model):
         return self.trials.exists() if n_trials is None else n_trials > 0
 
     def excluded(self) -> bool:
-        """Return whether the participant failed a catch trial: the analysis's default
-        exclusion (``max_failed_catch`` 0). A repeated trial answered differently is a
-        reliability figure, not an exclusion, unless the analysis is told so."""
-        return self.trials.filter(kind=Trial.Kind.CATCH, catch_passed=False).exists()
+        """Return whether the participant failed the study's attention checks."""
+        if self.outcome:
+            return self.outcome == self.Outcome.FAILED_ATTENTION
+        failed = self.trials.filter(kind=Trial.Kind.CATCH, catch_passed=False).count()
+        return failed > self.study.max_failed_catch
 
 
 class TrialManager(models.Manager):
     def mark_shown(self, trial: "Trial") -> None:
-        """Record when the trial was first shown; reloads keep the first time."""
+        """Record when the trial page was first served; reloads keep the first time."""
         if trial.shown_at is not None:
             return  # a reload: ``trial`` was just read, so the database has it too
         now = timezone.now()
         if self.filter(pk=trial.pk, shown_at__isnull=True).update(shown_at=now):
             trial.shown_at = now
 
-    def record_answer(
-        self, trial: "Trial", answers: dict[int, dict], fields: dict | None = None, items=None
-    ) -> bool:
-        """Store ``{item id: {field: value}}`` for every item of a trial, once.
+    def record_answer(self, trial: "Trial", answer, items) -> bool:
+        """Store a checked answer (:class:`~studyapp.survey.answers.Answer`) of a trial once.
 
-        ``fields`` are answers stored on the trial itself (a pairwise ``choice``). A
-        practice trial keeps only its plays: its answer is no judgement. A catch or
-        repeated trial is graded by the study type into ``catch_passed``. ``items`` are
-        the trial's items when the caller has read them already (with their stimuli).
+        A practice trial keeps only its plays and events: its answer is no judgement. A
+        catch or repeated trial is graded by the study type into ``catch_passed``.
+        ``items`` are the trial's items as read in this request (with their stimuli);
         ``trial.shown_at`` must be as read in this request (a trial never shown counts
-        from now). When this answer is the participant's last, ``completed_at`` is set
-        on ``trial.participant`` too.
+        from now). When this answer is the participant's last, the outcome and the
+        completion code are set on ``trial.participant`` too.
 
         Return False (and store nothing) when the trial was already answered. The
         conditional UPDATE comes first so two simultaneous submits cannot both win.
         """
         now = timezone.now()
-        fields = dict(fields or {})
-        if trial.kind == Trial.Kind.PRACTICE:
-            answers = {pk: {"plays": values["plays"]} for pk, values in answers.items()}
-            fields = {}
+        practice = trial.kind == Trial.Kind.PRACTICE
+        trial_answers = {} if practice else answer.trial
         shown_at = trial.shown_at or now
         time_ms = max(0, round((now - shown_at).total_seconds() * 1000))
         with transaction.atomic():
             won = self.filter(pk=trial.pk, answered_at__isnull=True).update(
-                answered_at=now, time_ms=time_ms, shown_at=shown_at, **fields
+                answered_at=now, time_ms=time_ms, shown_at=shown_at, answers=trial_answers,
+                events=answer.events,
             )
             if not won:
                 return False
             trial.answered_at, trial.time_ms, trial.shown_at = now, time_ms, shown_at
-            for name, value in fields.items():
-                setattr(trial, name, value)
-            items = list(items) if items is not None else list(trial.items.select_related("stimulus"))
-            names = sorted({name for values in answers.values() for name in values})
+            trial.answers, trial.events = trial_answers, answer.events
             for item in items:
-                for name, value in answers[item.pk].items():
-                    setattr(item, name, value)
-            TrialItem.objects.bulk_update(items, names)
+                item.plays = answer.plays.get(item.pk, item.plays)
+                item.answers = {} if practice else answer.items.get(item.pk, {})
+            TrialItem.objects.bulk_update(items, ["plays", "answers"])
             participant = trial.participant
             if trial.kind in (Trial.Kind.CATCH, Trial.Kind.REPEAT):
                 passed = participant.study.kind.grade(trial, items)
                 self.filter(pk=trial.pk).update(catch_passed=passed)
+                trial.catch_passed = passed
             if not participant.trials.filter(answered_at__isnull=True).exists():
-                code = new_completion_code()
-                if Participant.objects.filter(pk=participant.pk, completed_at__isnull=True).update(
-                    completed_at=now, completion_code=code
-                ):
-                    participant.completed_at, participant.completion_code = now, code
+                Participant.objects.finish(participant, now)
         return True
 
 
@@ -487,18 +564,13 @@ class Trial(models.Model):
         CATCH = "catch", "Catch (a broken clip)"
         REPEAT = "repeat", "Repeat of an earlier trial"
 
-    class Choice(models.TextChoices):
-        LEFT = "left", "Left"
-        RIGHT = "right", "Right"
-        BOTH_GOOD = "both_good", "Both equally good"
-        BOTH_BAD = "both_bad", "Both equally bad"
-
     participant = models.ForeignKey(Participant, on_delete=models.CASCADE, related_name="trials")
     index = models.PositiveIntegerField(help_text="Order in the participant's session.")
     action = models.CharField(max_length=100)
+    prompt = models.TextField(blank=True, help_text="The text prompt shown, if any.")
     kind = models.CharField(max_length=16, choices=Kind.choices, default=Kind.MAIN)
-    choice = models.CharField(
-        max_length=16, choices=Choice.choices, blank=True, help_text="Pairwise answer."
+    answers = models.JSONField(
+        default=dict, blank=True, help_text="Answers on the trial itself, per criterion."
     )
     catch_passed = models.BooleanField(
         null=True, blank=True, help_text="Catch: broken clip spotted; repeat: answered as before."
@@ -506,13 +578,13 @@ class Trial(models.Model):
     repeat_of = models.ForeignKey(
         "self", on_delete=models.CASCADE, null=True, blank=True, related_name="repeats"
     )
-    reference = models.ForeignKey(
-        Stimulus, on_delete=models.PROTECT, null=True, blank=True, related_name="+",
-        help_text="The reference clip shown beside the judged clips.",
-    )
-    shown_at = models.DateTimeField(null=True, blank=True)
+    shown_at = models.DateTimeField(null=True, blank=True, help_text="When the page was served.")
     answered_at = models.DateTimeField(null=True, blank=True)
     time_ms = models.PositiveIntegerField(null=True, blank=True, help_text="Time to answer.")
+    events = models.JSONField(
+        default=list, blank=True,
+        help_text="What the page reported: [ms since shown, event, item position] each.",
+    )
 
     objects = TrialManager()
 
@@ -526,27 +598,79 @@ class Trial(models.Model):
         return f"{self.participant}: trial {self.index}"
 
 
+class TrialItemManager(models.Manager):
+    def judged(self):
+        return self.filter(role=TrialItem.Role.JUDGED)
+
+    def record_fetch(self, item_id: int, start: int, end: int, size: int) -> None:
+        """Record that bytes ``start..end`` (inclusive) of an item's clip were sent whole;
+        the first time the ranges cover the file, ``fetched_at`` is set."""
+        with transaction.atomic():
+            if connection.vendor == "sqlite":  # take the write lock first (see StudyManager.lock)
+                self.filter(pk=item_id).update(plays=F("plays"))
+            item = self.select_for_update().only("fetched", "fetched_at").get(pk=item_id)
+            if item.fetched_at is not None:
+                return
+            ranges = merge_ranges([*item.fetched, [start, end]])
+            fields = {"fetched": ranges}
+            if ranges == [[0, size - 1]]:
+                fields["fetched_at"] = timezone.now()
+            self.filter(pk=item_id).update(**fields)
+
+
+def merge_ranges(ranges) -> list[list[int]]:
+    """Return inclusive byte ranges merged where they touch or overlap, sorted."""
+    out: list[list[int]] = []
+    for start, end in sorted([int(a), int(b)] for a, b in ranges):
+        if out and start <= out[-1][1] + 1:
+            out[-1][1] = max(out[-1][1], end)
+        else:
+            out.append([start, end])
+    return out
+
+
 class TrialItem(models.Model):
+    class Role(models.TextChoices):
+        JUDGED = "judged", "Judged"
+        REFERENCE = "reference", "Reference shown beside the judged clips"
+        EXAMPLE = "example", "Scoring-standard example"
+
     trial = models.ForeignKey(Trial, on_delete=models.CASCADE, related_name="items")
     stimulus = models.ForeignKey(Stimulus, on_delete=models.PROTECT, related_name="items")
-    position = models.PositiveSmallIntegerField(help_text="Place on screen, 0 = first.")
-    rank = models.PositiveSmallIntegerField(null=True, blank=True, help_text="1 = best.")
-    rating = models.PositiveSmallIntegerField(
-        null=True, blank=True, validators=[MinValueValidator(1), MaxValueValidator(5)],
-        help_text="1..5, higher = more realistic.",
+    token = models.CharField(max_length=32, unique=True, default=new_token, editable=False)
+    role = models.CharField(max_length=16, choices=Role.choices, default=Role.JUDGED)
+    position = models.PositiveSmallIntegerField(
+        help_text="Place on screen, 0 = first; shown-only clips come after the judged ones."
     )
-    judged_real = models.BooleanField(null=True, blank=True)
-    plays = models.PositiveIntegerField(default=0)
+    required = models.BooleanField(
+        default=True, help_text="Must be fetched whole before the trial's answer is taken."
+    )
+    answers = models.JSONField(default=dict, blank=True, help_text="Answers per criterion.")
+    plays = models.PositiveIntegerField(default=0, help_text="Complete plays the page reported.")
+    fetched = models.JSONField(
+        default=list, blank=True, help_text="Byte ranges of the clip sent whole."
+    )
+    fetched_at = models.DateTimeField(
+        null=True, blank=True, help_text="When the whole clip had been sent."
+    )
+
+    objects = TrialItemManager()
 
     class Meta:
         ordering = ["trial", "position"]
         constraints = [
             models.UniqueConstraint(fields=["trial", "position"], name="one_item_per_position"),
-            models.UniqueConstraint(fields=["trial", "stimulus"], name="one_item_per_stimulus"),
+            models.UniqueConstraint(
+                fields=["trial", "stimulus"], condition=Q(role="judged"),
+                name="one_judged_item_per_stimulus",
+            ),
         ]
 
     def __str__(self):
         return f"{self.trial}: position {self.position}"
+
+    def clip_url(self, ext: str = "mp4") -> str:
+        return reverse("survey:clip", args=[self.token, ext])
 
 
 class ResponseManager(models.Manager):
@@ -554,13 +678,13 @@ class ResponseManager(models.Manager):
         return (
             super()
             .get_queryset()
-            .filter(trial__answered_at__isnull=False)
+            .filter(trial__answered_at__isnull=False, role=TrialItem.Role.JUDGED)
             .exclude(trial__kind=Trial.Kind.PRACTICE)
         )
 
 
 class Response(TrialItem):
-    """An answered trial item: one judgement (a view for the admin)."""
+    """An answered judged trial item: one judgement (a view for the admin)."""
 
     objects = ResponseManager()
 
@@ -582,8 +706,9 @@ class ScoringStandardManager(models.Manager):
             self.filter(study=study, action=action).delete()
             standards = []
             for score, stimulus in sorted(examples.items()):
-                Stimulus.objects.filter(pk=stimulus.pk).update(is_standard_example=True)
-                stimulus.is_standard_example = True
+                if stimulus.role != Stimulus.Role.EXAMPLE:
+                    Stimulus.objects.filter(pk=stimulus.pk).update(role=Stimulus.Role.EXAMPLE)
+                    stimulus.role = Stimulus.Role.EXAMPLE
                 standard = self.model(
                     study=study,
                     action=action,
@@ -610,8 +735,8 @@ class ScoringStandard(models.Model):
         Stimulus,
         on_delete=models.RESTRICT,  # deletable only with its standard (e.g. with the study)
         related_name="standards",
-        limit_choices_to={"is_standard_example": True},
-        help_text="The example clip: a stimulus marked standard example, never rated.",
+        limit_choices_to={"role": "example"},
+        help_text="The example clip: a stimulus whose role is example, never rated.",
     )
 
     objects = ScoringStandardManager()
@@ -634,9 +759,9 @@ class ScoringStandard(models.Model):
         stimulus = self.stimulus if self.stimulus_id else None
         if stimulus is not None and self.study_id and stimulus.study_id != self.study_id:
             raise ValidationError({"stimulus": "The example clip must belong to this study."})
-        if stimulus is not None and not stimulus.is_standard_example:
+        if stimulus is not None and stimulus.role != Stimulus.Role.EXAMPLE:
             raise ValidationError(
-                {"stimulus": "Mark the example clip as a standard example so it is never rated."}
+                {"stimulus": "Give the example clip the role 'example' so it is never rated."}
             )
 
 

@@ -1,46 +1,136 @@
-"""The researcher's preview: a study's pages as a participant sees them, storing nothing.
+"""The researcher's preview: the study's pages as a participant sees them, storing nothing.
 
-A staff member walks the same pages (consent, instructions, practice and trials,
-closing questions, completion) in any study status. The planned session lives in
-their own session cookie as stimulus ids; trials are unsaved model objects; answers
-are checked by the same forms, then dropped. No participant, trial or answer is
-written, and the balance counts of real participants are only read.
+A staff member walks the same ``PAGE_SEQUENCE`` as participants (:mod:`.flow`), in any
+study status, over :class:`PreviewStore`: a store whose participant lives in the
+reviewer's own session cookie as plain data (the planned session as stimulus ids, the
+page reached). Trials are unsaved model objects; answers are checked by the same forms,
+then dropped. No participant, trial or answer is written, and the balance counts of real
+participants are only read. Clips are served under the stimuli's staff-only URLs, so the
+server's watch check does not apply.
 """
 
-import random
-from types import SimpleNamespace
+from __future__ import annotations
 
-from django.shortcuts import redirect, render
+import random
+
+from django.shortcuts import redirect
 from django.urls import reverse
 
-from studyapp.survey.flow import render_trial
-from studyapp.survey.forms import ConsentForm, DemographicsForm
-from studyapp.survey.models import Participant, Stimulus, Trial, TrialItem
-
-PAGES = ("consent", "instructions", "trial", "about-you", "done")
-TEMPLATES = {
-    "consent": "survey/consent.html",
-    "instructions": "survey/instructions.html",
-    "about-you": "survey/demographics.html",
-    "done": "survey/done.html",
-}
+from studyapp.survey.models import Participant, Stimulus, Study, Trial, TrialItem
 
 
 def state_key(study) -> str:
     return f"survey-preview:{study.pk}"
 
 
-def url(study, name: str) -> str:
-    return reverse("survey:preview_page", args=[study.slug, name])
+class PreviewParticipant:
+    """A participant as plain session data; has what the pages ask of a participant."""
+
+    def __init__(self, study, state: dict):
+        self.study, self.state = study, state
+        self.pk = None
+        self.external_key = ""
+        self.trials_planned = state.get("trials", [])
+        self.n_trials = len(self.trials_planned)
+        self.n_practice = sum(t["kind"] == Trial.Kind.PRACTICE for t in self.trials_planned)
+        self.consented_at = state.get("consented")
+        self.outcome = state.get("outcome", "")
+        self.completed_at = "preview" if self.outcome else None
+        self.completion_code = "PREVIEW" if self.outcome else ""
+        self.demographics = state.get("demographics")
+        self.external_ids = {}
+
+    def is_finished(self):
+        return self.completed_at is not None
+
+    def has_trials(self):
+        return bool(self.trials_planned) or self.state.get("started", False)
+
+    def timed_out(self):
+        return False
+
+
+class PreviewStore:
+    """The flow's store for previews (see the module docstring)."""
+
+    preview = True
+
+    def __init__(self, request):
+        self.request = request
+
+    def _state(self, study) -> dict | None:
+        return self.request.session.get(state_key(study))
+
+    def _save(self, study, state) -> None:
+        self.request.session[state_key(study)] = state
+
+    def url(self, study, name: str) -> str:
+        return reverse("survey:preview_page", args=[study.slug, name])
+
+    def participant(self, request, study):
+        state = self._state(study)
+        return PreviewParticipant(study, state) if state is not None else None
+
+    def enroll(self, request, study, outcome: str = ""):
+        state = {"consented": None if outcome else "preview", "outcome": outcome,
+                 "trials": [], "index": 0}
+        self._save(study, state)
+        return PreviewParticipant(study, state)
+
+    def start(self, request, participant) -> None:
+        state = participant.state
+        state["trials"] = plan(participant.study)
+        state["started"] = True
+        state["index"] = 0
+        self._save(participant.study, state)
+        participant.trials_planned = state["trials"]
+        participant.n_trials = len(state["trials"])
+
+    def current_trial(self, request, participant):
+        state = participant.state
+        index = state["index"]
+        trial, items = unsaved_trial(participant, state["trials"][index], index)
+        practice = participant.n_practice
+        number = None if trial.kind == Trial.Kind.PRACTICE else index + 1 - practice
+        return trial, items, number, participant.n_trials - practice
+
+    def posted_trial(self, request, participant):
+        index = participant.state["index"]
+        if request.POST.get("trial") != str(index):
+            return None, [], "This is not the question you are on."
+        trial, items = unsaved_trial(participant, participant.state["trials"][index], index)
+        return trial, items, None
+
+    def clip_url(self, item, ext="mp4") -> str:
+        return item.stimulus.preview_url(ext)
+
+    def watch_problems(self, trial, items, labels) -> list[str]:
+        return []
+
+    def record_answer(self, request, trial, answer, items) -> bool:
+        participant = trial.previewer
+        state = participant.state
+        state["index"] += 1
+        if state["index"] >= len(state["trials"]):
+            state["outcome"] = Participant.Outcome.COMPLETED
+        self._save(participant.study, state)
+        return True
+
+    def record_demographics(self, request, participant, answers) -> None:
+        participant.state["demographics"] = answers
+        self._save(participant.study, participant.state)
+
+    def timed_out(self, participant) -> bool:
+        return False
 
 
 def start(request, study):
     """Begin a fresh preview of ``study`` at its consent page."""
-    request.session[state_key(study)] = {"page": "consent", "trials": [], "index": 0}
-    return redirect(url(study, "consent"))
+    request.session.pop(state_key(study), None)
+    return redirect(reverse("survey:preview_page", args=[study.slug, "consent"]))
 
 
-def plan(study) -> list[dict]:
+def plan(study: Study) -> list[dict]:
     """Return a session planned as for a new participant, as plain data."""
     plans = study.kind.plan_trials(study, random.Random())
     return [
@@ -48,95 +138,30 @@ def plan(study) -> list[dict]:
             "action": p.action,
             "kind": p.kind,
             "stimuli": [stimulus.pk for stimulus in p.stimuli],
-            "reference": p.reference.pk if p.reference else None,
+            "shown": [[stimulus.pk, role, required] for stimulus, role, required in p.shown],
         }
         for p in plans
     ]
 
 
-def unsaved_trial(study, planned: dict, index: int):
+def unsaved_trial(participant, planned: dict, index: int):
     """Return an unsaved trial and its items, never to be written."""
-    stimuli = Stimulus.objects.in_bulk(planned["stimuli"] + [planned["reference"]])
-    trial = Trial(
-        participant=Participant(study=study),
-        index=index,
-        action=planned["action"],
-        kind=planned["kind"],
-        reference=stimuli.get(planned["reference"]),
-    )
+    ids = planned["stimuli"] + [pk for pk, _, _ in planned["shown"]]
+    stimuli = Stimulus.objects.in_bulk(ids)
+    first = stimuli[planned["stimuli"][0]] if planned["stimuli"] else None
+    trial = Trial(index=index, action=planned["action"], kind=planned["kind"],
+                  prompt=first.prompt if first else "")
+    trial.previewer = participant  # not a model instance: never assigned as the FK
     items = [
         TrialItem(trial=trial, stimulus=stimuli[pk], position=position)
         for position, pk in enumerate(planned["stimuli"])
     ]
+    for pk, role, required in planned["shown"]:
+        items.append(TrialItem(trial=trial, stimulus=stimuli[pk], role=role,
+                               position=len(items), required=required))
+    for position, item in enumerate(items):
+        # Unsaved, but answers are keyed by item id and fields by token: both must be the
+        # same when the page is shown and when it is answered.
+        item.pk = -(position + 1)
+        item.token = f"preview-{index}-{position}"
     return trial, items
-
-
-def show(request, study, name: str):
-    """Render or submit preview page ``name``; keep the reviewer on their current page."""
-    state = request.session.get(state_key(study))
-    if state is None:
-        return start(request, study)
-    if name != state["page"]:
-        return redirect(url(study, state["page"]))
-    if request.method == "POST":
-        return advance(request, study, state)
-    context = {"study": study, "preview": True, "page": name}
-    if name == "trial":
-        return trial_page(request, study, state)
-    if name == "consent":
-        context["form"] = ConsentForm()
-    elif name == "about-you":
-        context["form"] = DemographicsForm()
-    elif name == "done":
-        context["participant"] = SimpleNamespace(completion_code="PREVIEW")
-    return render(request, TEMPLATES[name], context)
-
-
-def trial_page(request, study, state, errors=None):
-    trials = state["trials"]
-    index = state["index"]
-    trial, items = unsaved_trial(study, trials[index], index)
-    practice = sum(t["kind"] == Trial.Kind.PRACTICE for t in trials)
-    number = None if trial.kind == Trial.Kind.PRACTICE else index + 1 - practice
-    return render_trial(
-        request,
-        study,
-        trial,
-        items,
-        number,
-        len(trials) - practice,
-        practice_over=practice and number == 1,
-        trial_key=index,
-        preview=True,
-        preview_errors=errors,
-    )
-
-
-def advance(request, study, state):
-    """Check the posted page like the real one would, then move on, storing nothing."""
-    page = state["page"]
-    if page == "consent":
-        form = ConsentForm(request.POST)
-        if not form.is_valid():
-            return render(request, TEMPLATES[page], {"study": study, "form": form, "preview": True})
-        state.update(page="instructions", trials=plan(study), index=0)
-    elif page == "instructions":
-        state["page"] = "trial" if state["trials"] else next_after_trials(study)
-    elif page == "trial":
-        if request.POST.get("trial") != str(state["index"]):
-            return redirect(url(study, page))
-        trial, items = unsaved_trial(study, state["trials"][state["index"]], state["index"])
-        form = study.kind.answer_form(trial, items, request.POST)
-        if not form.is_valid():
-            return trial_page(request, study, state, errors=form.messages())
-        state["index"] += 1
-        if state["index"] == len(state["trials"]):
-            state["page"] = next_after_trials(study)
-    elif page == "about-you":
-        state["page"] = "done"
-    request.session[state_key(study)] = state
-    return redirect(url(study, state["page"]))
-
-
-def next_after_trials(study) -> str:
-    return "about-you" if study.ask_demographics else "done"

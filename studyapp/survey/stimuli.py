@@ -6,12 +6,15 @@ system, or an S3-compatible bucket: ``STUDY_S3_BUCKET``) as ``stimuli/<video_has
 stored once. Participants only ever see the stimulus token (see ``views.clip``).
 """
 
+from __future__ import annotations
+
 import hashlib
 import os
 import re
 import shutil
 import tempfile
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path
 
 from django.core.files import File
@@ -21,7 +24,37 @@ from django.db import transaction
 from studyapp.survey.models import Stimulus
 
 HASH = re.compile(r"^[0-9a-f]{16,64}$")
-FLAGS = ("is_catch", "is_reference", "is_standard_example")
+
+
+@dataclass(frozen=True)
+class Clip:
+    """A rendered clip on its way into a study: what it shows and where its files are.
+
+    ``role`` is a :class:`~studyapp.survey.models.Stimulus.Role` (``judged``, ``catch``,
+    ``reference``, ``example``, ``anchor``, ``practice``); ``score`` is the score a
+    scoring-standard example stands for; ``prompt`` the text the motion answers.
+    """
+
+    action: str
+    source: str
+    video: Path
+    duration: float
+    video_hash: str = ""
+    motion_hash: str = ""
+    poster: Path | None = None
+    role: str = Stimulus.Role.JUDGED
+    score: int | None = None
+    prompt: str = ""
+
+    @classmethod
+    def rendered(cls, motion, rendered, **fields) -> "Clip":
+        """Return the clip of ``motion`` as ``rendering.render_set`` reported it."""
+        fields.setdefault("source", motion.source)
+        return cls(action=motion.action, video=Path(rendered.video),
+                   poster=Path(rendered.poster) if rendered.poster else None,
+                   duration=rendered.duration, video_hash=rendered.video_hash,
+                   motion_hash=rendered.motion_hash,
+                   prompt=getattr(motion, "text", "") or "", **fields)
 
 
 def file_hash(path) -> str:
@@ -31,15 +64,6 @@ def file_hash(path) -> str:
         for chunk in iter(lambda: f.read(1 << 20), b""):
             digest.update(chunk)
     return digest.hexdigest()
-
-
-def _read(clip, *names, default=None):
-    """Return the first of ``names`` a mapping or object has."""
-    for name in names:
-        value = clip.get(name) if isinstance(clip, Mapping) else getattr(clip, name, None)
-        if value is not None:
-            return value
-    return default
 
 
 class _Staged(File):
@@ -90,47 +114,48 @@ def _store(src: Path, name: str) -> str:
     return relative
 
 
-def register_clips(study, clips: Iterable) -> list[Stimulus]:
+def register_clips(study, clips: Iterable[Clip]) -> list[Stimulus]:
     """Add rendered clips to a study and return their stimuli, in the order given.
 
-    Each clip is a mapping or object with ``action``, ``source``, ``video`` (or
-    ``video_path``: an mp4 anywhere on disk), optional ``poster`` (or ``poster_path``:
-    a png), ``duration`` in seconds, ``motion_hash`` and ``video_hash`` (sha256 of the
-    mp4; computed when missing) and the optional flags ``is_catch``, ``is_reference``
-    and ``is_standard_example``. A clip whose video is already in the study returns
-    the existing stimulus; the same video under another action or source is an error.
+    ``video_hash`` (sha256 of the mp4) is computed when missing. A clip whose video is
+    already in the study returns the existing stimulus; the same video under another
+    action, source or role is an error.
     """
     stimuli = []
     with transaction.atomic():
         for clip in clips:
-            video = Path(_read(clip, "video", "video_path"))
-            poster = _read(clip, "poster", "poster_path")
-            video_hash = str(_read(clip, "video_hash", default="") or file_hash(video)).lower()
+            video = Path(clip.video)
+            video_hash = str(clip.video_hash or file_hash(video)).lower()
             if not HASH.match(video_hash):
                 raise ValueError(f"{video}: video_hash {video_hash!r} is not a hex digest")
-            action, source = _read(clip, "action"), _read(clip, "source")
-            if not action or not source:
+            if not clip.action or not clip.source:
                 raise ValueError(f"{video}: a clip needs an action and a source")
+            if clip.role not in Stimulus.Role.values:
+                raise ValueError(f"{video}: role {clip.role!r} is none of "
+                                 f"{', '.join(Stimulus.Role.values)}")
             existing = Stimulus.objects.filter(study=study, video_hash=video_hash).first()
             if existing is not None:
-                if (existing.action, existing.source) != (action, source):
+                if (existing.action, existing.source, existing.role) != (
+                        clip.action, clip.source, clip.role):
                     raise ValueError(
-                        f"{video}: already in study {study.slug} as "
-                        f"{existing.action}/{existing.source}, not {action}/{source}"
+                        f"{video}: already in study {study.slug} as {existing.action}/"
+                        f"{existing.source} ({existing.role}), not {clip.action}/{clip.source} "
+                        f"({clip.role})"
                     )
                 stimuli.append(existing)
                 continue
             stimuli.append(
                 Stimulus.objects.create(
                     study=study,
-                    action=action,
-                    source=source,
+                    action=clip.action,
+                    prompt=clip.prompt,
+                    source=clip.source,
+                    role=clip.role,
                     video=_store(video, f"{video_hash}.mp4"),
-                    poster=_store(Path(poster), f"{video_hash}.png") if poster else "",
-                    duration=float(_read(clip, "duration")),
-                    motion_hash=str(_read(clip, "motion_hash", default="")),
+                    poster=_store(Path(clip.poster), f"{video_hash}.png") if clip.poster else "",
+                    duration=float(clip.duration),
+                    motion_hash=clip.motion_hash,
                     video_hash=video_hash,
-                    **{flag: bool(_read(clip, flag, default=False)) for flag in FLAGS},
                 )
             )
     return stimuli

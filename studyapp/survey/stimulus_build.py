@@ -1,23 +1,32 @@
 """Build a study's stimuli from a config: sample, render, register, write a manifest.
 
-The build folder holds caches keyed on their inputs, so a rebuild only redoes what a
-changed field touches:
+This is the one way stimuli are made: ``build_stimuli CONFIG``, the admin's build jobs
+and the demo (``studies/demo/*.yaml``) all run it. The study's type says which extra
+clips it needs (:meth:`StudyType.stimulus_roles`: catch, practice, reference, examples,
+anchors); the build makes them from real clips with :mod:`generation.perturb`, renders
+everything with one framing, registers the clips and lets the type finish the study
+(:meth:`StudyType.after_register`, e.g. scoring standards).
 
-- ``motions/<source>-<key>.npz``: a source's motions; the key hashes the source's
-  config section, the dataset fields, the checkpoint's (or file's) sha256 and the seed;
+A cache folder (shared between studies by default: ``<var>/stimuli/cache``) holds what is
+keyed on its inputs, so a rebuild only redoes what a changed field touches, and studies
+built from the same sources share their motions and clips:
+
+- ``motions/<source>-<key>.npz``: a source's motions; the key hashes the source's config
+  section, the dataset fields, the checkpoint's (or file's) sha256 and the seed;
 - ``checkpoints/<source>-<key>.pt``: methods without a ``checkpoint`` are trained here
   with the stated budget (``train.iters``, ``train.preset``), keyed on that budget;
 - ``renders/<video_hash>.mp4|png`` and ``renders/index.json``: each clip's render,
   keyed by its motion hash, the style, the size and the framing.
 
-The framing is fitted to real clips only (``clips_per_source + 2`` per action, drawn
-with the config's seed), never to generated ones: changing a method then re-renders
-only that method's clips. A generated clip that wanders further than real ones may
-leave the frame; that is what participants would see of it anyway.
+The framing is fitted to real clips only (``clips_per_source + 3`` per action, drawn
+with the config's seed), never to generated ones: changing a method then re-renders only
+that method's clips, and catch, reference and example clips are framed exactly like the
+judged ones.
 
-``manifest.json`` lists per clip its source, checkpoint or file sha256, seed, action,
-role, motion hash and video hash; no paths and no times, so two machines that build the
-same config write the same manifest. Sampling runs on one torch thread, seeded.
+``manifest.json`` (in the study's own folder) lists per clip its source, checkpoint or
+file sha256, seed, action, role, motion hash and video hash; no paths and no times, so two
+machines that build the same config write the same manifest. Sampling runs on one torch
+thread, seeded.
 
 Updating a study never loses answers: stimuli no longer in the build are deleted only
 when no trial ever showed them; otherwise the build stops and changes nothing (build the
@@ -33,21 +42,24 @@ from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+import numpy as np
 from django.db import transaction
 from tqdm import tqdm
 
-from generation import ops
+from generation import ops, perturb
 from generation.formats import load_motions, npz
 from generation.sampling import SamplingError, choose
 from rendering import Framing, get_style, render_set
-from studyapp.survey.demo import CATCH_NOISE, CATCH_SOURCE, STANDARD_NOISE, degrade
-from studyapp.survey.models import ScoringStandard, Study
-from studyapp.survey.stimuli import file_hash, register_clips
+from studyapp.survey.models import ScoringStandard, Stimulus, Study
+from studyapp.survey.stimuli import Clip, file_hash, register_clips
 from studyapp.survey.stimulus_config import ConfigError, StudyConfig
-from studyapp.survey.study_types.rating_standards import default_descriptions
 
-ROLE_FLAGS = {"catch": "is_catch", "reference": "is_reference", "example": "is_standard_example"}
-PER_SOURCE_TYPES = ("ranking", "rating_standards", "rating_reference")
+Role = Stimulus.Role
+# Real clips drawn per action beyond the judged ones: a reference, the base of the
+# examples, catch and anchor clips, and the base of the practice clips.
+EXTRA_REAL = 3
+# Joint jitter of the practice clips after the first (a real clip), as in perturb.
+PRACTICE_NOISE = (0.02, 0.05, 0.1, 0.15, 0.2)
 
 
 class BuildError(RuntimeError):
@@ -62,6 +74,7 @@ class BuildResult:
     rendered: int = 0  # clips rendered now (not taken from the cache)
     sampled: list[str] = field(default_factory=list)  # sources sampled now
     removed: int = 0  # stimuli deleted from the study
+    unchanged: bool = False  # the study already held exactly these clips
 
 
 def digest(value) -> str:
@@ -82,15 +95,17 @@ def one_thread():
 
 
 class Build:
-    """One build of a config into ``folder``; :meth:`run` does it all."""
+    """One build of a config into ``folder`` (manifest) with caches in ``cache``."""
 
-    def __init__(self, config: StudyConfig, folder, progress=None, log=None):
+    def __init__(self, config: StudyConfig, folder, progress=None, log=None, cache=None):
         self.config = config
         self.folder = Path(folder)
+        self.cache = Path(cache) if cache is not None else self.folder
         self.progress = progress  # callable(done, total, message), e.g. a background job's
         self.log = log or (lambda message: None)
         self._dataset = None
         self.bar = None
+        self.kind = config.kind()
 
     # The dataset loads only when a cache misses: a no-op rebuild never reads it.
     @property
@@ -116,6 +131,11 @@ class Build:
         except SamplingError as exc:
             raise ConfigError(f"actions: {exc}") from None
 
+    def roles(self) -> dict[str, int]:
+        """Return the extra clips per action the study's type asks for."""
+        c = self.config
+        return self.kind.stimulus_roles({**c.study_options, **c.type_options})
+
     def step(self, message: str, n: int = 1) -> None:
         self.bar.set_description_str(message[:40])
         self.bar.update(n)
@@ -127,11 +147,10 @@ class Build:
         if dry_run:
             return self.plan()
         self.folder.mkdir(parents=True, exist_ok=True)
-        extras_count = self._extras_per_action()
-        # One step per source sampled, one per clip rendered, one to register; actions
+        # One step per source sampled, one per clip rendered, one to register; clips
         # are counted once known (the dataset may not need loading at all).
-        total = len(c.sources) + 3
-        self.bar = tqdm(total=total, desc="build_stimuli", unit="step", dynamic_ncols=True)
+        self.bar = tqdm(total=len(c.sources) + 3, desc="build_stimuli", unit="step",
+                        dynamic_ncols=True, mininterval=1.0)
         result = BuildResult(None, self.folder / "manifest.json")
         try:
             groups = []
@@ -143,14 +162,14 @@ class Build:
                 self.step(f"sampled {source.name}")
             base, framing = self.real_base()
             self.step("framing")
-            extras = self.extras(base) if extras_count else []
-            rated = [(m, source, meta) for source, motions, meta in groups for m in motions]
-            self.bar.total += len(rated) + len(extras)
+            extras = self.extras(base)
+            judged = [(m, meta) for _, motions, meta in groups for m in motions]
+            self.bar.total += len(judged) + len(extras)
             self.bar.refresh()
-            clips, result.rendered = self.render(rated, extras, framing)
+            clips, entries, result.rendered = self.render(judged, extras, framing)
             self.step("registering")
-            result.entries = [self.entry(clip) for clip in clips]
-            result.study, result.removed = self.register(clips)
+            result.entries = entries
+            result.study, result.removed, result.unchanged = self.register(clips)
             self.write_manifest(result.entries)
             self.step("manifest written")
         finally:
@@ -163,8 +182,10 @@ class Build:
             ready = source.kind != "method" or source.checkpoint or self._auto_checkpoint(source).is_file()
             self.log(f"{source.name}: {source.kind}"
                      f"{'' if ready else ' (to train: ' + str(source.iters) + ' iterations)'}")
+        roles = ", ".join(f"{n} {role}" for role, n in self.roles().items()) or "none"
         self.log(f"study {self.config.slug!r} ({self.config.study_type}), style "
-                 f"{self.config.style} at {self.config.size} px, into {self.folder}")
+                 f"{self.config.style} at {self.config.size} px, extra clips per action: "
+                 f"{roles}; manifest in {self.folder}, caches in {self.cache}")
         return BuildResult(Study.objects.filter(slug=self.config.slug).first(),
                            self.folder / "manifest.json")
 
@@ -172,7 +193,7 @@ class Build:
 
     def _auto_checkpoint(self, source) -> Path:
         key = digest({"source": source.section(), "data": self.data_fields()})[:16]
-        return self.folder / "checkpoints" / f"{source.name}-{key}.pt"
+        return self.cache / "checkpoints" / f"{source.name}-{key}.pt"
 
     def source_motions(self, source):
         """Return (motions, manifest fields, sampled now?) of one source, from the cache if there."""
@@ -183,15 +204,16 @@ class Build:
             meta["checkpoint"] = file_hash(path)
         elif source.kind == "file":
             path = c.path(source.file)
-            if not path.is_file():
+            if not path.is_file() and not path.is_dir():
                 raise ConfigError(f"sources: file {source.file!r} of source {source.name!r} is not "
                                   f"there (looked in {path}); fix the path")
-            meta["file"] = file_hash(path)
+            meta["file"] = file_hash(path) if path.is_file() else digest(sorted(
+                (p.name, file_hash(p)) for p in path.iterdir() if p.is_file()))
             extra = source.options.get("classes_path")
             if extra:
                 meta["classes"] = file_hash(c.path(extra))
         key = digest({"source": source.section(), "data": self.data_fields(), **meta})[:16]
-        cached = self.folder / "motions" / f"{source.name}-{key}.npz"
+        cached = self.cache / "motions" / f"{source.name}-{key}.npz"
         if cached.is_file():
             return npz.load(cached), meta, False
         motions = self.sample(source)
@@ -252,61 +274,66 @@ class Build:
         return [m.with_joints(m.joints, source=source.name, meta=dict(m.meta)) for m in motions]
 
     def real_base(self):
-        """Return real clips (n + 2 per action) and the framing fitted to them, cached."""
+        """Return real clips (n + EXTRA_REAL per action) and the framing fitted to them, cached."""
         c = self.config
         key = digest({"data": self.data_fields(), "seed": c.seed, "style": c.style,
-                      "size": c.size})[:16]
-        cached = self.folder / "motions" / f"_real-{key}.npz"
-        framing_file = self.folder / "motions" / f"_framing-{key}.json"
+                      "size": c.size, "extra": EXTRA_REAL})[:16]
+        cached = self.cache / "motions" / f"_real-{key}.npz"
+        framing_file = self.cache / "motions" / f"_framing-{key}.json"
         if cached.is_file() and framing_file.is_file():
             return npz.load(cached), Framing(**_framing_fields(json.loads(framing_file.read_text())))
         from generation.sampling import sample_real
 
         frames = c.frames or self.dataset.clip_frames
-        base = sample_real(self.dataset, self.actions(), c.clips_per_source + 2, frames, c.seed,
-                           c.fps, c.subjects)
+        base = sample_real(self.dataset, self.actions(), c.clips_per_source + EXTRA_REAL,
+                           frames, c.seed, c.fps, c.subjects)
         framing = Framing.from_motions(base, pad=get_style(c.style).pad)
         npz.save(cached, base)
+        framing_file.parent.mkdir(parents=True, exist_ok=True)
         framing_file.write_text(json.dumps(asdict(framing), sort_keys=True))
         return base, framing
 
-    def _extras_per_action(self) -> int:
-        c = self.config
-        count = 1 if c.study_type == "rating_reference" else 0
-        count += len(STANDARD_NOISE) if c.study_type == "rating_standards" else 0
-        return count + (1 if c.study_options.get("catch_trials") else 0)
-
     def extras(self, base) -> list[tuple]:
-        """Return (motion, role, score) of the reference, example and catch clips."""
-        import numpy as np
-
+        """Return ``(motion, role, score)`` of the clips the study type asks for beyond the
+        judged ones, made from real clips not judged (practice: for the first action only)."""
+        roles = self.roles()
+        if not roles:
+            return []
         c = self.config
         n = c.clips_per_source
-        per = n + 2
+        per = n + EXTRA_REAL
         rng = np.random.default_rng(c.seed + 1)
         out = []
         for start in range(0, len(base), per):
             group = base[start:start + per]
-            reference, root = group[n], group[n + 1]
-            if c.study_type == "rating_reference":
-                out.append((reference, "reference", None))
-            if c.study_type == "rating_standards":
-                for score, noise in STANDARD_NOISE.items():
-                    out.append((degrade(root, noise, rng, "standard_example"), "example", score))
-            if c.study_options.get("catch_trials"):
-                out.append((degrade(root, CATCH_NOISE, rng, CATCH_SOURCE), "catch", None))
+            reference, root, practice = group[n], group[n + 1], group[n + 2]
+            if roles.get(Role.REFERENCE):
+                out.append((reference, Role.REFERENCE, None))
+            if roles.get(Role.EXAMPLE):
+                for score, motion in perturb.standard_examples(root, rng).items():
+                    out.append((motion, Role.EXAMPLE, score))
+            if roles.get(Role.CATCH):
+                out.append((perturb.catch_clip(root, rng), Role.CATCH, None))
+            if roles.get(Role.ANCHOR):
+                out.append((perturb.low_anchor(root, rng), Role.ANCHOR, None))
+            if roles.get(Role.PRACTICE) and start == 0:
+                for k in range(roles[Role.PRACTICE]):
+                    noise = PRACTICE_NOISE[(k - 1) % len(PRACTICE_NOISE)] if k else 0.0
+                    out.append((perturb.jitter(practice, noise, rng, "practice_clip"),
+                                Role.PRACTICE, None))
         return out
 
     # --- renders -------------------------------------------------------------------
 
-    def render(self, rated, extras, framing):
-        """Render what the cache lacks; return clip specs in build order and the count rendered."""
+    def render(self, judged, extras, framing):
+        """Render what the cache lacks; return the clips and manifest entries in build
+        order, and the count rendered now."""
         c = self.config
-        folder = self.folder / "renders"
+        folder = self.cache / "renders"
         index_file = folder / "index.json"
         index = json.loads(index_file.read_text()) if index_file.is_file() else {}
         settings = {"style": c.style, "size": c.size, "framing": asdict(framing)}
-        items = [(m, {"role": "rated", **meta}) for m, _, meta in rated]
+        items = [(m, {"role": Role.JUDGED, **meta}) for m, meta in judged]
         items += [(m, {"role": role, "score": score, "source": m.source, "seed": c.seed})
                   for m, role, score in extras]
         keys = [digest({"motion": m.content_hash(), **settings}) for m, _ in items]
@@ -314,55 +341,59 @@ class Build:
                    or not (folder / f"{index[key]['video_hash']}.mp4").is_file()]
         self.step("renders cached", len(items) - len(missing))
         if missing:
-            incoming = folder / ".incoming"
+            incoming = folder / f".incoming-{c.slug}"
             shutil.rmtree(incoming, ignore_errors=True)
             report = render_set([items[i][0] for i in missing], incoming, style=c.style,
                                 size=c.size, framing=framing, progress=False)
             if report.failures:
                 raise BuildError(f"clips failed to render in the {c.style!r} style: "
                                  f"{report.failures}")
-            for clip in report.clips:
-                for path in (Path(clip.video), Path(clip.poster)):
+            for done in report.clips:
+                for path in (Path(done.video), Path(done.poster)):
                     target = folder / path.name
                     if not target.is_file():  # two clips may share one video
                         path.replace(target)
-                index[keys[missing[clip.index]]] = {"video_hash": clip.video_hash,
-                                                    "duration": clip.duration}
-                self.step(f"rendered {items[missing[clip.index]][0].source}")
+                index[keys[missing[done.index]]] = {"video_hash": done.video_hash,
+                                                    "duration": done.duration}
+                self.step(f"rendered {items[missing[done.index]][0].source}")
             shutil.rmtree(incoming, ignore_errors=True)
             _write_if_changed(index_file, json.dumps(index, sort_keys=True, indent=1))
-        clips = []
+        clips, entries = [], []
         for (motion, spec), key in zip(items, keys):
             done = index[key]
-            clips.append({
-                **spec, "action": motion.action, "source": spec["source"],
-                "motion_hash": motion.content_hash(), "video_hash": done["video_hash"],
-                "video": folder / f"{done['video_hash']}.mp4",
-                "poster": folder / f"{done['video_hash']}.png", "duration": done["duration"],
-            })
-        return clips, len(missing)
+            clip = Clip(
+                action=motion.action, source=spec["source"], role=spec["role"],
+                score=spec.get("score"), prompt=getattr(motion, "text", "") or "",
+                motion_hash=motion.content_hash(), video_hash=done["video_hash"],
+                video=folder / f"{done['video_hash']}.mp4",
+                poster=folder / f"{done['video_hash']}.png", duration=done["duration"],
+            )
+            clips.append(clip)
+            entry = {**spec, "action": clip.action, "motion_hash": clip.motion_hash,
+                     "video_hash": clip.video_hash}
+            entries.append({k: entry[k] for k in ("source", "checkpoint", "file", "seed",
+                                                  "action", "role", "score", "motion_hash",
+                                                  "video_hash") if entry.get(k) is not None})
+        return clips, entries, len(missing)
 
     # --- study and manifest ---------------------------------------------------------
 
-    def entry(self, clip: dict) -> dict:
-        keep = ("source", "checkpoint", "file", "seed", "action", "role", "score",
-                "motion_hash", "video_hash")
-        return {k: clip[k] for k in keep if clip.get(k) is not None}
-
     def study_fields(self) -> dict:
         c = self.config
-        fields = {k: v for k, v in c.study_options.items() if v is not None}
+        fields = self.kind.defaults(len(c.sources))
+        fields.update({k: v for k, v in c.study_options.items() if v is not None})
         fields["dataset"] = c.dataset
-        if c.study_type in PER_SOURCE_TYPES:
-            fields.setdefault("clips_per_trial", len(c.sources))
+        fields["options"] = dict(c.type_options)
         return fields
 
     def register(self, clips):
-        """Create or update the study to hold exactly these clips; return (study, removed)."""
+        """Create or update the study to hold exactly these clips; return (study, removed,
+        unchanged)."""
         c = self.config
-        wanted = {clip["video_hash"] for clip in clips}
+        wanted = {clip.video_hash for clip in clips}
         with transaction.atomic():
             study = Study.objects.filter(slug=c.slug).first()
+            changed = study is None
             if study is None:
                 study = Study.objects.create_study(c.study_type, c.slug, c.title,
                                                    **self.study_fields())
@@ -372,10 +403,14 @@ class Build:
             else:
                 changes = {"title": c.title, **self.study_fields()}
                 if any(getattr(study, k) != v for k, v in changes.items()):
+                    changed = True
                     for name, value in changes.items():
                         setattr(study, name, value)
                     study.full_clean()
                     study.save()
+            have = dict(study.stimuli.values_list("video_hash", "role"))
+            if have == {clip.video_hash: clip.role for clip in clips} and not changed:
+                return study, 0, True
             stale = study.stimuli.exclude(video_hash__in=wanted)
             shown = stale.filter(items__isnull=False).distinct()
             if shown.exists():
@@ -390,26 +425,11 @@ class Build:
                 ScoringStandard.objects.filter(stimulus__in=stale).delete()
                 stale.delete()
             try:
-                stimuli = register_clips(study, [
-                    {**clip, **({ROLE_FLAGS[clip["role"]]: True} if clip["role"] in ROLE_FLAGS else {})}
-                    for clip in clips
-                ])
+                stimuli = register_clips(study, clips)
             except ValueError as exc:  # two sources gave the same video
                 raise BuildError(f"{exc}; give the sources different motions") from None
-            if c.study_type == "rating_standards":
-                self.standards(study, clips, stimuli)
-        return study, removed
-
-    def standards(self, study, clips, stimuli):
-        examples: dict[str, dict] = {}
-        for clip, stimulus in zip(clips, stimuli):
-            if clip["role"] == "example":
-                examples.setdefault(clip["action"], {})[clip["score"]] = stimulus
-        for action, chosen in examples.items():
-            have = {s.score: s.stimulus_id for s in ScoringStandard.objects.for_action(study, action)}
-            if have != {score: s.pk for score, s in chosen.items()}:
-                ScoringStandard.objects.set_standards(
-                    study, action, chosen, default_descriptions(action.replace("_", " ")))
+            self.kind.after_register(study, clips, stimuli)
+        return study, removed, False
 
     def write_manifest(self, entries) -> None:
         c = self.config
@@ -433,7 +453,18 @@ def _write_if_changed(path: Path, text: str) -> bool:
     return True
 
 
+def default_folders(config: StudyConfig, out=None, cache=None) -> tuple[Path, Path]:
+    """Return the study's build folder and the cache folder: ``<var>/stimuli/<slug>`` and
+    ``<var>/stimuli/cache`` (shared by every study), or ``out`` for both when given."""
+    from django.conf import settings
+
+    root = Path(settings.VAR_DIR) / "stimuli"
+    folder = Path(out) if out else root / config.slug
+    return folder, Path(cache) if cache else (folder if out else root / "cache")
+
+
 def build_stimuli(config: StudyConfig, folder, progress=None, log=None,
-                  dry_run: bool = False) -> BuildResult:
-    """Build ``config`` into ``folder``; see the module docstring."""
-    return Build(config, folder, progress, log).run(dry_run)
+                  dry_run: bool = False, cache=None) -> BuildResult:
+    """Build ``config`` into ``folder`` (caches in ``cache``, default ``folder``); see the
+    module docstring."""
+    return Build(config, folder, progress, log, cache).run(dry_run)

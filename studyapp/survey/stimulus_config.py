@@ -2,8 +2,9 @@
 
 A config names the dataset, the clips, the sources, the render settings and the study
 (see ``studies/*.yaml`` for documented examples). :func:`load_config` applies
-``--set`` overrides, then checks every field; each error names the field, the value
-and the fix. Plain Python and YAML: no Django, so configs are checked anywhere.
+``--set`` overrides, then checks every field against the registries it names (study
+types and their options, render styles, motion formats, methods and their presets,
+crowd platforms); each error names the field, the value and the fix.
 
 Overrides are ``path=value``: ``path`` is dotted (``train.iters``, ``study.type``,
 ``sources.2.seed`` for the third source) and ``value`` is read as YAML
@@ -17,16 +18,15 @@ from pathlib import Path
 
 import yaml
 
-STYLES = ("stick", "stick2d", "mesh")
-FORMATS = ("npz", "a2m", "bvh")
-STUDY_TYPES = ("ranking", "fake_or_real", "rating_standards", "rating_reference", "pairwise")
-STUDY_OPTIONS = {
-    "clips_per_trial": int, "trials_per_participant": int, "practice": bool,
-    "catch_trials": int, "repeat_trials": int, "allow_ties": bool, "ask_demographics": bool,
-    "max_participants": int, "completion_url": str, "instructions": str, "data_note": str,
-}
+from generation.formats import list_formats
+from rendering import list_styles
+from studyapp.survey.crowd import make_platform
+from studyapp.survey.study_types import get_study_type, list_study_types
+from studyapp.survey.study_types.base import COMMON_OPTIONS, check_criteria
+
 TOP = ("slug", "title", "seed", "dataset", "data_root", "subjects", "actions", "frames", "fps",
        "clips_per_source", "train", "sources", "render", "study")
+MAX_EXTENDS = 5
 
 
 class ConfigError(ValueError):
@@ -69,16 +69,33 @@ class StudyConfig:
     style: str
     size: int
     study_type: str
-    study_options: dict
+    study_options: dict  # Study fields every type has (clips_per_trial, crowd, ...)
+    type_options: dict  # the study type's own options (Study.options)
     folder: Path  # relative paths in the config are relative to this
 
     def path(self, value: str) -> Path:
         return (self.folder / value).resolve()
 
+    def kind(self):
+        """Return the study type this config builds (its roles, defaults and options)."""
+        return get_study_type(self.study_type)
+
 
 def load_config(path, overrides=()) -> StudyConfig:
-    """Read the YAML config at ``path``, apply ``path=value`` overrides and check it."""
+    """Read the YAML config at ``path``, apply ``path=value`` overrides and check it.
+
+    A config may start from another: ``extends: FILE`` (relative to the config) reads
+    FILE first, then this config's fields over it (mappings merge field by field; lists
+    and values replace). Relative paths in either are relative to the config loaded.
+    """
     path = Path(path)
+    raw = _read_mapping(path)
+    for override in overrides:
+        apply_override(raw, override)
+    return parse(raw, path.resolve().parent)
+
+
+def _read_mapping(path: Path, depth: int = 0) -> dict:
     try:
         raw = yaml.safe_load(path.read_text())
     except OSError as exc:
@@ -87,9 +104,23 @@ def load_config(path, overrides=()) -> StudyConfig:
         raise ConfigError(f"config {path} is not valid YAML: {exc}") from None
     if not isinstance(raw, dict):
         raise ConfigError(f"config {path} must be a mapping of fields (slug, dataset, sources, ...)")
-    for override in overrides:
-        apply_override(raw, override)
-    return parse(raw, path.resolve().parent)
+    base = raw.pop("extends", None)
+    if base is None:
+        return raw
+    if not isinstance(base, str) or depth >= MAX_EXTENDS:
+        raise ConfigError(f"{path}: extends: {base!r} must name one config file (at most "
+                          f"{MAX_EXTENDS} deep)")
+    return _merge(_read_mapping(path.parent / base, depth + 1), raw)
+
+
+def _merge(base: dict, over: dict) -> dict:
+    out = dict(base)
+    for key, value in over.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = _merge(out[key], value)
+        else:
+            out[key] = value
+    return out
 
 
 def apply_override(raw: dict, override: str) -> None:
@@ -149,24 +180,10 @@ def parse(raw: dict, folder: Path) -> StudyConfig:
     preset = _text(train, "preset", "paper", where="train.preset")
     render = raw.get("render") or {}
     style = _text(render, "style", "stick", where="render.style")
-    if style not in STYLES:
-        raise ConfigError(f"render.style: {style!r} is not a style; choose one of {', '.join(STYLES)}")
-    study = dict(raw.get("study") or {})
-    study_type = study.pop("type", None)
-    if study_type not in STUDY_TYPES:
-        raise ConfigError(f"study.type: {study_type!r} is not a study type; choose one of "
-                          f"{', '.join(STUDY_TYPES)}")
-    options = {}
-    for name, value in study.items():
-        kind = STUDY_OPTIONS.get(name)
-        if kind is None:
-            raise ConfigError(f"study.{name}: unknown study option; options are type, "
-                              f"{', '.join(STUDY_OPTIONS)}")
-        if value is not None and (not isinstance(value, kind) or (kind is int and isinstance(value, bool))):
-            raise ConfigError(f"study.{name}: {value!r} must be {kind.__name__}")
-        if kind is int and value is not None and value < 0:
-            raise ConfigError(f"study.{name}: {value!r} must be 0 or more")
-        options[name] = value
+    if style not in list_styles():
+        raise ConfigError(f"render.style: {style!r} is not a style; choose one of "
+                          f"{', '.join(list_styles())}")
+    study_type, options, type_options = _study(raw.get("study") or {})
     sources = _sources(raw.get("sources"), seed, iters, preset)
     fps = raw.get("fps")
     if fps is not None and (isinstance(fps, bool) or not isinstance(fps, (int, float)) or fps <= 0):
@@ -187,8 +204,46 @@ def parse(raw: dict, folder: Path) -> StudyConfig:
         size=_int(render, "size", 480, minimum=16, where="render.size"),
         study_type=study_type,
         study_options=options,
+        type_options=type_options,
         folder=folder,
     )
+
+
+def _study(raw) -> tuple[str, dict, dict]:
+    """Return the study type, its common fields and its own options, checked."""
+    if not isinstance(raw, dict):
+        raise ConfigError(f"study: {raw!r} must be a mapping like {{type: ranking}}")
+    raw = dict(raw)
+    study_type = raw.pop("type", None)
+    if study_type not in list_study_types():
+        raise ConfigError(f"study.type: {study_type!r} is not a study type; choose one of "
+                          f"{', '.join(list_study_types())}")
+    kind = get_study_type(study_type)
+    options, own = {}, {}
+    for name, value in raw.items():
+        if name in kind.options:
+            own[name] = value
+            continue
+        expected = COMMON_OPTIONS.get(name)
+        if expected is None:
+            known = ", ".join(["type", *COMMON_OPTIONS, *kind.options])
+            raise ConfigError(f"study.{name}: not an option of {study_type} studies; options "
+                              f"are {known}")
+        if value is not None and (not isinstance(value, expected)
+                                  or (expected is int and isinstance(value, bool))):
+            raise ConfigError(f"study.{name}: {value!r} must be {expected.__name__}")
+        if expected is int and value is not None and value < 0:
+            raise ConfigError(f"study.{name}: {value!r} must be 0 or more")
+        options[name] = value
+    try:
+        own = kind.check_options(own)
+        make_platform(options.get("crowd"))
+    except ValueError as exc:
+        raise ConfigError(f"study.{exc}") from None
+    problem = check_criteria(options.get("criteria"))
+    if problem:
+        raise ConfigError(f"study.{problem}")
+    return study_type, options, own
 
 
 def _sources(raw, seed, iters, preset) -> list[Source]:
@@ -229,9 +284,9 @@ def _sources(raw, seed, iters, preset) -> list[Source]:
         elif kind == "file":
             source.file = str(entry["file"])
             source.format = entry.get("format") or Path(source.file).suffix.lstrip(".")
-            if source.format not in FORMATS:
+            if source.format not in list_formats():
                 raise ConfigError(f"{where}.format: {source.format!r} is not a motion format; "
-                                  f"choose one of {', '.join(FORMATS)}")
+                                  f"choose one of {', '.join(list_formats())}")
             source.options = dict(entry.get("options") or {})
         if source.name in [s.name for s in sources]:
             raise ConfigError(f"{where}.name: {source.name!r} is used twice; give each source "

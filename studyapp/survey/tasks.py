@@ -67,11 +67,13 @@ def _in_thread(kind, params):
 
 @register_job("register_stimuli")
 def register_stimuli(study: str, clips: list[dict]) -> list[int]:
-    """Register rendered clips (see ``stimuli.register_clips``) with study ``study`` (slug)."""
+    """Register rendered clips with study ``study`` (slug); each clip is the fields of a
+    :class:`~studyapp.survey.stimuli.Clip` (JSON: paths as text)."""
     from studyapp.survey.models import Study
-    from studyapp.survey.stimuli import register_clips
+    from studyapp.survey.stimuli import Clip, register_clips
 
-    return [s.pk for s in register_clips(Study.objects.get(slug=study), clips)]
+    made = [Clip(**clip) for clip in clips]
+    return [s.pk for s in register_clips(Study.objects.get(slug=study), made)]
 
 
 @register_job("call_command")

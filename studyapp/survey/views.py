@@ -1,5 +1,5 @@
-"""Participant pages, the staff preview and clip serving; the flows live in ``flow``
-and ``preview``."""
+"""Participant pages, the staff preview and clip serving; the pages live in ``flow`` (one
+sequence for participants and previews) and ``preview`` (the store that keeps nothing)."""
 
 from django.contrib.admin.views.decorators import staff_member_required
 from django.http import Http404
@@ -8,7 +8,7 @@ from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_http_methods, require_safe
 
 from studyapp.survey import flow, media, preview
-from studyapp.survey.models import Stimulus, Study
+from studyapp.survey.models import Stimulus, Study, TrialItem
 
 CONTENT_TYPES = {"mp4": "video/mp4", "png": "image/png"}
 
@@ -40,20 +40,42 @@ def preview_entry(request, slug):
 @never_cache
 @require_http_methods(["GET", "POST"])
 def preview_page(request, slug, name):
-    if name not in preview.PAGES:
+    if name not in flow.PAGES:
         raise Http404("no such page")
-    return preview.show(request, get_object_or_404(Study, slug=slug), name)
+    study = get_object_or_404(Study, slug=slug)
+    return flow.show(request, study, name, preview.PreviewStore(request))
+
+
+def _serve(request, stimulus, ext, etag, on_sent=None):
+    name = stimulus.video if ext == "mp4" else stimulus.poster
+    try:
+        # Only names under stimuli/ are opened, through default_storage (media.file_response).
+        return media.file_response(request, name, CONTENT_TYPES[ext], etag, on_sent)
+    except (FileNotFoundError, IsADirectoryError, NotADirectoryError):
+        raise Http404("no such clip") from None
 
 
 @require_safe
 def clip(request, token, ext):
-    """Serve a stimulus video or poster under its opaque token only."""
+    """Serve a trial item's video or poster under its own opaque token only.
+
+    Every item (the same clip in a repeated trial too) has its own token and ETag, so
+    nothing in the URL or the headers tells two showings of a clip apart from two clips.
+    Sending a video's last byte records the range sent (``TrialItem.fetched``): the
+    server, not the page, knows whether a clip was fetched to its end.
+    """
+    item = get_object_or_404(TrialItem.objects.select_related("stimulus"), token=token)
+    on_sent = None
+    if ext == "mp4" and request.method == "GET":
+        def on_sent(start, end, size, pk=item.pk):
+            TrialItem.objects.record_fetch(pk, start, end, size)
+    suffix = "" if ext == "mp4" else "-p"
+    return _serve(request, item.stimulus, ext, f'"{item.token}{suffix}"', on_sent)
+
+
+@staff_member_required
+@require_safe
+def preview_clip(request, token, ext):
+    """Serve a stimulus' files to staff (previews, the admin) under the stimulus token."""
     stimulus = get_object_or_404(Stimulus, token=token)
-    name = stimulus.video if ext == "mp4" else stimulus.poster
-    tag = stimulus.video_hash or stimulus.token
-    etag = f'"{tag}"' if ext == "mp4" else f'"{tag}-p"'
-    try:
-        # Only names under stimuli/ are opened, through default_storage (media.file_response).
-        return media.file_response(request, name, CONTENT_TYPES[ext], etag)
-    except (FileNotFoundError, IsADirectoryError, NotADirectoryError):
-        raise Http404("no such clip") from None
+    return _serve(request, stimulus, ext, f'"s{stimulus.token}{ext}"')

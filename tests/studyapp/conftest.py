@@ -3,7 +3,6 @@
 import hashlib
 import os
 import re
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -29,21 +28,6 @@ CHROMIUM_ARGS = [
     "--disable-component-update",
     "--no-first-run",
 ]
-
-
-@dataclass
-class Clip:
-    action: str
-    source: str
-    video: Path
-    poster: Path
-    duration: float
-    motion_hash: str
-    video_hash: str = ""
-    is_catch: bool = False
-    is_reference: bool = False
-    is_standard_example: bool = False
-    score: int = 0  # of a scoring-standard example
 
 
 def write_clip(path: Path, colour, frames=FRAMES, size=SIZE) -> None:
@@ -97,9 +81,18 @@ def django_db_modify_db_settings(django_db_modify_db_settings_parallel_suffix, t
         }
 
 
+@pytest.fixture(autouse=True)
+def _quick_watch(settings):
+    """Unit tests fetch every clip but need not sit through it; the tests of the watch
+    rule itself set STUDY_WATCH_TIME_FACTOR back to 1."""
+    settings.STUDY_WATCH_TIME_FACTOR = 0.0
+
+
 @pytest.fixture(scope="session")
-def clips(tmp_path_factory) -> list[Clip]:
+def clips(tmp_path_factory) -> list:
     """Return 2 actions x 3 sources of real, distinct, playable clips (written once)."""
+    from studyapp.survey.stimuli import Clip
+
     root = tmp_path_factory.mktemp("clips")
     rng = np.random.default_rng(0)
     out = []
@@ -109,70 +102,63 @@ def clips(tmp_path_factory) -> list[Clip]:
             name = f"{action}-{source}"
             write_clip(root / f"{name}.mp4", colour)
             write_poster(root / f"{name}.png", colour)
-            out.append(
-                Clip(action, source, root / f"{name}.mp4", root / f"{name}.png", FRAMES / FPS, name)
-            )
+            out.append(Clip(action, source, root / f"{name}.mp4", FRAMES / FPS,
+                            motion_hash=name, poster=root / f"{name}.png"))
     return out
 
 
 @pytest.fixture(scope="session")
-def extra_clips(tmp_path_factory) -> list[Clip]:
-    """Return, per action, a reference clip, five standard examples and a catch clip."""
+def extra_clips(tmp_path_factory) -> list:
+    """Return, per action, clips of every extra role a study type may ask for: a
+    reference, five scoring-standard examples, a catch clip and a low anchor; and three
+    practice clips of the first action."""
+    from studyapp.survey.stimuli import Clip
+
     root = tmp_path_factory.mktemp("extra-clips")
     rng = np.random.default_rng(1)
     out = []
-    roles = [("reference", "real", {"is_reference": True})]
-    roles += [
-        (f"score{k}", EXAMPLE_SOURCE, {"is_standard_example": True, "score": k})
-        for k in range(1, 6)
-    ]
-    roles += [("catch", CATCH_SOURCE, {"is_catch": True})]
+    roles = [("reference", "real", "reference", None)]
+    roles += [(f"score{k}", EXAMPLE_SOURCE, "example", k) for k in range(1, 6)]
+    roles += [("catch", CATCH_SOURCE, "catch", None), ("anchor", "anchor", "anchor", None)]
+    practice = [(f"practice{k}", "practice_clip", "practice", None) for k in range(3)]
     for action in ACTIONS:
-        for name, source, flags in roles:
+        for name, source, role, score in roles + (practice if action == ACTIONS[0] else []):
             colour = tuple(int(c) for c in rng.integers(30, 225, size=3))
             path = root / f"{action}-{name}.mp4"
             write_clip(path, colour)
             write_poster(path.with_suffix(".png"), colour)
-            out.append(Clip(action, source, path, path.with_suffix(".png"), FRAMES / FPS,
-                            f"{action}-{name}", **flags))
+            out.append(Clip(action, source, path, FRAMES / FPS, motion_hash=f"{action}-{name}",
+                            poster=path.with_suffix(".png"), role=role, score=score))
     return out
 
 
 def make_study(study_type, clips, extra_clips=(), slug=None, catch=False, **fields):
     """Create an open study of any type from the test clips, with what the type needs.
 
-    Rating with a reference gets the reference clips, rating with standards the
-    examples and their standards; ``catch`` adds the broken clips (and one catch trial
-    per participant unless ``catch_trials`` says otherwise).
+    The study type says which extra clips it needs (``stimulus_roles``: a reference,
+    scoring-standard examples, anchors, practice clips with ``practice=True``); ``catch``
+    adds the broken clips (and one catch trial per participant unless ``catch_trials``
+    says otherwise). Fields that are the type's own options go into ``Study.options``.
+    The type finishes the study as a build would (``after_register``).
     """
-    from studyapp.survey.models import ScoringStandard, Study
+    from studyapp.survey.models import Study
     from studyapp.survey.stimuli import register_clips
-    from studyapp.survey.study_types.rating_standards import default_descriptions
+    from studyapp.survey.study_types import get_study_type
 
+    kind = get_study_type(study_type)
     fields.setdefault("data_note", "The motions in this study are synthetic demo data.")
-    if study_type in ("ranking", "rating_standards", "rating_reference"):
-        fields.setdefault("clips_per_trial", 3)
+    for name, value in kind.defaults(len(SOURCES)).items():
+        fields.setdefault(name, value)
     if catch:
         fields.setdefault("catch_trials", 1)
+    options = {name: fields.pop(name) for name in list(fields) if name in kind.options}
     slug = slug or f"study-{study_type.replace('_', '-')}"
-    study = Study.objects.create_study(study_type, slug, "Movement study", **fields)
-    wanted = list(clips) + [
-        clip
-        for clip in extra_clips
-        if (clip.is_catch and catch)
-        or (clip.is_reference and study_type == "rating_reference")
-        or (clip.is_standard_example and study_type == "rating_standards")
-    ]
+    study = Study.objects.create_study(study_type, slug, "Movement study", options=options,
+                                       **fields)
+    roles = kind.stimulus_roles({**fields, "catch_trials": fields.get("catch_trials", 0)})
+    wanted = list(clips) + [clip for clip in extra_clips if clip.role in roles]
     stimuli = register_clips(study, wanted)
-    if study_type == "rating_standards":
-        for action in ACTIONS:
-            examples = {
-                clip.score: stimulus
-                for clip, stimulus in zip(wanted, stimuli)
-                if clip.is_standard_example and clip.action == action
-            }
-            texts = default_descriptions(action)
-            ScoringStandard.objects.set_standards(study, action, examples, texts)
+    kind.after_register(study, wanted, stimuli)
     return study
 
 
@@ -183,14 +169,7 @@ def media_root(settings, tmp_path):
 
 
 def make_ranking_study(clips, slug="motion-study", **fields):
-    from studyapp.survey.models import Study
-    from studyapp.survey.stimuli import register_clips
-
-    fields.setdefault("data_note", "The motions in this study are synthetic demo data.")
-    fields.setdefault("clips_per_trial", 3)
-    study = Study.objects.create_ranking(slug, "Movement study", **fields)
-    register_clips(study, clips)
-    return study
+    return make_study("ranking", clips, slug=slug, **fields)
 
 
 @pytest.fixture
@@ -231,8 +210,9 @@ class Bot:
     def enter(self, **params):
         return self.client.get(self.url(), params, follow=True)
 
-    def consent(self, agree=True):
-        return self.client.post(self.url("consent"), {"agree": "1"} if agree else {}, follow=True)
+    def consent(self, agree=True, **data):
+        data = ({"agree": "1"} if agree else {}) | data
+        return self.client.post(self.url("consent"), data, follow=True)
 
     def start(self):
         return self.client.post(self.url("instructions"), follow=True)
@@ -250,11 +230,23 @@ class Bot:
         token = token_from_cookie(self.client.cookies[cookie_name(self.study)].value)
         return Participant.objects.get(token=token)
 
-    def trial_page(self):
-        return self.client.get(self.url("trial"))
+    def trial_page(self, watch=True):
+        """Open the current trial page and, as a browser does, fetch its clips whole."""
+        response = self.client.get(self.url("trial"))
+        if watch:
+            self.watch()
+        return response
+
+    def watch(self, trial=None):
+        """Fetch every required clip of ``trial`` (default: the current one) to its end."""
+        trial = trial or self.participant().current_trial()
+        for item in trial.items.filter(required=True):
+            response = self.client.get(item.clip_url())
+            assert response.status_code == 200, response.status_code
+            b"".join(response.streaming_content)
 
     def answer_data(self, trial, ranks=None, plays=1, ratings=None, verdicts=None, choice="left"):
-        """Return a valid POST for ``trial`` of any study type.
+        """Return a valid POST for ``trial`` of any of the seed papers' study types.
 
         ``ranks``, ``ratings`` and ``verdicts`` map positions to answers (defaults: the
         screen order, 3, "real"); ``choice`` answers a pairwise trial.
@@ -265,8 +257,10 @@ class Bot:
         if kind == "pairwise":
             data["choice"] = choice
         for item in items:
-            token = item.stimulus.token
+            token = item.token
             data[f"plays_{token}"] = str(plays)
+            if item.role != "judged":
+                continue
             if kind == "ranking":
                 data[f"rank_{token}"] = str((ranks or {}).get(item.position, item.position + 1))
             elif kind.startswith("rating"):
@@ -337,3 +331,13 @@ def words(text: str, label: str) -> list[str]:
     """Return the places ``label`` occurs in ``text`` as a word of its own."""
     pattern = rf"(?<![A-Za-z0-9]){re.escape(label)}(?![A-Za-z0-9])"
     return [text[max(0, m.start() - 40) : m.end() + 40] for m in re.finditer(pattern, text, re.I)]
+
+
+def shown_item(stimulus):
+    """Return a trial item showing ``stimulus`` to a new participant (its clip URL is what
+    a participant would fetch)."""
+    from studyapp.survey.models import Participant, Trial, TrialItem
+
+    participant = Participant.objects.create(study=stimulus.study, seed=1)
+    trial = Trial.objects.create(participant=participant, index=0, action=stimulus.action)
+    return TrialItem.objects.create(trial=trial, stimulus=stimulus, position=0)

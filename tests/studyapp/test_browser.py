@@ -11,7 +11,14 @@ from tests.studyapp.conftest import make_ranking_study
 
 pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
 
-ALL_WATCHED = "() => [...document.querySelectorAll('[data-plays]')].every(i => +i.value > 0)"
+ALL_WATCHED = ("() => [...document.querySelectorAll('[data-required] [data-plays]')]"
+               ".every(i => +i.value > 0)")
+
+
+@pytest.fixture(autouse=True)
+def _real_watch(settings):
+    """The server's own rule: an answer only after the clips' playing time."""
+    settings.STUDY_WATCH_TIME_FACTOR = 1.0
 
 
 @pytest.fixture
@@ -102,12 +109,15 @@ def test_chromium_completes_the_study(page, live_server, study):
     page.unroute("**/c/*.mp4")  # the held requests go through now
 
     answers = {}
-    # Trial 1: drag and drop.
+    # Trial 1: watched, but unranked: nothing can be sent until the clips are ordered.
     first = trial_id(page)
     wait_until_played(page)
-    expect(submit).to_be_enabled()
+    expect(submit).to_be_disabled()
+    expect(page.locator("[data-gate]")).to_contain_text("Answer for every clip")
+    assert page.eval_on_selector_all(".rank-select", "ss => ss.map(s => s.value)") == [""] * 3
     before = order(page)
     page.locator(".rank-row").nth(2).drag_to(page.locator(".rank-row").nth(0))
+    expect(submit).to_be_enabled()
     after = order(page)
     assert after != before and sorted(after) == sorted(before)
     selects = page.eval_on_selector_all(".rank-select", "ss => ss.map(s => s.value)")
@@ -144,12 +154,15 @@ def test_chromium_completes_the_study(page, live_server, study):
     ids = {"PROLIFIC_PID": "chrome-1", "STUDY_ID": "s1", "SESSION_ID": "x1"}
     assert participant.external_ids == ids
     stored = {
-        str(trial.pk): {item.stimulus.token: item.rank for item in trial.items.all()}
+        str(trial.pk): {item.token: item.answers["preference"] for item in trial.items.all()}
         for trial in participant.trials.all()
     }
     assert stored == answers
     assert not TrialItem.objects.filter(plays=0).exists()
-    assert all(t.time_ms > 0 for t in participant.trials.all())
+    assert not TrialItem.objects.filter(fetched_at=None).exists()  # the server saw them fetched
+    assert all(t.time_ms > 400 for t in participant.trials.all())
+    events = participant.trials.order_by("index").first().events
+    assert {"play", "ended"} <= {name for _, name, _ in events}  # the page's log is kept
 
 
 def submit_and_wait(page):
@@ -174,12 +187,13 @@ def test_a_phone_sized_screen_fits_and_ranks_by_touch_and_menus(phone_page, live
     snap(page, "phone-3-trial-ranked")
     submit_and_wait(page)
     wait_until_played(page)
+    page.get_by_role("button", name="Keep this order").click()
     page.locator(".rank-select").nth(1).select_option("3")
     submit_and_wait(page)
     expect(page.locator("[data-completion-code]")).to_be_visible()
     snap(page, "phone-4-done")
     ranks = [
-        list(trial.items.order_by("position").values_list("rank", flat=True))
+        [a["preference"] for a in trial.items.order_by("position").values_list("answers", flat=True)]
         for trial in Trial.objects.order_by("index")
     ]
     assert ranks == [[2, 3, 1], [1, 3, 2]]

@@ -44,7 +44,7 @@ def write(tmp_path, raw, name="config.yaml") -> Path:
     ({"study": {"type": "poll"}}, ["study.type", "'poll'", "fake_or_real"]),
     ({"clips_per_source": 0}, ["clips_per_source", "0", "at least 1"]),
     ({"sources": ["real", "nonsense"]}, ["sources.1.method", "'nonsense'", "cond_gru"]),
-    ({"sources": [{"file": "x.txt"}]}, ["sources.0.format", "'txt'", "npz, a2m, bvh"]),
+    ({"sources": [{"file": "x.txt"}]}, ["sources.0.format", "'txt'", "a2m, bvh, npz"]),
     ({"sources": ["real", "real"]}, ["sources.1.name", "'real'", "its own name"]),
     ({"study": {"type": "ranking", "max_participants": "many"}}, ["study.max_participants", "many", "int"]),
     ({"colour": "red"}, ["'colour'", "fields are"]),
@@ -116,7 +116,7 @@ def test_answered_stimuli_are_never_removed(tmp_path, media_root):
 
     build_stimuli(parse(small(sources=["real", "cond_gru"]), tmp_path), tmp_path / "b")
     study = Study.objects.get(slug="tiny-ranking")
-    participant = Participant.objects.enroll(study, {})
+    participant = Participant.objects.enroll(study, {}, "")
     Participant.objects.start(participant)
     with pytest.raises(BuildError, match="never deleted"):
         build_stimuli(parse(small(sources=["real", {"method": "cond_gru", "seed": 9}]), tmp_path),
@@ -160,8 +160,8 @@ def test_h36m2d_preset_builds_small(tmp_path, media_root, h36m_root):
     result = build_stimuli(config, tmp_path / "b")
     study = result.study
     assert study.study_type == "rating_reference"
-    assert study.stimuli.filter(is_reference=True).count() == 2
-    assert study.stimuli.filter(is_catch=True).count() == 2
+    assert study.stimuli.filter(role="reference").count() == 2
+    assert study.stimuli.filter(role="catch").count() == 2
     assert study.stimuli.judged().count() == 4
 
 

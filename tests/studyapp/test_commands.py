@@ -7,7 +7,7 @@ import pytest
 from django.core.management import call_command
 from django.core.management.base import CommandError
 
-from studyapp.survey import simulate
+from studyapp.survey import bots
 from studyapp.survey.export import participants_frame, responses_frame
 from studyapp.survey.models import Participant, Study, TrialItem
 from studyapp.survey.study_types import list_study_types
@@ -48,8 +48,10 @@ def test_bots_take_every_type_through_the_real_pages(study_of, live_server, stud
     people = list(Participant.objects.filter(study=study))
     assert len(people) == 2 and all(p.completed_at and p.completion_code in out for p in people)
     assert all(p.demographics is not None for p in people)
-    assert {p.external_ids["PROLIFIC_PID"] for p in people} == {"sim-3-1", "sim-3-2"}
+    ids = {p.external_ids["PROLIFIC_PID"] for p in people}
+    assert ids == {bots.person_id(3, 1), bots.person_id(3, 2)}
     assert not TrialItem.objects.exclude(plays=1).exists()  # every clip reported played once
+    assert not TrialItem.objects.filter(required=True, fetched_at=None).exists()  # fetched
     table = responses_frame(study)
     assert table[ANSWER[study_type]].notna().all() and len(table) > 0
     assert set(table["trial_kind"]) == {"main", "catch", "repeat"}
@@ -68,7 +70,12 @@ def test_prefer_real_bots_answer_by_the_source_from_the_database(study_of, live_
 
 def test_the_bots_know_sources_only_through_the_database(study_of, live_server, monkeypatch):
     study = study_of("fake_or_real")
-    monkeypatch.setattr(simulate, "sources_of", lambda tokens: dict.fromkeys(tokens, "real"))
+    real = bots.item_info
+
+    def all_real(tokens):
+        return {token: ("real", *rest) for token, (_, *rest) in real(tokens).items()}
+
+    monkeypatch.setattr(bots, "item_info", all_real)
     simulate_run(study, live_server.url, n=1, policy="prefer-real", seed=2)
     assert responses_frame(study)["judged_real"].all()  # every clip "real", as told
 
@@ -106,12 +113,12 @@ def test_paced_bots_take_as_long_as_the_clips(study_of, live_server):
 
 
 def test_strengths_are_parsed():
-    assert simulate.parse_strengths("real=4, a2m=3,cond_gru=0.5") == {
+    assert bots.parse_strengths("real=4, a2m=3,cond_gru=0.5") == {
         "real": 4.0, "a2m": 3.0, "cond_gru": 0.5
     }
-    assert simulate.parse_strengths("") == {}
+    assert bots.parse_strengths("") == {}
     with pytest.raises(ValueError, match="positive"):
-        simulate.parse_strengths("real=0")
+        bots.parse_strengths("real=0")
 
 
 def test_studies_lists_every_study_as_json(study_of, make_bot):

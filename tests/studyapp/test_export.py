@@ -48,18 +48,18 @@ def build_study(slug="rank-test"):
             for position, source in enumerate(order):
                 TrialItem.objects.create(
                     trial=trial, stimulus=stimuli[action, source], position=position,
-                    rank=ranks[position] if ranks else None, plays=1,
+                    answers={"preference": ranks[position]} if ranks else {}, plays=1,
                 )
     return study
 
 
 def stored_ranks(study):
     """Return the ranked items of ``study`` as a frame read straight from the ORM."""
-    items = TrialItem.objects.filter(trial__participant__study=study, rank__isnull=False)
+    items = TrialItem.objects.filter(trial__participant__study=study).exclude(answers={})
     return pd.DataFrame(
-        items.values_list(
-            "trial__participant_id", "trial__index", "position", "stimulus__source", "rank"
-        ),
+        [(p, t, pos, source, answers["preference"]) for p, t, pos, source, answers in
+         items.values_list("trial__participant_id", "trial__index", "position",
+                           "stimulus__source", "answers")],
         columns=["participant", "trial", "position", "source", "rank"],
     )
 

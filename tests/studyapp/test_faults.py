@@ -30,7 +30,8 @@ def database_url() -> str:
 
 
 @pytest.fixture
-def server(tmp_path, media_root):
+def server(tmp_path, media_root, settings):
+    settings.MEDIA_ROOT = tmp_path / "var" / "media"  # where the server reads clips from
     env = server_env(database_url(), tmp_path / "var")
     server = Server(env, workers=2, settings="benchmarks.loadtest_settings",
                     log=tmp_path / "gunicorn.log")
@@ -105,7 +106,7 @@ def test_kill_9_under_load_loses_no_acknowledged_answer_and_writes_nothing_half(
 
     def check_nothing_half_written():
         for trial in Trial.objects.filter(participant__study=study).prefetch_related("items"):
-            ranks = sorted(item.rank or 0 for item in trial.items.all())
+            ranks = sorted(item.answers.get("preference", 0) for item in trial.items.all())
             if trial.answered_at is None:
                 assert ranks == [0, 0, 0], trial.pk
             elif trial.kind != Trial.Kind.PRACTICE:
@@ -140,6 +141,7 @@ def test_double_submit_concurrently_stores_one_answer(clips, server):
     bot.enter()
     bot.consent()
     bot.start()
+    bot.watch()
     data = bot.answer_data()
     trial = int(data["trial"])
     statuses = []
@@ -159,8 +161,8 @@ def test_double_submit_concurrently_stores_one_answer(clips, server):
     assert again[0] == 302
     row = Trial.objects.get(pk=trial)
     assert row.answered_at is not None
-    ranks = sorted(TrialItem.objects.filter(trial=row).values_list("rank", flat=True))
-    assert ranks == [1, 2, 3]
+    answers = TrialItem.objects.filter(trial=row).values_list("answers", flat=True)
+    assert sorted(a["preference"] for a in answers) == [1, 2, 3]
     assert Trial.objects.filter(participant=row.participant, answered_at__isnull=False).count() == 1
 
 
@@ -173,6 +175,7 @@ def test_database_unavailable_shows_503_page_and_writes_nothing(clips, make_bot,
     bot = make_bot(study)
     bot.join(PROLIFIC_PID="db-down")
     trial = bot.participant().current_trial()
+    bot.trial_page()
     data = bot.answer_data(trial)
 
     # The connection breaks in the middle of storing the answer: after the trial row
@@ -189,7 +192,7 @@ def test_database_unavailable_shows_503_page_and_writes_nothing(clips, make_bot,
     assert response["Retry-After"]
     trial.refresh_from_db()
     assert trial.answered_at is None  # the transaction rolled back: nothing half-written
-    assert not TrialItem.objects.filter(trial=trial, rank__isnull=False).exists()
+    assert not TrialItem.objects.filter(trial=trial).exclude(answers={}).exists()
 
     monkeypatch.setattr(TrialItem.objects, "bulk_update", real)
     assert bot.answer(data).status_code == 302  # back: the same answer goes through
@@ -210,7 +213,7 @@ def test_database_unreachable_everywhere_is_503(clips, make_bot, media_root, set
 
     connection.close()
     monkeypatch.setattr(BaseDatabaseWrapper, "ensure_connection", refuse)
-    response = bot.trial_page()
+    response = bot.trial_page(watch=False)
     assert response.status_code == 503
     assert b"briefly unavailable" in response.content
 

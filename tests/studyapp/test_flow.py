@@ -11,7 +11,7 @@ from django.contrib.staticfiles import finders
 from django.utils import timezone
 
 from studyapp.survey.models import Participant, Stimulus, Study, Trial, TrialItem
-from studyapp.survey.stimuli import register_clips
+from studyapp.survey.stimuli import Clip, register_clips
 from studyapp.survey.study_types import list_study_types
 from tests.studyapp.conftest import SOURCES, make_stimuli, words
 
@@ -35,13 +35,13 @@ def test_register_clips_copies_each_video_once(ranking_study, clips, media_root)
 
 def test_register_clips_refuses_a_video_under_another_source(ranking_study, clips):
     clip = clips[0]
-    moved = {"action": clip.action, "source": "other", "video": clip.video, "duration": 0.4}
+    moved = Clip(clip.action, "other", clip.video, 0.4)
     with pytest.raises(ValueError, match="already in study"):
         register_clips(ranking_study, [moved])
 
 
-def test_create_ranking_fills_in_texts():
-    study = Study.objects.create_ranking("plain", "Plain", clips_per_trial=6)
+def test_create_study_fills_in_texts():
+    study = Study.objects.create_study("ranking", "plain", "Plain", clips_per_trial=6)
     assert study.study_type == "ranking"
     assert "rank 6" in study.instructions
     assert study.consent_text
@@ -60,7 +60,7 @@ def test_every_study_type_runs_through_the_shared_flow(name, media_root, clips, 
     page = bot.trial_page().content.decode()
     assert "data-trial-form" in page and "data-submit" in page and "disabled" in page
     for item in trials[0].items.all():
-        assert f"/c/{item.stimulus.token}.mp4" in page
+        assert f"/c/{item.token}.mp4" in page and item.stimulus.token not in page
     assert bot.answer({"trial": str(trials[0].pk)}).status_code == 400
 
 
@@ -86,7 +86,7 @@ def test_consent_is_required(ranking_study, make_bot):
     "params, key",
     [
         ({"PROLIFIC_PID": "p1", "STUDY_ID": "s1", "SESSION_ID": "x1"}, "PROLIFIC_PID:p1"),
-        ({"workerId": "w1", "assignmentId": "a1", "hitId": "h1"}, "workerId:w1"),
+        ({"participant_label": "w1"}, "participant_label:w1"),
     ],
 )
 def test_platform_ids_are_stored(ranking_study, make_bot, params, key):
@@ -107,9 +107,10 @@ def test_a_person_cannot_take_a_study_twice(ranking_study, make_bot):
     assert elsewhere.participant() == first.participant()  # still in progress: resumes
     first.finish()
     again = make_bot(ranking_study)
-    response = again.enter(PROLIFIC_PID="same")
-    assert b"already taken part" in response.content
-    assert again.consent().status_code == 200
+    response = again.enter(PROLIFIC_PID="same")  # finished: shown their code again
+    assert response.redirect_chain[-1][0].endswith("/done/")
+    assert first.participant().completion_code.encode() in response.content
+    again.consent()
     assert Participant.objects.count() == 1
 
 
@@ -126,7 +127,7 @@ def test_closed_or_full_study_says_so(ranking_study, make_bot):
 
 
 def test_assignment_is_balanced_over_stimuli_and_positions(media_root, make_bot):
-    study = Study.objects.create_ranking("balanced", "Balanced", clips_per_trial=3)
+    study = Study.objects.create_study("ranking", "balanced", "Balanced", clips_per_trial=3)
     make_stimuli(study, per_cell=3)
     for _ in range(7):
         make_bot(study).join()
@@ -143,7 +144,7 @@ def test_assignment_is_balanced_over_stimuli_and_positions(media_root, make_bot)
 
 
 def test_each_participant_gets_their_own_order(media_root, make_bot):
-    study = Study.objects.create_ranking("orders", "Orders", clips_per_trial=3)
+    study = Study.objects.create_study("ranking", "orders", "Orders", clips_per_trial=3)
     make_stimuli(study)
     orders = set()
     for _ in range(6):
@@ -174,8 +175,9 @@ def test_a_valid_ranking_is_stored(ranking_study, make_bot):
     assert response.status_code == 302
     trial.refresh_from_db()
     assert trial.answered_at is not None and 2000 <= trial.time_ms < 10_000
-    stored = list(trial.items.order_by("position").values_list("position", "rank", "plays"))
-    assert stored == [(0, 2, 2), (1, 3, 2), (2, 1, 2)]
+    stored = list(trial.items.order_by("position").values_list("position", "answers", "plays"))
+    assert stored == [(0, {"preference": 2}, 2), (1, {"preference": 3}, 2),
+                      (2, {"preference": 1}, 2)]
 
 
 def other_participants_trial(study, make_bot):
@@ -213,15 +215,12 @@ def test_a_tampered_answer_is_refused_and_nothing_stored(ranking_study, make_bot
     bot.join()
     trial = bot.participant().current_trial()
     bot.trial_page()
-    shown = {item.stimulus_id for item in trial.items.all()}
-    extra = {
-        "foreign": Stimulus.objects.exclude(pk__in=shown).first().token,
-        "other": other_participants_trial(ranking_study, make_bot),
-    }
+    other = other_participants_trial(ranking_study, make_bot)
+    extra = {"foreign": other.items.first().token, "other": other}
     response = bot.answer(TAMPERINGS[tampering](bot.answer_data(trial), extra))
     assert response.status_code == 400
     assert b"Your answer was not saved" in response.content
-    assert not TrialItem.objects.filter(rank__isnull=False).exists()
+    assert not TrialItem.objects.exclude(answers={}).exists()
     assert not TrialItem.objects.exclude(plays=0).exists()
     assert not Trial.objects.filter(answered_at__isnull=False).exists()
 
@@ -240,16 +239,17 @@ def test_a_second_submit_stores_nothing_new(ranking_study, make_bot):
     bot = make_bot(ranking_study)
     bot.join()
     trial = bot.participant().current_trial()
+    bot.trial_page()
     first = bot.answer_data(trial, ranks={0: 1, 1: 2, 2: 3})
     assert bot.answer(first).status_code == 302
     answered_at = Trial.objects.get(pk=trial.pk).answered_at
     second = bot.answer(bot.answer_data(trial, ranks={0: 3, 1: 2, 2: 1}, plays=5))
     assert second.status_code == 302 and second.url.endswith("/trial/")
     assert Trial.objects.get(pk=trial.pk).answered_at == answered_at
-    assert list(trial.items.order_by("position").values_list("rank", "plays")) == [
-        (1, 1),
-        (2, 1),
-        (3, 1),
+    assert list(trial.items.order_by("position").values_list("answers", "plays")) == [
+        ({"preference": 1}, 1),
+        ({"preference": 2}, 1),
+        ({"preference": 3}, 1),
     ]
 
 
@@ -286,9 +286,12 @@ def test_completion_shows_the_code_and_the_way_back(ranking_study, make_bot):
 # Clips
 
 
-def test_clips_are_served_in_byte_ranges(ranking_study, client, media_root):
-    stimulus = ranking_study.stimuli.first()
-    url = f"/c/{stimulus.token}.mp4"
+def test_clips_are_served_in_byte_ranges(ranking_study, client, media_root, make_bot):
+    bot = make_bot(ranking_study)
+    bot.join()
+    item = bot.participant().current_trial().items.select_related("stimulus").first()
+    stimulus = item.stimulus
+    url = f"/c/{item.token}.mp4"
     data = (Path(media_root) / stimulus.video).read_bytes()
     full = client.get(url)
     assert full.status_code == 200 and b"".join(full.streaming_content) == data
@@ -305,8 +308,10 @@ def test_clips_are_served_in_byte_ranges(ranking_study, client, media_root):
     assert client.head(url)["Content-Length"] == str(len(data))
     for header in ("Content-Disposition", "Last-Modified"):
         assert header not in full
-    assert client.get(f"/c/{stimulus.token}.png")["Content-Type"] == "image/png"
+    assert client.get(f"/c/{item.token}.png")["Content-Type"] == "image/png"
     assert client.get("/c/AAAAAAAAAAAAAAAAAAAAAA.mp4").status_code == 404
+    assert client.get(f"/c/{stimulus.token}.mp4").status_code == 404  # not a participant's
+    assert client.get(f"/p/{stimulus.token}.mp4").status_code == 302  # staff only: log in
 
 
 # Blindness
@@ -412,7 +417,7 @@ def test_an_answer_and_the_next_trial_cost_ten_statements(ranking_study, make_bo
     data = bot.answer_data(trial)
     with CaptureQueriesContext(connection) as captured:
         assert bot.answer(data).status_code == 302
-        assert bot.trial_page().status_code == 200
+        assert bot.trial_page(watch=False).status_code == 200
     statements = [q["sql"] for q in captured.captured_queries
                   if not q["sql"].startswith(("SAVEPOINT", "RELEASE SAVEPOINT"))]
     assert len(statements) == 10, "\n".join(statements)

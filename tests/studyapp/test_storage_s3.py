@@ -16,7 +16,7 @@ from django.core.files.storage import FileSystemStorage, default_storage
 from storages.backends.s3 import S3File, S3Storage
 
 from studyapp.settings import s3_storage_from_env
-from tests.studyapp.conftest import make_ranking_study
+from tests.studyapp.conftest import make_ranking_study, shown_item
 
 ROOT = Path(__file__).resolve().parents[2]
 BUCKET = "study-media"
@@ -75,7 +75,8 @@ def test_clips_go_to_the_bucket_and_are_served_in_ranges(db, s3, clips, client, 
     assert not any("AllUsers" in str(g["Grantee"]) for g in acl["Grants"])
 
     data = clips[0].video.read_bytes()
-    url = f"/c/{stimulus.token}.mp4"
+    item = shown_item(stimulus)
+    url = f"/c/{item.token}.mp4"
     # Served with ranged GETs: S3File never downloads the whole object into its buffer.
     monkeypatch.setattr(S3File, "file", property(lambda self: pytest.fail("whole download")))
     full = client.get(url)
@@ -104,7 +105,7 @@ def test_clips_go_to_the_bucket_and_are_served_in_ranges(db, s3, clips, client, 
     assert stale.status_code == 200 and b"".join(stale.streaming_content) == data
     assert client.head(url)["Content-Length"] == str(len(data))
 
-    poster = client.get(f"/c/{stimulus.token}.png")
+    poster = client.get(f"/c/{item.token}.png")
     assert poster["Content-Type"] == "image/png"
     assert b"".join(poster.streaming_content) == clips[0].poster.read_bytes()
 
@@ -161,15 +162,16 @@ def test_the_name_is_never_changed(db, s3, clips, uploads, monkeypatch):
 def test_unknown_tokens_and_names_outside_stimuli_are_404(db, s3, clips, client):
     study = make_ranking_study(clips)
     stimulus = study.stimuli.first()
+    item = shown_item(stimulus)
     assert client.get("/c/AAAAAAAAAAAAAAAAAAAAAA.mp4").status_code == 404
-    tampered = stimulus.token[:-1] + ("B" if stimulus.token.endswith("A") else "A")
+    tampered = item.token[:-1] + ("B" if item.token.endswith("A") else "A")
     assert client.get(f"/c/{tampered}.mp4").status_code == 404
     s3.put_object(Bucket=BUCKET, Key=f"{PREFIX}/secret.txt", Body=b"secret")
     s3.put_object(Bucket=BUCKET, Key="secret.txt", Body=b"secret")
     for name in ("secret.txt", "../secret.txt", "stimuli/../secret.txt", "/media/secret.txt",
                  "stimuli/../../secret.txt", "stimuli/", "stimuli/missing.mp4", ""):
         type(stimulus).objects.filter(pk=stimulus.pk).update(video=name)
-        response = client.get(f"/c/{stimulus.token}.mp4")
+        response = client.get(f"/c/{item.token}.mp4")
         assert response.status_code == 404, name
         assert b"secret" not in response.content
 

@@ -65,13 +65,13 @@ def join(make_bot, study, **params):
 @pytest.mark.parametrize(
     "study_type, answers, stored",
     [
-        ("fake_or_real", {"verdicts": {0: "generated"}}, {"judged_real": [False]}),
-        ("rating_standards", {"ratings": {0: 5, 1: 1, 2: 4}}, {"rating": [5, 1, 4]}),
-        ("rating_reference", {"ratings": {0: 2, 1: 3, 2: 2}}, {"rating": [2, 3, 2]}),
-        ("pairwise", {"choice": "right"}, {"choice": "right"}),
+        ("fake_or_real", {"verdicts": {0: "generated"}}, {"items": [False]}),
+        ("rating_standards", {"ratings": {0: 5, 1: 1, 2: 4}}, {"items": [5, 1, 4]}),
+        ("rating_reference", {"ratings": {0: 2, 1: 3, 2: 2}}, {"items": [2, 3, 2]}),
+        ("pairwise", {"choice": "right"}, {"trial": "right"}),
     ],
 )
-def test_an_answer_is_stored_in_the_field_of_its_type(
+def test_an_answer_is_stored_under_the_first_criterion(
     study_of, make_bot, study_type, answers, stored
 ):
     study = study_of(study_type)
@@ -83,10 +83,12 @@ def test_an_answer_is_stored_in_the_field_of_its_type(
     items = list(trial.items.order_by("position"))
     assert trial.answered_at is not None and trial.time_ms is not None
     assert all(item.plays == 2 for item in items) and trial.kind == "main"
+    key = study.kind.criteria(study)[0].key
+    judged = [item for item in items if item.role == "judged"]
+    got = {"items": [item.answers.get(key) for item in judged], "trial": trial.answers.get(key)}
     for name, value in stored.items():
-        got = trial.choice if name == "choice" else [getattr(item, name) for item in items]
-        assert got == value
-    assert all(item.rank is None for item in items)
+        assert got[name] == value
+    assert all(not item.answers for item in items if item.role != "judged")
 
 
 @pytest.mark.parametrize(
@@ -127,7 +129,7 @@ def test_pairwise_ties_are_offered_only_when_the_study_allows_them(study_of, mak
     assert 'value="both_good"' in page and 'value="both_bad"' in page
     trial = bot.participant().current_trial()
     assert bot.answer(bot.answer_data(trial, choice="both_bad")).status_code == 302
-    assert Trial.objects.get(pk=trial.pk).choice == "both_bad"
+    assert Trial.objects.get(pk=trial.pk).answers == {"preference": "both_bad"}
     plain = study_of("pairwise", slug="no-ties")
     assert "equally" not in join(make_bot, plain).trial_page().content.decode()
 
@@ -145,15 +147,17 @@ def test_the_practice_trial_comes_first_and_is_no_judgement(study_of, make_bot, 
     assert "Practice question" in page and "not counted" in page
     bot.answer(bot.answer_data(trials[0], ranks={0: 2, 1: 1, 2: 3}, ratings={0: 5}))
     practice = Trial.objects.get(pk=trials[0].pk)
-    assert practice.answered_at is not None and practice.choice == ""
-    assert not practice.items.filter(rank__isnull=False).exists()
-    assert not practice.items.filter(rating__isnull=False).exists()
-    assert not practice.items.filter(judged_real__isnull=False).exists()
+    assert practice.answered_at is not None and practice.answers == {}
+    assert not practice.items.exclude(answers={}).exists()
+    practice_only = set(study.stimuli.filter(role="practice").values_list("pk", flat=True))
+    assert set(practice.items.judged().values_list("stimulus", flat=True)) <= practice_only
+    later = TrialItem.objects.filter(trial__in=trials[1:], stimulus__in=practice_only)
+    assert not later.exists()  # practice clips are never judged
     page = bot.trial_page().content.decode()
     assert f"Question 1 of {len(trials) - 1}" in page and "practice is over" in page
     response = bot.finish()
     assert response.redirect_chain[-1][0].endswith("/about-you/")
-    judgements = sum(t.items.count() for t in trials[1:])
+    judgements = sum(t.items.judged().count() for t in trials[1:])
     assert Study.objects.with_counts().get().n_judgements == judgements
     table = responses_frame(study)
     assert len(table) == judgements and set(table["trial_kind"]) == {"main"}
@@ -193,11 +197,12 @@ def test_a_catch_trial_is_graded(study_of, make_bot, study_type, spotted):
     trials = list(bot.participant().trials.order_by("index"))
     catch = [t for t in trials if t.kind == "catch"]
     assert len(catch) == 1 and trials[0].kind == "main"
-    broken = catch[0].items.get(stimulus__is_catch=True)
-    assert TrialItem.objects.filter(stimulus__is_catch=True).count() == 1
+    broken = catch[0].items.get(stimulus__role="catch")
+    assert TrialItem.objects.filter(stimulus__role="catch").count() == 1
     good, bad = CATCH_ANSWERS[study_type](broken.position)
     while (trial := bot.participant().current_trial()) is not None:
         answers = (good if spotted else bad) if trial.kind == "catch" else {}
+        bot.trial_page()
         assert bot.answer(bot.answer_data(trial, **answers)).status_code == 302
     assert Trial.objects.get(pk=catch[0].pk).catch_passed is spotted
     assert Study.objects.with_counts().get().n_excluded == (0 if spotted else 1)
@@ -208,7 +213,7 @@ def test_catch_clips_never_enter_main_trials(study_of, make_bot):
     study = study_of("ranking", catch=True, catch_trials=0)
     for _ in range(3):
         join(make_bot, study)
-    assert not TrialItem.objects.filter(stimulus__is_catch=True).exists()
+    assert not TrialItem.objects.filter(stimulus__role="catch").exists()
 
 
 @pytest.mark.parametrize(
@@ -229,18 +234,21 @@ def test_a_repeated_trial_shows_the_same_clips_later_and_records_consistency(
     repeat = next(t for t in trials if t.kind == "repeat")
     original = repeat.repeat_of
     assert original.kind == "main" and original.index < repeat.index
-    order = list(original.items.order_by("position").values_list("stimulus", flat=True))
-    again = list(repeat.items.order_by("position").values_list("stimulus", flat=True))
+    order = list(original.items.judged().order_by("position").values_list("stimulus", flat=True))
+    again = list(repeat.items.judged().order_by("position").values_list("stimulus", flat=True))
     assert again == order[::-1]  # mirrored: a side or position habit shows
+    tokens = set(original.items.values_list("token", flat=True))
+    assert not tokens & set(repeat.items.values_list("token", flat=True))  # new URLs
     for consistent in (True, False):
         if not consistent:  # answer the repeat once more, differently
             Trial.objects.filter(pk=repeat.pk).update(answered_at=None, catch_passed=None)
-            Participant.objects.update(completed_at=None)
+            Participant.objects.update(completed_at=None, outcome="")
         while (trial := bot.participant().current_trial()) is not None:
             answers = same
             if trial.pk == repeat.pk:
                 # Answer the same clips alike: map positions back through the mirror.
                 answers = mirrored(same if consistent else different, len(order))
+            bot.trial_page()
             bot.answer(bot.answer_data(trial, **answers))
             assert Trial.objects.get(pk=trial.pk).answered_at is not None
         assert Trial.objects.get(pk=repeat.pk).catch_passed is consistent
@@ -266,15 +274,18 @@ def mirrored(answers: dict, n: int) -> dict:
 
 def test_the_reference_is_shown_never_rated(study_of, make_bot):
     study = study_of("rating_reference")
-    references = set(study.stimuli.filter(is_reference=True).values_list("pk", flat=True))
+    references = set(study.stimuli.filter(role="reference").values_list("pk", flat=True))
     for _ in range(3):
         bot = join(make_bot, study)
-    assert not TrialItem.objects.filter(stimulus__in=references).exists()
+    assert not TrialItem.objects.judged().filter(stimulus__in=references).exists()
     trial = bot.participant().current_trial()
-    assert trial.reference_id in references and trial.reference.action == trial.action
+    reference = trial.items.get(role="reference")
+    assert reference.stimulus_id in references and reference.stimulus.action == trial.action
+    assert reference.required
     page = bot.trial_page().content.decode()
-    assert f"/c/{trial.reference.token}.mp4" in page and "Reference" in page
-    assert 'name="reference_plays"' in page
+    assert f"/c/{reference.token}.mp4" in page and "Reference" in page
+    assert f'name="plays_{reference.token}"' in page
+    assert f'name="rating_{reference.token}"' not in page
 
 
 def test_the_scoring_standard_of_the_action_comes_before_the_clips(study_of, make_bot):
@@ -284,12 +295,14 @@ def test_the_scoring_standard_of_the_action_comes_before_the_clips(study_of, mak
     page = bot.trial_page().content.decode()
     standards = list(study.standards.filter(action=trial.action).order_by("score"))
     assert [s.score for s in standards] == [1, 2, 3, 4, 5]
-    positions = [page.index(f"/c/{s.stimulus.token}.mp4") for s in standards]
-    first_clip = min(page.index(f"/c/{i.stimulus.token}.mp4") for i in trial.items.all())
+    examples = {i.stimulus_id: i for i in trial.items.filter(role="example")}
+    positions = [page.index(f"/c/{examples[s.stimulus_id].token}.mp4") for s in standards]
+    first_clip = min(page.index(f"/c/{i.token}.mp4") for i in trial.items.judged())
     assert positions == sorted(positions) and positions[-1] < first_clip
     assert standards[0].description in page
-    examples = study.stimuli.filter(is_standard_example=True)
-    assert not TrialItem.objects.filter(stimulus__in=examples).exists()
+    assert all(item.required for item in examples.values())  # the first time: watched
+    example_stimuli = study.stimuli.filter(role="example")
+    assert not TrialItem.objects.judged().filter(stimulus__in=example_stimuli).exists()
 
 
 def test_a_standard_needs_an_example_clip_of_its_study(study_of):
@@ -298,8 +311,8 @@ def test_a_standard_needs_an_example_clip_of_its_study(study_of):
     from studyapp.survey.models import ScoringStandard
 
     study = study_of("rating_standards")
-    judged = study.stimuli.filter(is_standard_example=False).first()
-    with pytest.raises(ValidationError, match="standard example"):
+    judged = study.stimuli.filter(role="judged").first()
+    with pytest.raises(ValidationError, match="role 'example'"):
         standard = ScoringStandard(
             study=study, action="walk", score=1, description="x", stimulus=judged
         )
@@ -409,7 +422,7 @@ def test_nothing_a_participant_receives_names_a_source(study_of, make_bot, study
     allowed = set(get_study_type(study_type).interface_words)
     labels = set(Stimulus.objects.values_list("source", flat=True))
     labels |= {"generated", "fake", "condgru"}
-    labels |= {"is_catch", "is_reference", "is_standard_example", "catch_passed", "repeat_of"}
+    labels |= {"is_catch", "catch_passed", "repeat_of", "stimulus_role", "video_hash"}
     for label in labels - allowed:
         for text in texts:
             assert not words(text, label), f"{label!r} leaks: {words(text, label)[:3]}"
@@ -431,14 +444,14 @@ def test_admin_opens_closes_and_shows_progress(study_of, make_bot, admin_client)
     change = admin_client.get(f"/admin/survey/study/{study.pk}/change/")
     text = change.content.decode()
     assert "1 started, 1 completed, 1 excluded" in text
-    assert "standard example" in text and "Scoring standards" in text
+    assert "Catch (an obviously broken clip)" in text and "Scoring standards" in text
     for action, status in (("close_studies", "closed"), ("open_studies", "open")):
         admin_client.post(
             "/admin/survey/study/", {"action": action, "_selected_action": [study.pk]}
         )
         assert Study.objects.get().status == status
     for path in ("/admin/survey/participant/", "/admin/survey/trial/?kind=catch",
-                 "/admin/survey/response/?trial__kind=main", "/admin/survey/stimulus/?is_catch=1"):
+                 "/admin/survey/response/?trial__kind=main", "/admin/survey/stimulus/?role=catch"):
         assert admin_client.get(path).status_code == 200, path
 
 

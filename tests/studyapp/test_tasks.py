@@ -24,7 +24,7 @@ def test_thread_job_registers_stimuli_and_a_retry_duplicates_nothing(clips, medi
     from studyapp.survey.tasks import run_job
 
     settings.STUDY_CELERY_BROKER = ""
-    study = Study.objects.create_ranking("jobs", "Jobs", clips_per_trial=3)
+    study = Study.objects.create_study("ranking", "jobs", "Jobs", clips_per_trial=3)
     first = run_job("register_stimuli", study="jobs", clips=clip_dicts(clips[:3]))
     first.join(30)
     # A crash after half the clips: run the whole job again.
@@ -78,7 +78,7 @@ def test_real_redis_broker_and_worker(clips, media_root, settings):
     celery_module.app._local.__dict__.pop("backend", None)  # forget a backend built earlier
     celery_module.app.close()  # and the producer pool of the earlier broker
     celery_module.app._pool = None
-    study = Study.objects.create_ranking("redis-jobs", "Jobs", clips_per_trial=3)
+    study = Study.objects.create_study("ranking", "redis-jobs", "Jobs", clips_per_trial=3)
     worker = subprocess.Popen(
         [sys.executable, "-m", "celery", "-A", "studyapp", "worker", "--pool", "solo",
          "--loglevel", "warning", "--without-gossip", "--without-mingle"],

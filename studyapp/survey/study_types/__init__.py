@@ -1,14 +1,19 @@
-"""Study types: what a trial shows, how its answer is checked and stored.
+"""Study types: every protocol's plug-in (see :mod:`.base`).
 
-Each type is one module that subclasses :class:`StudyType` and registers itself with
-``@register_study_type("key")``; the participant flow, assignment locking and clip
-serving are shared. ``get_study_type``, ``list_study_types`` and ``choices`` read the
-registry.
+Each type is one module here that subclasses :class:`StudyType` and registers itself with
+``@register_study_type("key")``, with its template beside it (``<key>.html``) and its
+analysis in ``analysis/``. ``get_study_type``, ``list_study_types`` and ``choices`` read
+the registry; every module of this folder is imported, so a new type needs no list.
 """
+
+import importlib
+import pkgutil
+from pathlib import Path
 
 from studyapp.survey.study_types.base import StudyType, TrialPlan, registry
 
 register_study_type = registry.register
+FOLDER = Path(__file__).resolve().parent
 
 
 def get_study_type(name: str) -> StudyType:
@@ -24,16 +29,12 @@ def choices() -> list[tuple[str, str]]:
     return [(name, registry.get(name).label) for name in registry.names()]
 
 
-# Built-in types register on import.
-from studyapp.survey.study_types import (  # noqa: E402, F401
-    fake_or_real,
-    pairwise,
-    ranking,
-    rating_reference,
-    rating_standards,
-)
+for _module in pkgutil.iter_modules([str(FOLDER)]):
+    if _module.name != "base":
+        importlib.import_module(f"{__name__}.{_module.name}")
 
 __all__ = [
+    "FOLDER",
     "StudyType",
     "TrialPlan",
     "choices",

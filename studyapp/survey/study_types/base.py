@@ -1,18 +1,35 @@
 """The base every study type subclasses, and the registry they join.
 
-A type says what one trial shows and asks (``items_per_trial``, its template and form),
-how a catch trial is graded and when a repeated trial counts as consistent, and how a
-simulated participant answers. Planning a session (balanced main trials, practice,
-catch and repeated trials) is shared here and in :mod:`studyapp.survey.assignment`.
+A study type owns everything that depends on it, and nothing else in the app branches on
+its key:
+
+- its study options (``options``, checked by :meth:`check_options`), its criteria (the
+  questions asked of a trial's clips), the defaults that depend on the number of sources
+  (:meth:`defaults`), and its instructions;
+- the stimulus roles a build must make for it (:meth:`stimulus_roles`: catch, practice,
+  reference, scoring-standard examples, anchors) and what to do after registration
+  (:meth:`after_register`);
+- what a trial shows (:meth:`plan_trials`, the clips shown beside the judged ones) and
+  asks (its template beside this module, :meth:`item_field`, :meth:`trial_field`);
+- how an answer is checked (:meth:`check_answer`), stored (:meth:`item_value`,
+  :meth:`trial_value`), graded (:meth:`catch_passed`, :meth:`consistent`) and exported
+  (:attr:`export_columns`, :meth:`export_values`);
+- how a simulated participant answers (:meth:`bot_answer`) and which analysis reads its
+  table (:attr:`analysis`, registered in ``analysis/``).
+
+A new type is its module here, its template here (``<key>.html``) and its analysis module
+in ``analysis/``.
 """
+
+from __future__ import annotations
 
 from collections import Counter
 from dataclasses import dataclass, field
 
 from generation.registry import Registry
 from studyapp.survey import assignment
-from studyapp.survey.forms import clip_label
-from studyapp.survey.models import Trial
+from studyapp.survey.answers import Criterion
+from studyapp.survey.models import Stimulus, Trial, TrialItem
 
 registry = Registry("study type")
 
@@ -22,14 +39,33 @@ You will watch short, silent animations of a figure moving and answer questions 
 It takes about {minutes} minutes.
 
 Taking part is voluntary and you may stop at any time by closing the page. \
-We store your answers, the time you took and the platform id you arrived with; \
-we do not ask for your name or any other personal information. \
+We store your answers, the time you took, how the clips were played and the platform id \
+you arrived with; we do not ask for your name or any other personal information. \
 The anonymous answers may be published for research."""
+
+# Options every type has (Study fields), as a build config names them.
+COMMON_OPTIONS = {
+    "clips_per_trial": int, "trials_per_participant": int, "practice": bool,
+    "catch_trials": int, "max_failed_catch": int, "repeat_trials": int,
+    "ask_demographics": bool, "max_participants": int, "completion_url": str,
+    "instructions": str, "data_note": str, "criteria": list, "crowd": dict,
+}
+
+
+@dataclass(frozen=True)
+class Option:
+    """One option of a study type: its type, default and what it does."""
+
+    kind: type
+    default: object
+    help: str = ""
+    choices: tuple = ()
 
 
 @dataclass(eq=False)
 class TrialPlan:
-    """One trial to create: its action, its stimuli in display order, and its kind.
+    """One trial to create: its action, the judged stimuli in display order, its kind, and
+    the stimuli shown beside them (``shown``: ``(stimulus, role, required)``).
 
     Plans compare by identity, so a repeat can point at the plan it repeats.
     """
@@ -38,7 +74,33 @@ class TrialPlan:
     stimuli: list = field(default_factory=list)
     kind: str = Trial.Kind.MAIN
     repeat_of: "TrialPlan | None" = None
-    reference: object = None
+    shown: list = field(default_factory=list)
+
+    @property
+    def prompt(self) -> str:
+        return self.stimuli[0].prompt if self.stimuli else ""
+
+    def items(self, trial) -> list[TrialItem]:
+        """Return the unsaved items of ``trial``: judged first, then the shown ones."""
+        items = [
+            TrialItem(trial=trial, stimulus=stimulus, position=position)
+            for position, stimulus in enumerate(self.stimuli)
+        ]
+        for stimulus, role, required in self.shown:
+            items.append(TrialItem(trial=trial, stimulus=stimulus, role=role,
+                                   position=len(items), required=required))
+        return items
+
+    def repeated(self) -> "TrialPlan":
+        """Return this trial shown again: clips mirrored (a pair swaps sides); what is shown
+        beside them is copied from the original once planned (:meth:`copy_shown`)."""
+        return TrialPlan(self.action, self.stimuli[::-1], Trial.Kind.REPEAT, repeat_of=self)
+
+    def copy_shown(self) -> None:
+        """Show a repeat with its original's reference and examples (examples no longer
+        required: they were seen)."""
+        self.shown = [(s, role, role == TrialItem.Role.REFERENCE)
+                      for s, role, _ in self.repeat_of.shown]
 
 
 class StudyType:
@@ -46,29 +108,109 @@ class StudyType:
 
     name = ""
     label = ""
+    template = ""  # beside this module; "<key>.html" by default
+    scripts: tuple[str, ...] = ("survey/choices.js",)
+    analysis = ""  # the analysis registered in analysis/ for this type; default: the key
+    minutes = 5
     default_clips_per_trial = 6
     min_items = 2
     max_items: int | None = None
-    trial_template = ""
-    scripts: tuple[str, ...] = ()
-    form_class = None
-    minutes = 5
+    one_per_source = False  # by default a trial shows one clip of every source
+    default_criterion = Criterion("preference")
+    options: dict[str, Option] = {}
+    item_prefix: str | None = None  # field prefix of each judged clip's answer
+    trial_answer: str | None = None  # field name of an answer given on the trial
+    export_columns: tuple[str, ...] = ()
     # Words of this type's questions that are also source names ("real" in "real or
     # generated"): allowed on its pages only because every trial page shows them alike.
     interface_words: tuple[str, ...] = ()
 
+    # --- the study ------------------------------------------------------------------
+
+    def template_name(self) -> str:
+        return self.template or f"{self.name}.html"
+
+    def analysis_key(self) -> str:
+        return self.analysis or self.name
+
     def default_instructions(self, study) -> str:
         raise NotImplementedError
-
-    def item_label(self, position: int) -> str:
-        """Return the name a participant sees for the clip at ``position``."""
-        return clip_label(position)
 
     @property
     def default_consent(self) -> str:
         return DEFAULT_CONSENT.format(minutes=self.minutes)
 
-    # Planning
+    def check_options(self, options: dict) -> dict:
+        """Return ``options`` checked against this type's; raise ValueError naming the bad one."""
+        if not isinstance(options, dict):
+            raise ValueError(f"options: {options!r} must be a mapping")
+        out = {}
+        for name, value in options.items():
+            spec = self.options.get(name)
+            if spec is None:
+                known = ", ".join(self.options) or "none"
+                raise ValueError(f"{name}: not an option of {self.name} studies (its options: "
+                                 f"{known})")
+            if value is None:
+                continue
+            if not isinstance(value, spec.kind) or (spec.kind is int and isinstance(value, bool)):
+                raise ValueError(f"{name}: {value!r} must be {spec.kind.__name__}")
+            if spec.choices and value not in spec.choices:
+                raise ValueError(f"{name}: {value!r} is not one of {', '.join(map(str, spec.choices))}")
+            out[name] = value
+        return out
+
+    def option(self, study, name: str):
+        spec = self.options[name]
+        return (study.options or {}).get(name, spec.default)
+
+    def criteria(self, study) -> list[Criterion]:
+        """Return the questions asked of every trial's clips, the first one first."""
+        if not study.criteria:
+            return [self.default_criterion]
+        return [Criterion(c["key"], c.get("question", "")) for c in study.criteria]
+
+    def clean_study(self, study) -> dict:
+        """Return ``{field: message}`` of what is wrong with ``study`` for this type."""
+        errors = {}
+        n = self.items_per_trial(study)
+        if not self.min_items <= n <= (self.max_items or n):
+            most = f" and at most {self.max_items}" if self.max_items else ""
+            errors["clips_per_trial"] = (f"A {self.label.lower()} trial shows at least "
+                                         f"{self.min_items}{most} clips.")
+        try:
+            self.check_options(study.options or {})
+        except ValueError as exc:
+            errors["options"] = str(exc)
+        problem = check_criteria(study.criteria)
+        if problem:
+            errors["criteria"] = problem
+        return errors
+
+    def defaults(self, n_sources: int) -> dict:
+        """Return study fields whose default depends on the number of sources."""
+        return {"clips_per_trial": n_sources} if self.one_per_source else {}
+
+    # --- stimuli --------------------------------------------------------------------
+
+    def stimulus_roles(self, settings: dict) -> dict[str, int]:
+        """Return how many clips of each extra role a build makes per action.
+
+        ``settings`` are the study's settings (``catch_trials``, ``practice``, options).
+        Catch clips are an obviously broken version of a real clip; practice clips are
+        kept for the practice trial only (never judged later).
+        """
+        roles = {}
+        if settings.get("catch_trials"):
+            roles[Stimulus.Role.CATCH] = 1
+        if settings.get("practice"):
+            roles[Stimulus.Role.PRACTICE] = max(self.min_items, 1)
+        return roles
+
+    def after_register(self, study, clips, stimuli) -> None:
+        """Finish a study after a build registered ``clips`` as ``stimuli`` (same order)."""
+
+    # --- planning -------------------------------------------------------------------
 
     def items_per_trial(self, study) -> int:
         return study.clips_per_trial
@@ -93,7 +235,12 @@ class StudyType:
             if (plan := self.plan_catch(study, pool, stimulus, rng)) is not None
         ]
         session = assignment.arrange(main, catch, study.repeat_trials, rng)
-        return ([practice] if practice else []) + session
+        plans = ([practice] if practice else []) + session
+        self.add_shown(study, pool, [p for p in plans if p.repeat_of is None], rng)
+        for plan in plans:
+            if plan.repeat_of is not None:
+                plan.copy_shown()
+        return plans
 
     def plan_main(self, study, pool, rng) -> list[TrialPlan]:
         """Return balanced main trials: the least-judged stimuli, sources over positions."""
@@ -113,14 +260,14 @@ class StudyType:
         return plans
 
     def plan_practice(self, study, pool, rng) -> TrialPlan | None:
-        """Return a practice trial of random clips (not counted in the balance)."""
-        if not pool.table:
+        """Return a practice trial of the clips kept for practice (never judged later)."""
+        by_action = {}
+        for stimulus in pool.practice:
+            by_action.setdefault(stimulus.action, []).append(stimulus)
+        if not by_action:
             return None
-        action = rng.choice(sorted(pool.table))
-        stimuli = assignment.choose_balanced(
-            pool.table[action], Counter(), rng, self.items_per_trial(study)
-        )
-        rng.shuffle(stimuli)
+        action = rng.choice(sorted(by_action))
+        stimuli = rng.sample(by_action[action], len(by_action[action]))[: self.items_per_trial(study)]
         if len(stimuli) < self.min_items:
             return None
         return TrialPlan(action, stimuli, Trial.Kind.PRACTICE)
@@ -136,47 +283,136 @@ class StudyType:
             return None
         return TrialPlan(stimulus.action, stimuli, Trial.Kind.CATCH)
 
-    # Answers
+    def add_shown(self, study, pool, plans, rng) -> None:
+        """Add the clips shown beside the judged ones (a reference, examples) to ``plans``
+        (every plan but repeats, which show what their original showed)."""
 
-    def answer_form(self, trial, items, data):
-        """Return the bound form that checks a POST answering ``trial``."""
-        return self.form_class(trial, items, data)
+    # --- the trial page -------------------------------------------------------------
 
-    def trial_context(self, trial, items) -> dict:
+    def item_label(self, item) -> str:
+        """Return the name a participant sees for a judged clip ("Clip A")."""
+        return clip_label(item.position)
+
+    def trial_context(self, study, trial, items) -> dict:
         """Return extra template context for the trial page."""
         return {}
 
-    def grade(self, trial, items) -> bool | None:
-        """Return whether a catch trial was passed or a repeat answered as before."""
-        if trial.kind == Trial.Kind.CATCH:
-            return self.catch_passed(trial, items)
-        if trial.kind == Trial.Kind.REPEAT and trial.repeat_of_id:
-            before = trial.repeat_of
-            earlier = list(before.items.select_related("stimulus"))
-            return self.consistent(before, earlier, trial, items)
+    def item_field(self, study, item, label: str, n_items: int):
+        """Return the form field of one judged clip's answer (prefix ``item_prefix``)."""
         return None
 
-    def catch_passed(self, trial, items) -> bool:
+    def trial_field(self, study, judged):
+        """Return the form field of an answer on the trial itself (name ``trial_answer``)."""
+        return None
+
+    def check_answer(self, study, values: dict, judged) -> str | None:
+        """Return what is wrong with one criterion's answers ``{item: value}``, or None."""
+        return None
+
+    def item_value(self, value):
+        """Return what is stored of a judged clip's cleaned answer."""
+        return value
+
+    def trial_value(self, value, judged):
+        """Return what is stored of the trial's cleaned answer."""
+        return value
+
+    # --- grading --------------------------------------------------------------------
+
+    def grade(self, trial, items) -> bool | None:
+        """Return whether a catch trial was passed or a repeat answered as before.
+
+        Only the first criterion is graded (a broken clip is broken on every criterion).
+        """
+        study = trial.participant.study
+        key = self.criteria(study)[0].key
+        judged = [item for item in items if item.role == TrialItem.Role.JUDGED]
+        if trial.kind == Trial.Kind.CATCH:
+            return self.catch_passed(Graded(trial, judged, key))
+        if trial.kind == Trial.Kind.REPEAT and trial.repeat_of_id:
+            before = trial.repeat_of
+            earlier = list(before.items.filter(role=TrialItem.Role.JUDGED).select_related("stimulus"))
+            return self.consistent(Graded(before, earlier, key), Graded(trial, judged, key))
+        return None
+
+    def catch_passed(self, answered: "Graded") -> bool:
         """Return whether the answer treats the broken clip as the worst."""
         raise NotImplementedError
 
-    def consistent(self, before, before_items, trial, items) -> bool:
+    def consistent(self, before: "Graded", now: "Graded") -> bool:
         """Return whether a repeated trial got the same answer as the trial it repeats."""
         raise NotImplementedError
 
-    def simulate_answer(self, page, policy) -> dict:
-        """Return the answer fields a simulated participant posts for a trial page.
+    # --- export ---------------------------------------------------------------------
 
-        ``page.tokens`` are the clips in screen order, ``page.sources`` their sources
-        (looked up in the database, never read from the page).
+    def export_values(self, trial_answer, item_answer, item: dict, items: list) -> dict:
+        """Return the export columns of one judged clip for one criterion.
+
+        ``trial_answer`` / ``item_answer`` are the stored values of that criterion (None
+        when not answered); ``item`` and ``items`` (the trial's judged items) are dicts
+        with ``position`` and ``stimulus``.
+        """
+        return {}
+
+    # --- bots -----------------------------------------------------------------------
+
+    def bot_answer(self, page, policy) -> dict:
+        """Return the answer fields (first criterion's names) a bot posts for a trial.
+
+        ``page.tokens`` are the judged clips in screen order, ``page.sources`` their
+        sources (looked up in the database, never read from the page).
         """
         raise NotImplementedError
 
 
-def catch_item(items):
-    """Return the broken clip of a catch trial."""
-    return next(item for item in items if item.stimulus.is_catch)
+@dataclass
+class Graded:
+    """One criterion's answers of an answered trial, for grading."""
+
+    trial: Trial
+    items: list
+    key: str
+
+    @property
+    def choice(self):
+        return (self.trial.answers or {}).get(self.key)
+
+    def value(self, item):
+        return (item.answers or {}).get(self.key)
+
+    def catch(self):
+        """Return the broken clip of a catch trial."""
+        return next(item for item in self.items if item.stimulus.role == Stimulus.Role.CATCH)
+
+    def by_stimulus(self) -> dict:
+        return {item.stimulus_id: item for item in self.items}
 
 
-def by_stimulus(items) -> dict:
-    return {item.stimulus_id: item for item in items}
+def clip_label(position: int) -> str:
+    """Return the name a participant sees for the clip at ``position`` ("Clip A")."""
+    letters = "ABCDEFGHIJKLMNOPQRSTUVWXYZ"
+    name = letters[position % 26] * (position // 26 + 1)
+    return f"Clip {name}"
+
+
+def check_criteria(criteria) -> str | None:
+    """Return what is wrong with a study's ``criteria`` list, or None."""
+    import re
+
+    if not criteria:
+        return None
+    if not isinstance(criteria, list):
+        return "criteria must be a list of {key, question}"
+    keys = []
+    for i, c in enumerate(criteria):
+        if not isinstance(c, dict) or set(c) - {"key", "question"}:
+            return f"criteria.{i}: give key and question, e.g. {{key: naturalness, question: ...}}"
+        key = c.get("key")
+        if not isinstance(key, str) or not re.fullmatch(r"[a-z][a-z0-9_]{0,29}", key):
+            return f"criteria.{i}.key: {key!r} must be a short snake_case name"
+        if not isinstance(c.get("question", ""), str):
+            return f"criteria.{i}.question: must be text"
+        keys.append(key)
+    if len(set(keys)) != len(keys):
+        return "criteria: each key must be used once"
+    return None

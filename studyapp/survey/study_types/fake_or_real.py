@@ -3,15 +3,21 @@
 The action is named; clips come one at a time by default (``clips_per_trial`` may show
 several, each judged on its own). Participants are told not to decide by comparing
 clips: any mix of real and generated is possible.
+
+Every participant sees the study's share of real clips, give or take one clip, while
+each stimulus still gets about the same number of judgements: least-judged first within
+the real clips and within the generated ones (whose sources take turns).
 """
 
 import math
 
 from django import forms
 
-from studyapp.survey.forms import TrialForm
-from studyapp.survey.study_types.base import StudyType, by_stimulus, catch_item, registry
+from studyapp.survey import assignment
+from studyapp.survey.answers import Criterion
+from studyapp.survey.study_types.base import StudyType, TrialPlan, registry
 
+REAL = "real"
 VERDICTS = [("real", "Real"), ("generated", "Generated")]
 
 INSTRUCTIONS = """\
@@ -30,34 +36,16 @@ played through. You can choose with the buttons, or press R (real) or G (generat
 You will not be told whether you were right; go with your impression."""
 
 
-class FakeOrRealForm(TrialForm):
-    prefixes = ("judged", "plays")
-
-    def add_item_fields(self, item, label):
-        self.fields[f"judged_{item.stimulus.token}"] = forms.ChoiceField(
-            label=f"Verdict on {label.lower()}",
-            choices=VERDICTS,
-            error_messages={"required": f"{label} is not judged real or generated yet."},
-        )
-
-    def item_answer(self, item):
-        token = item.stimulus.token
-        return {
-            "judged_real": self.cleaned_data[f"judged_{token}"] == "real",
-            "plays": self.cleaned_data[f"plays_{token}"],
-        }
-
-
 @registry.register("fake_or_real")
 class FakeOrReal(StudyType):
     label = "Fake or real"
     default_clips_per_trial = 1
     min_items = 1
-    trial_template = "survey/trial_fake_or_real.html"
-    scripts = ("survey/choices.js",)
-    form_class = FakeOrRealForm
     minutes = 8
     interface_words = ("real", "generated")
+    default_criterion = Criterion("real")
+    item_prefix = "judged"
+    export_columns = ("judged_real",)
 
     def default_instructions(self, study):
         one = study.clips_per_trial == 1
@@ -73,19 +61,80 @@ class FakeOrReal(StudyType):
         sources = max((len(by_source) for by_source in table.values()), default=1)
         return math.ceil(sources / self.items_per_trial(study))
 
-    def trial_context(self, trial, items):
+    def plan_main(self, study, pool, rng):
+        """Pick the session's clips with the study's real share (+-1), least judged first,
+        then group them by action into trials."""
+        n = self.items_per_trial(study)
+        per_action = self.trials_per_action(study, pool.table)
+        wanted = (study.trials_per_participant or per_action * len(pool.table)) * n
+        stimuli = [s for by_source in pool.table.values() for group in by_source.values()
+                   for s in group]
+        if not stimuli:
+            return []
+        real = [s for s in stimuli if s.source == REAL]
+        n_real = round(wanted * len(real) / len(stimuli))
+        chosen = self._least_used(real, n_real, pool, rng)
+        chosen += self._least_used([s for s in stimuli if s.source != REAL],
+                                   wanted - len(chosen), pool, rng)
+        rng.shuffle(chosen)
+        by_action = {}
+        for stimulus in chosen:
+            by_action.setdefault(stimulus.action, []).append(stimulus)
+        plans = [TrialPlan(action, group[i:i + n])
+                 for action, group in by_action.items() for i in range(0, len(group), n)]
+        rng.shuffle(plans)
+        for plan in plans:
+            plan.stimuli = assignment.order_positions(plan.stimuli, pool.positions, rng)
+            for position, stimulus in enumerate(plan.stimuli):
+                pool.positions[(stimulus.source, position)] += 1
+        return plans
+
+    @staticmethod
+    def _least_used(stimuli, k, pool, rng) -> list:
+        """Return ``k`` of ``stimuli``, least judged first (repeating when ``k`` is more),
+        sources taking turns, and count them as used."""
+        if not stimuli or k <= 0:
+            return []
+        by_source = {}
+        for stimulus in stimuli:
+            by_source.setdefault(stimulus.source, []).append(stimulus)
+        out = []
+        while len(out) < k:
+            taken = assignment.choose_balanced(by_source, pool.items, rng, k - len(out))
+            if not taken:
+                break
+            for stimulus in taken:
+                pool.items[stimulus.pk] += 1
+            out += taken
+        return out
+
+    def trial_context(self, study, trial, items):
         return {"verdicts": VERDICTS}
 
-    def catch_passed(self, trial, items):
+    def item_field(self, study, item, label, n_items):
+        return forms.ChoiceField(
+            label=f"Verdict on {label.lower()}",
+            choices=VERDICTS,
+            error_messages={"required": f"{label} is not judged real or generated yet."},
+        )
+
+    def item_value(self, value):
+        return value == "real"
+
+    def catch_passed(self, answered):
         """The broken clip must be judged generated."""
-        return catch_item(items).judged_real is False
+        return answered.value(answered.catch()) is False
 
-    def consistent(self, before, before_items, trial, items):
+    def consistent(self, before, now):
         """Every clip gets the same verdict again."""
-        earlier = by_stimulus(before_items)
-        return all(item.judged_real == earlier[item.stimulus_id].judged_real for item in items)
+        earlier = before.by_stimulus()
+        return all(now.value(item) == before.value(earlier[item.stimulus_id])
+                   for item in now.items)
 
-    def simulate_answer(self, page, policy):
+    def export_values(self, trial_answer, item_answer, item, items):
+        return {"judged_real": item_answer}
+
+    def bot_answer(self, page, policy):
         return {
             f"judged_{token}": "real" if policy.is_real(page.sources[token]) else "generated"
             for token in page.tokens

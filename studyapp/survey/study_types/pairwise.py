@@ -1,19 +1,20 @@
 """Pairwise preference: two clips of one action side by side; which looks better?
 
 As in recent motion-generation papers. Sources are balanced over the left and right
-side; a study may also offer "both equally good" and "both equally bad"
-(``Study.allow_ties``). The answer is the trial's ``choice``; position 0 is the left
-clip, 1 the right.
+side; a study may also offer "both equally good" and "both equally bad" (option
+``allow_ties``). The answer is stored on the trial; position 0 is the left clip, 1 the
+right.
 """
 
 from django import forms
 
-from studyapp.survey.forms import TrialForm
-from studyapp.survey.models import Trial
-from studyapp.survey.study_types.base import StudyType, registry
+from studyapp.survey.answers import Criterion
+from studyapp.survey.study_types.base import Option, StudyType, registry
 
 SIDES = ("Left clip", "Right clip")
-TIES = (Trial.Choice.BOTH_GOOD, Trial.Choice.BOTH_BAD)
+CHOICES = {"left": "Left", "right": "Right", "both_good": "Both equally good",
+           "both_bad": "Both equally bad"}
+TIES = ("both_good", "both_bad")
 
 INSTRUCTIONS = """\
 Each question names an action, for example "walk", and shows two short, silent clips of \
@@ -32,36 +33,14 @@ bad"; please use these only when you really have no preference."""
 
 def choices_of(study) -> list[tuple[str, str]]:
     """Return the answers a pairwise trial of ``study`` offers."""
-    sides = [(Trial.Choice.LEFT, "Left"), (Trial.Choice.RIGHT, "Right")]
-    ties = [(value, Trial.Choice(value).label) for value in TIES] if study.allow_ties else []
-    return [(str(value), label) for value, label in sides + ties]
-
-
-class PairwiseForm(TrialForm):
-    prefixes = ("plays",)
-
-    def __init__(self, trial, items, data):
-        super().__init__(trial, items, data)
-        self.fields["choice"] = forms.ChoiceField(
-            label="Your choice",
-            choices=choices_of(trial.participant.study),
-            error_messages={
-                "required": "No clip is chosen yet.",
-                "invalid_choice": "This answer is not one of the choices offered.",
-            },
-        )
-
-    def label(self, item):
-        return SIDES[item.position]
-
-    def trial_answer(self):
-        return {"choice": self.cleaned_data["choice"]}
+    names = ["left", "right"] + (list(TIES) if study.option("allow_ties") else [])
+    return [(name, CHOICES[name]) for name in names]
 
 
 def chosen(choice: str, items):
     """Return the stimulus id of the preferred clip, or the tie itself."""
     sides = {item.position: item.stimulus_id for item in items}
-    return {Trial.Choice.LEFT: sides[0], Trial.Choice.RIGHT: sides[1]}.get(choice, choice)
+    return {"left": sides[0], "right": sides[1]}.get(choice, choice)
 
 
 @registry.register("pairwise")
@@ -70,33 +49,48 @@ class Pairwise(StudyType):
     default_clips_per_trial = 2
     min_items = 2
     max_items = 2
-    trial_template = "survey/trial_pairwise.html"
-    scripts = ("survey/choices.js",)
-    form_class = PairwiseForm
     minutes = 8
+    default_criterion = Criterion("preference")
+    options = {"allow_ties": Option(bool, False, 'Also offer "both equally good" and '
+                                                 '"both equally bad".')}
+    trial_answer = "choice"
+    export_columns = ("choice",)
 
     def default_instructions(self, study):
-        return INSTRUCTIONS.format(ties=TIES_TEXT if study.allow_ties else "")
+        return INSTRUCTIONS.format(ties=TIES_TEXT if study.option("allow_ties") else "")
 
     def items_per_trial(self, study):
         return 2
 
-    def item_label(self, position):
-        return SIDES[position]
+    def item_label(self, item):
+        return SIDES[item.position]
 
-    def trial_context(self, trial, items):
-        return {"choices": choices_of(trial.participant.study)}
+    def trial_context(self, study, trial, items):
+        return {"choices": choices_of(study)}
 
-    def catch_passed(self, trial, items):
+    def trial_field(self, study, judged):
+        return forms.ChoiceField(
+            label="Your choice",
+            choices=choices_of(study),
+            error_messages={
+                "required": "No clip is chosen yet.",
+                "invalid_choice": "This answer is not one of the choices offered.",
+            },
+        )
+
+    def catch_passed(self, answered):
         """The clip that is not broken must be preferred."""
-        intact = next(item for item in items if not item.stimulus.is_catch)
-        return chosen(trial.choice, items) == intact.stimulus_id
+        intact = next(item for item in answered.items if not item.stimulus.is_catch)
+        return chosen(answered.choice, answered.items) == intact.stimulus_id
 
-    def consistent(self, before, before_items, trial, items):
+    def consistent(self, before, now):
         """The same clip is preferred again (or the same tie chosen)."""
-        return chosen(before.choice, before_items) == chosen(trial.choice, items)
+        return chosen(before.choice, before.items) == chosen(now.choice, now.items)
 
-    def simulate_answer(self, page, policy):
+    def export_values(self, trial_answer, item_answer, item, items):
+        return {"choice": trial_answer}
+
+    def bot_answer(self, page, policy):
         left, right = (page.sources[token] for token in page.tokens)
         ties = [value for value in page.choices if value in TIES]
         return {"choice": policy.prefer(left, right, ties)}

@@ -1,11 +1,15 @@
-"""Preference ranking (seed 000, Sec. 4.2.5): order N clips of one action, 1 = best."""
+"""Preference ranking (seed 000, Sec. 4.2.5): order N clips of one action, 1 = best.
+
+A trial starts unranked: the answer exists only once the participant has ordered the
+clips (or confirmed the order shown), so an untouched page cannot be submitted.
+"""
 
 from collections import Counter
 
 from django import forms
 
-from studyapp.survey.forms import TrialForm
-from studyapp.survey.study_types.base import StudyType, by_stimulus, catch_item, registry
+from studyapp.survey.answers import Criterion
+from studyapp.survey.study_types.base import StudyType, registry
 
 # A repeated ranking is consistent when clips move by at most this many places on average.
 MAX_MEAN_RANK_CHANGE = 1.0
@@ -19,62 +23,60 @@ like most (rank 1) to the one you like least (rank {n}). Judge two things togeth
 natural and smooth the movement looks, and how well it shows the named action.
 
 To order the clips, drag the rows of the ranking list, use the arrow buttons, or pick \
-a rank from each row's menu. The submit button becomes active once every clip has \
-played through.
+a rank from each row's menu; if the order shown is already yours, press "Keep this \
+order". The submit button becomes active once every clip has played through and every \
+clip has a rank.
 
 There are no right or wrong answers; we are interested in your impression."""
-
-
-class RankingForm(TrialForm):
-    prefixes = ("rank", "plays")
-
-    def add_item_fields(self, item, label):
-        n = len(self.items)
-        self.fields[f"rank_{item.stimulus.token}"] = forms.IntegerField(
-            label=f"Rank of {label.lower()}",
-            min_value=1,
-            max_value=n,
-            error_messages={"required": f"{label} has no rank."},
-        )
-
-    def clean(self):
-        cleaned = super().clean()
-        n = len(self.items)
-        ranks = [cleaned.get(f"rank_{item.stimulus.token}") for item in self.items]
-        if None in ranks:
-            return cleaned
-        repeated = sorted(rank for rank, times in Counter(ranks).items() if times > 1)
-        if repeated:
-            given = ", ".join(str(rank) for rank in repeated)
-            raise forms.ValidationError(
-                f"Rank {given} is given to more than one clip; "
-                f"give each rank from 1 to {n} to exactly one clip."
-            )
-        return cleaned
 
 
 @registry.register("ranking")
 class Ranking(StudyType):
     label = "Preference ranking"
     default_clips_per_trial = 6
-    trial_template = "survey/trial_ranking.html"
+    one_per_source = True
     scripts = ("survey/ranking.js",)
-    form_class = RankingForm
     minutes = 10
+    default_criterion = Criterion("preference")
+    item_prefix = "rank"
+    export_columns = ("rank",)
 
     def default_instructions(self, study):
         return INSTRUCTIONS.format(n=study.clips_per_trial)
 
-    def catch_passed(self, trial, items):
-        """The broken clip must be ranked last."""
-        return catch_item(items).rank == len(items)
+    def trial_context(self, study, trial, items):
+        return {"ranks": range(1, len(items) + 1)}
 
-    def consistent(self, before, before_items, trial, items):
+    def item_field(self, study, item, label, n_items):
+        return forms.IntegerField(
+            label=f"Rank of {label.lower()}",
+            min_value=1,
+            max_value=n_items,
+            error_messages={"required": f"{label} has no rank yet."},
+        )
+
+    def check_answer(self, study, values, judged):
+        repeated = sorted(rank for rank, times in Counter(values.values()).items() if times > 1)
+        if repeated:
+            given = ", ".join(str(rank) for rank in repeated)
+            return (f"Rank {given} is given to more than one clip; give each rank from 1 to "
+                    f"{len(values)} to exactly one clip.")
+        return None
+
+    def catch_passed(self, answered):
+        """The broken clip must be ranked last."""
+        return answered.value(answered.catch()) == len(answered.items)
+
+    def consistent(self, before, now):
         """Clips keep their ranks, give or take one place on average."""
-        earlier = by_stimulus(before_items)
-        moves = [abs(item.rank - earlier[item.stimulus_id].rank) for item in items]
+        earlier = before.by_stimulus()
+        moves = [abs(now.value(item) - before.value(earlier[item.stimulus_id]))
+                 for item in now.items]
         return sum(moves) / len(moves) <= MAX_MEAN_RANK_CHANGE
 
-    def simulate_answer(self, page, policy):
+    def export_values(self, trial_answer, item_answer, item, items):
+        return {"rank": item_answer}
+
+    def bot_answer(self, page, policy):
         order = policy.order([page.sources[token] for token in page.tokens])
         return {f"rank_{page.tokens[i]}": str(rank) for rank, i in enumerate(order, 1)}

@@ -1,13 +1,14 @@
 """What the two realism-rating protocols share: a 1-5 score for each clip of a trial.
 
 Not a study type itself; :mod:`.rating_standards` and :mod:`.rating_reference` add what
-is shown beside the clips (scoring standards, or a real reference clip).
+is shown beside the clips (scoring standards, or a real reference clip). Both use the
+template ``rating.html`` beside this module.
 """
 
 from django import forms
 
-from studyapp.survey.forms import TrialForm
-from studyapp.survey.study_types.base import StudyType, by_stimulus, catch_item
+from studyapp.survey.answers import Criterion
+from studyapp.survey.study_types.base import StudyType
 
 SCALE = [
     (1, "Not realistic at all"),
@@ -22,41 +23,42 @@ CATCH_MAX = 2
 MAX_CHANGE = 1
 
 
-class RatingForm(TrialForm):
-    prefixes = ("rating", "plays")
+class RatingStudy(StudyType):
+    """Score every clip of a trial from 1 (not realistic) to 5 (completely realistic)."""
 
-    def add_item_fields(self, item, label):
-        self.fields[f"rating_{item.stimulus.token}"] = forms.IntegerField(
+    default_clips_per_trial = 4
+    min_items = 1
+    one_per_source = True
+    template = "rating.html"
+    minutes = 10
+    analysis = "ratings"
+    default_criterion = Criterion("realism")
+    item_prefix = "rating"
+    export_columns = ("rating",)
+
+    def trial_context(self, study, trial, items):
+        return {"scale": SCALE}
+
+    def item_field(self, study, item, label, n_items):
+        return forms.IntegerField(
             label=f"Score of {label.lower()}",
             min_value=1,
             max_value=len(SCALE),
             error_messages={"required": f"{label} has no score yet."},
         )
 
-
-class RatingStudy(StudyType):
-    """Score every clip of a trial from 1 (not realistic) to 5 (completely realistic)."""
-
-    default_clips_per_trial = 4
-    min_items = 1
-    trial_template = "survey/trial_rating.html"
-    scripts = ("survey/choices.js",)
-    form_class = RatingForm
-    minutes = 10
-
-    def trial_context(self, trial, items):
-        return {"scale": SCALE}
-
-    def catch_passed(self, trial, items):
+    def catch_passed(self, answered):
         """The broken clip must get a low score."""
-        return catch_item(items).rating <= CATCH_MAX
+        return answered.value(answered.catch()) <= CATCH_MAX
 
-    def consistent(self, before, before_items, trial, items):
+    def consistent(self, before, now):
         """No clip's score changes by more than one."""
-        earlier = by_stimulus(before_items)
-        return all(
-            abs(item.rating - earlier[item.stimulus_id].rating) <= MAX_CHANGE for item in items
-        )
+        earlier = before.by_stimulus()
+        return all(abs(now.value(item) - before.value(earlier[item.stimulus_id])) <= MAX_CHANGE
+                   for item in now.items)
 
-    def simulate_answer(self, page, policy):
+    def export_values(self, trial_answer, item_answer, item, items):
+        return {"rating": item_answer}
+
+    def bot_answer(self, page, policy):
         return {f"rating_{token}": str(policy.rating(page.sources[token])) for token in page.tokens}

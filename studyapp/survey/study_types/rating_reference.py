@@ -1,12 +1,11 @@
 """Realism rating with a real reference clip (seed 004, Table 5).
 
-Participants are told the action and shown one real clip of it (a stimulus marked
-``is_reference``, never rated), then score each clip 1-5.
+Participants are told the action and shown one real clip of it (a stimulus whose role is
+``reference``, never rated, shown beside the judged clips), then score each clip 1-5. A
+repeated trial shows the same reference again.
 """
 
-from collections import defaultdict
-
-from studyapp.survey.models import Stimulus
+from studyapp.survey.models import Stimulus, TrialItem
 from studyapp.survey.study_types.base import registry
 from studyapp.survey.study_types.rating import RatingStudy
 
@@ -20,9 +19,7 @@ so you know what it looks like. It is not scored.
 Score each of the {n} clips below it: how realistic does the movement look, as an \
 example of the named action, from 1 (not realistic at all) to 5 (completely realistic)? \
 Watch the reference and every clip to the end at least once; the submit button becomes \
-active once they have all played through. Choose a score with the buttons under each clip.
-
-There are no right or wrong answers; we are interested in your impression."""
+active once they have all played through. Choose a score with the buttons under each clip."""
 
 
 @registry.register("rating_reference")
@@ -33,18 +30,17 @@ class RatingReference(RatingStudy):
     def default_instructions(self, study):
         return INSTRUCTIONS.format(n=study.clips_per_trial)
 
-    def plan_trials(self, study, rng):
-        """Plan as usual, then give each trial a reference clip of its action."""
-        plans = super().plan_trials(study, rng)
-        references = defaultdict(list)
-        for stimulus in Stimulus.objects.filter(study=study, is_reference=True).order_by("pk"):
-            references[stimulus.action].append(stimulus)
-        for plan in plans:
-            if plan.repeat_of is not None:
-                plan.reference = plan.repeat_of.reference
-            elif references[plan.action]:
-                plan.reference = rng.choice(references[plan.action])
-        return plans
+    def stimulus_roles(self, settings):
+        return super().stimulus_roles(settings) | {Stimulus.Role.REFERENCE: 1}
 
-    def trial_context(self, trial, items):
-        return super().trial_context(trial, items) | {"reference": trial.reference}
+    def add_shown(self, study, pool, plans, rng):
+        """Give each trial a reference clip of its action."""
+        references = pool.shown[Stimulus.Role.REFERENCE]
+        for plan in plans:
+            if references[plan.action]:
+                reference = rng.choice(references[plan.action])
+                plan.shown = [(reference, TrialItem.Role.REFERENCE, True)]
+
+    def trial_context(self, study, trial, items):
+        reference = next((i for i in items if i.role == TrialItem.Role.REFERENCE), None)
+        return super().trial_context(study, trial, items) | {"reference": reference}

@@ -1,9 +1,6 @@
-from pathlib import Path
-
-from django.conf import settings
 from django.core.management.base import BaseCommand, CommandError
 
-from studyapp.survey.stimulus_build import BuildError, build_stimuli
+from studyapp.survey.stimulus_build import BuildError, build_stimuli, default_folders
 from studyapp.survey.stimulus_config import ConfigError, load_config
 
 
@@ -22,14 +19,17 @@ class Command(BaseCommand):
                  "--set train.iters=3 --set sources.1.seed=2. Repeatable.",
         )
         parser.add_argument("--out", help="Build folder (default: <var>/stimuli/<slug>).")
+        parser.add_argument("--cache", help="Cache of motions, checkpoints and renders "
+                            "(default: <var>/stimuli/cache, shared by every study; the build "
+                            "folder with --out).")
         parser.add_argument("--dry-run", action="store_true", help="Check and plan; build nothing.")
 
     def handle(self, *args, **options):
         try:
             config = load_config(options["config"], options["overrides"])
-            folder = Path(options["out"] or Path(settings.VAR_DIR) / "stimuli" / config.slug)
+            folder, cache = default_folders(config, options["out"], options["cache"])
             result = build_stimuli(config, folder, log=self.stdout.write,
-                                   dry_run=options["dry_run"])
+                                   dry_run=options["dry_run"], cache=cache)
         except (ConfigError, BuildError) as exc:
             raise CommandError(str(exc)) from exc
         if not options["dry_run"]:

@@ -1,24 +1,30 @@
 import random
 import secrets
+from concurrent.futures import ThreadPoolExecutor
 
 from django.core.management.base import BaseCommand, CommandError
+from django.db import close_old_connections
 
-from studyapp.survey.export import get_study
-from studyapp.survey.models import Stimulus
-from studyapp.survey.simulate import (
+from studyapp.survey.bots import (
     POLICIES,
     Bot,
     SimulationError,
     entry_url,
     parse_strengths,
+    person_id,
 )
+from studyapp.survey.export import get_study
+from studyapp.survey.models import Participant, Stimulus
 
 
 class Command(BaseCommand):
     help = (
-        "Play a study through its real pages with N simulated participants (bots). "
-        "Policies: random, prefer-real, bt (Bradley-Terry strengths per source; see "
-        "studyapp/survey/simulate.py). Sources come from the database, never the page."
+        "Play a study through its real pages with N simulated participants (bots), several "
+        "at once. Each bot fetches every clip as a browser does and waits as long as the "
+        "clips play (the server refuses answers sooner). Policies: random, prefer-real, bt "
+        "(Bradley-Terry strengths per source), inattentive (fails every catch trial), "
+        "decline (no consent), screen-out (fails the screening questions); see "
+        "studyapp/survey/bots.py. Sources come from the database, never the page."
     )
 
     def add_arguments(self, parser):
@@ -34,13 +40,20 @@ class Command(BaseCommand):
         )
         parser.add_argument(
             "--pace", type=float, default=1.0, metavar="FACTOR",
-            help="Wait FACTOR x the longest clip before each answer, as a viewer must (0: none).",
+            help="Wait FACTOR x the longest clip before each answer (at least 1: the server "
+                 "takes no answer before the clips could have played through).",
         )
+        parser.add_argument("--concurrency", type=int, default=8,
+                            help="Bots taking the study at the same time.")
+        parser.add_argument("--no-watch", action="store_true",
+                            help="Answer without fetching the clips or waiting (the server "
+                                 "refuses these bots: a check of the watch rule).")
 
-    def handle(self, *args, study, n, url, policy, seed, strengths, pace, **options):
+    def handle(self, *args, study, n, url, policy, seed, strengths, pace, concurrency,
+               no_watch, **options):
         study = get_study(study)
-        if n < 1 or pace < 0:
-            raise CommandError("--n must be at least 1 and --pace at least 0")
+        if n < 1 or pace < 0 or concurrency < 1:
+            raise CommandError("--n and --concurrency must be at least 1 and --pace at least 0")
         try:
             strengths = parse_strengths(strengths)
         except ValueError as error:
@@ -54,20 +67,32 @@ class Command(BaseCommand):
                 f"({', '.join(sources)})"
             )
         run = seed if seed is not None else secrets.token_hex(3)
-        failures = 0
-        for i in range(1, n + 1):
+
+        def one(i):
             rng = random.Random(f"{run}-{i}")
-            bot = Bot(study, POLICIES[policy](rng, strengths, sources), rng, pace=pace)
-            person = f"sim-{run}-{i}"
+            bot = Bot(study, POLICIES[policy](rng, strengths, sources), rng, pace=pace,
+                      watch=not no_watch)
+            person = person_id(run, i)
             try:
-                outcome = bot.run(entry_url(study, url, person))
+                return person, bot.run(entry_url(study, url, person)), None
             except SimulationError as error:
-                failures += 1
-                self.stderr.write(f"{person}: {error}")
-                continue
-            self.stdout.write(
-                f"{person}: {outcome.trials} trials, completion code {outcome.completion_code}"
-            )
+                return person, None, error
+            finally:
+                close_old_connections()
+
+        failures = 0
+        with ThreadPoolExecutor(max_workers=min(concurrency, n)) as pool:
+            for person, outcome, error in pool.map(one, range(1, n + 1)):
+                if error is not None:
+                    failures += 1
+                    self.stderr.write(f"{person}: {error}")
+                    continue
+                kind = Participant.objects.filter(
+                    study=study, external_key__endswith=f":{person}"
+                ).values_list("outcome", flat=True).first() or ""
+                redirect = f", redirect {outcome.exit_url}" if outcome.exit_url else ""
+                self.stdout.write(f"{person}: {outcome.trials} trials, outcome {kind}{redirect}, "
+                                  f"completion code {outcome.completion_code}")
         done = n - failures
         self.stdout.write(
             f"{done} of {n} simulated participants completed {study.slug} ({policy})."

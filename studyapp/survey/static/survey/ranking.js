@@ -1,13 +1,21 @@
-// The ranking list of a preference-ranking trial. Its order is the answer: row k has
-// rank k. Rows move by drag and drop (mouse: HTML5 drag and drop; touch and pen:
-// pointer events on the grip), by the arrow buttons, or by each row's rank menu, and
-// every move rewrites the menus, the numbers and the badges on the clips.
+// The ranking lists of a preference-ranking trial (one per question). A list's order
+// is the answer: row k has rank k. Rows move by drag and drop (mouse: HTML5 drag and
+// drop; touch and pen: pointer events on the grip), by the arrow buttons, or by each
+// row's rank menu, and every move rewrites the menus, the numbers and the badges on the
+// clips. A list starts unranked: the order shown becomes the answer only once the
+// participant moves a row or presses "Keep this order", so an untouched page cannot be
+// submitted.
 (function () {
   "use strict";
 
-  var list = document.querySelector("[data-ranking]");
-  if (!list) { return; }
-  var announcer = document.querySelector("[data-announce]");
+  document.querySelectorAll("[data-ranking-panel]").forEach(setupPanel);
+
+  function setupPanel(panel) {
+  var list = panel.querySelector("[data-ranking]");
+  var announcer = panel.querySelector("[data-announce]");
+  var keep = panel.querySelector("[data-keep-order]");
+  var badges = list.dataset.question === "0";
+  var ranked = false;
   var dragged = null;
   var byPointer = false; // true while a finger or pen (not HTML5 drag) moves a row
 
@@ -23,13 +31,19 @@
     var all = rows();
     all.forEach(function (row, index) {
       var rank = String(index + 1);
-      row.querySelector(".rank-num").textContent = rank;
-      row.querySelector(".rank-select").value = rank;
+      row.querySelector(".rank-num").textContent = ranked ? rank : "–";
+      row.querySelector(".rank-select").value = ranked ? rank : "";
       row.querySelector("[data-move='-1']").disabled = index === 0;
       row.querySelector("[data-move='1']").disabled = index === all.length - 1;
       var card = document.querySelector("[data-clip-card][data-clip='" + row.dataset.clip + "']");
-      if (card) { card.querySelector("[data-badge]").textContent = "Rank " + rank; }
+      if (card && badges) { card.querySelector("[data-badge]").textContent = ranked ? "Rank " + rank : ""; }
     });
+    if (keep) { keep.hidden = ranked; }
+    list.dispatchEvent(new Event("change", { bubbles: true }));
+  }
+
+  function markRanked() {
+    ranked = true;
   }
 
   function announce(row) {
@@ -39,6 +53,7 @@
   }
 
   function moveTo(row, index) {
+    markRanked();
     var others = rows().filter(function (other) { return other !== row; });
     index = Math.max(0, Math.min(index, others.length));
     list.insertBefore(row, others[index] || null);
@@ -56,6 +71,7 @@
       if (y < box.top + box.height / 2) { before = others[i]; break; }
     }
     if (dragged.nextElementSibling !== before) {
+      markRanked();
       list.insertBefore(dragged, before);
       renumber();
     }
@@ -79,8 +95,17 @@
     announce(row);
   }
 
+  if (keep) {
+    keep.addEventListener("click", function () {
+      markRanked();
+      renumber();
+      if (announcer) { announcer.textContent = "The order shown is your ranking."; }
+    });
+  }
+
   list.addEventListener("change", function (event) {
-    if (!event.target.classList.contains("rank-select")) { return; }
+    if (!event.target.classList || !event.target.classList.contains("rank-select")) { return; }
+    if (event.target.value === "") { renumber(); return; }
     var row = event.target.closest(".rank-row");
     moveTo(row, Number(event.target.value) - 1);
     event.target.focus();
@@ -134,4 +159,5 @@
   });
 
   renumber();
+  }
 })();

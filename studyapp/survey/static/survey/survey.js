@@ -1,11 +1,40 @@
-// Shared by every study type: play clips on repeat, count complete plays, keep the
-// answer button shut until each clip has played through once and every question of the
-// form is answered, copy the completion code.
+// Shared by every study type: play clips on repeat, count complete plays, log what the
+// page saw (play, pause, seek, ended, page hidden/visible, window blur/focus) into the
+// answer, keep the answer button shut until each clip has played through once and every
+// question of the form is answered, copy the completion code. The server checks again
+// on its own (clips fetched to their end, their playing time passed): this gate is the
+// participant's guide, not the judge.
 (function () {
   "use strict";
 
+  var MAX_EVENTS = 400;
+
+  function eventLog(form) {
+    var field = form.querySelector("[data-events]");
+    var events = [];
+    var dropped = false;
+    function log(name, position) {
+      if (!field) { return; }
+      if (events.length >= MAX_EVENTS) {
+        if (!dropped) { events.push([Math.round(performance.now()), "truncated", null]); }
+        dropped = true;
+      } else {
+        events.push([Math.round(performance.now()), name, position === undefined ? null : position]);
+      }
+      field.value = JSON.stringify(events);
+    }
+    document.addEventListener("visibilitychange", function () {
+      log(document.hidden ? "hidden" : "visible");
+    });
+    window.addEventListener("blur", function () { log("blur"); });
+    window.addEventListener("focus", function () { log("focus"); });
+    return log;
+  }
+
   function setupTrial(form) {
+    var log = eventLog(form);
     var cards = Array.prototype.slice.call(form.querySelectorAll("[data-clip-card]"));
+    var gated = cards.filter(function (card) { return card.hasAttribute("data-required"); });
     var submit = form.querySelector("[data-submit]");
     var gate = form.querySelector("[data-gate]");
     var label = submit.textContent;
@@ -15,14 +44,14 @@
     }
 
     function update() {
-      var watched = cards.filter(function (card) { return playsOf(card) > 0; }).length;
-      var allWatched = watched === cards.length;
+      var watched = gated.filter(function (card) { return playsOf(card) > 0; }).length;
+      var allWatched = watched === gated.length;
       var answered = form.checkValidity();
       var ready = allWatched && answered;
       submit.disabled = !ready;
       form.classList.toggle("is-ready", ready);
       if (!allWatched) {
-        gate.textContent = "Watched to the end: " + watched + " of " + cards.length +
+        gate.textContent = "Watched to the end: " + watched + " of " + gated.length +
           ". The button unlocks once every clip has played through.";
       } else if (!answered) {
         gate.textContent = "All clips watched. Answer for every clip to continue.";
@@ -47,10 +76,18 @@
       var video = card.querySelector("video");
       var plays = card.querySelector("[data-plays]");
       var state = card.querySelector("[data-state]");
+      var position = Number(card.getAttribute("data-position"));
+      var lazy = video.getAttribute("preload") === "none";
       // Loop by hand: with the loop attribute a video never fires "ended", which is
       // exactly the event that proves it was played through.
       video.loop = false;
+      ["play", "pause", "seeked", "waiting"].forEach(function (name) {
+        video.addEventListener(name, function () {
+          log(name === "seeked" ? "seek" : name, position);
+        });
+      });
       video.addEventListener("ended", function () {
+        log("ended", position);
         plays.value = String(playsOf(card) + 1);
         card.classList.add("is-watched");
         state.textContent = "Watched";
@@ -62,6 +99,7 @@
         if (!playsOf(card)) { state.textContent = "Playing…"; }
       });
       video.addEventListener("error", function () {
+        log("error", position);
         state.textContent = "Could not load: please reload the page";
       });
       video.addEventListener("click", function () {
@@ -70,7 +108,13 @@
       card.querySelector("[data-play]").addEventListener("click", function () {
         start(card, video);
       });
-      start(card, video);
+      if (lazy) {
+        // Folded examples: nothing plays until the participant opens them.
+        state.textContent = "Tap to play";
+        card.querySelector("[data-play]").hidden = false;
+      } else {
+        start(card, video);
+      }
     });
 
     form.addEventListener("submit", function (event) {
