@@ -161,7 +161,7 @@ def register_custom(skeleton: Skeleton) -> Skeleton:
     """Add a custom skeleton, or return the registered one of the same definition."""
     known = _REGISTRY.get(skeleton.name)
     if known is not None:
-        if known != skeleton:
+        if replace(known, description="") != replace(skeleton, description=""):
             raise ValueError(f"skeleton {skeleton.name!r} is registered with another "
                              "definition")
         return known
