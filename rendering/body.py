@@ -278,18 +278,24 @@ class Body:
         self.unit = 0.5 * float(np.median(heights)) or 1.0
         radius = BONE * self.unit
         names = self.skeleton.joint_names
+        # Bones without length (joints at one place, as some BVH hierarchies have) get no tube.
+        self._bones = [(parent, child) for parent, child in self.skeleton.bones
+                       if np.median(np.linalg.norm(joints[:, child] - joints[:, parent],
+                                                   axis=-1)) > 1e-3 * self.unit]
         tubes = [
             Tube(f"bone_{names[child]}", self.skeleton.side_of(child),
                  (names[parent], names[child]), ((0.0, radius, radius),),
                  ((0.0, f"bone_{child}"),), (radius, radius), rings=2)
-            for parent, child in self.skeleton.bones
+            for parent, child in self._bones
         ]
-        vectors = [f"bone_{child}" for _, child in self.skeleton.bones]
+        vectors = [f"bone_{child}" for _, child in self._bones]
         return tubes, [], vectors
 
     def _bone_vectors(self, joints: np.ndarray) -> np.ndarray:
         """Return a direction square to each bone (bone tubes are round: any will do)."""
-        bones = np.array(self.skeleton.bones).reshape(-1, 2)
+        bones = np.array(self._bones).reshape(-1, 2)
         along = joints[bones[:, 1]] - joints[bones[:, 0]]
         axis = np.eye(3)[np.argmin(np.abs(along), axis=1)]
-        return np.cross(along, axis)
+        across = np.cross(along, axis)
+        # A bone that has no length in this frame keeps some direction square to nothing.
+        return np.where(np.linalg.norm(across, axis=1, keepdims=True) > 1e-12, across, axis)
