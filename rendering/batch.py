@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from generation import ops
 from generation.motion import Motion, MotionError
 from generation.skeletons import get_skeleton
 from rendering.framing import Framing
@@ -144,6 +145,8 @@ def render_motion(
     style_class = get_style(style)
     width, height = _dimensions(size)
     formats = _formats(formats)
+    given = motion
+    motion = ops.canonical(motion, style_class.dims, fps)  # z-up metres, as in render_set
     check(motion, style_class)
     framing = framing or Framing.from_motions(
         [motion], aspect=width / height, pad=style_class.pad
@@ -151,7 +154,8 @@ def render_motion(
     path = Path(path)
     videos = [path] + [path.with_suffix(f".{f}") for f in formats[1:]]
     with style_class(framing, width, height) as drawer:
-        return _render_file(drawer, 0, motion, fps, videos, path.with_suffix(".png"))
+        clip = _render_file(drawer, 0, motion, fps, videos, path.with_suffix(".png"))
+    return replace(clip, motion_hash=given.content_hash())
 
 
 def _render_file(drawer: Style, index, motion: Motion, fps, videos: list[Path], poster: Path):
@@ -242,6 +246,9 @@ def render_set(
     report = RenderReport()
     failed: dict[int, str] = {}
     ready = []
+    given = motions
+    # Every style draws z-up metres: each skeleton's axes and units are applied here, once.
+    motions = [ops.canonical(motion, style_class.dims, fps) for motion in given]
     for index, motion in enumerate(motions):
         try:
             check(motion, style_class)
@@ -273,14 +280,14 @@ def render_set(
 
     for result in results:
         if isinstance(result, RenderedClip):
-            report.clips.append(result)
+            report.clips.append(replace(result, motion_hash=given[result.index].content_hash()))
         else:
             failed[result[0]] = result[1]
     report.clips.sort(key=lambda clip: clip.index)
     report.failures = sorted(failed.items())
     if not folder_problem:
         report.sidecar = _write_sidecar(
-            out_dir, report, motions, style, (width, height), fps, formats
+            out_dir, report, given, style, (width, height), fps, formats
         )
     return report
 

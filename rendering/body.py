@@ -11,7 +11,7 @@ Skeletons without a layout get a rounded tube per bone.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -67,7 +67,22 @@ LAYOUTS = {
         toes=("left_foot", "right_foot"),
         hands=("left_hand", "right_hand"),
     ),
+    "kit21": Layout(
+        hips=("left_hip", "right_hip"),
+        shoulders=("left_shoulder", "right_shoulder"),
+        trunk=("chest",),
+        neck="neck",
+        head="head",
+        head_lift=0.03,  # KIT's head joint sits at the top of the neck
+        legs=(("left_hip", "left_knee", "left_ankle"), ("right_hip", "right_knee", "right_ankle")),
+        arms=(("left_shoulder", "left_elbow", "left_wrist"),
+              ("right_shoulder", "right_elbow", "right_wrist")),
+        toes=("left_foot", "right_foot"),
+    ),
 }
+LAYOUTS["smpl24"] = LAYOUTS["humanact12"]  # the same 24 SMPL joints
+# HumanML3D's 22: SMPL's without the hand joints.
+LAYOUTS["smpl22"] = replace(LAYOUTS["humanact12"], hands=None)
 
 # Half-thicknesses and offsets in leg lengths (hip to ankle, about 0.45 of the stature).
 LEG = ((0.0, 0.07), (0.22, 0.086), (0.5, 0.076), (1.0, 0.056), (1.3, 0.064), (2.0, 0.039))
@@ -96,7 +111,7 @@ class Body:
 
     def __init__(self, skeleton: Skeleton, joints: np.ndarray):
         self.skeleton = skeleton
-        self.layout = LAYOUTS.get(skeleton.name)
+        self.layout = LAYOUTS.get(skeleton.family)
         self._index = {name: j for j, name in enumerate(skeleton.joint_names)}
         joints = np.asarray(joints, dtype=np.float64)
         if self.layout is None:
@@ -112,6 +127,14 @@ class Body:
         self.sides = np.empty(self.n_vertices, dtype=object)
         for number, tube in enumerate(tubes):
             self.sides[self.tubes.piece(number)[0]] = tube.side
+        self.key = (skeleton.name, self.n_vertices)
+
+    def lift(self, height: float) -> None:
+        """Do nothing: this body follows the joints it is posed with, raised or not."""
+
+    def pose_at(self, number: int, joints: np.ndarray):
+        """Return :meth:`pose` of a frame's joints (the frame's number is not needed)."""
+        return self.pose(joints)
 
     def pose(self, joints: np.ndarray):
         """Return vertices and normals ``(V, 3)``, ring centres ``(R, 3)`` and radii ``(R,)``."""
@@ -255,18 +278,24 @@ class Body:
         self.unit = 0.5 * float(np.median(heights)) or 1.0
         radius = BONE * self.unit
         names = self.skeleton.joint_names
+        # Bones without length (joints at one place, as some BVH hierarchies have) get no tube.
+        self._bones = [(parent, child) for parent, child in self.skeleton.bones
+                       if np.median(np.linalg.norm(joints[:, child] - joints[:, parent],
+                                                   axis=-1)) > 1e-3 * self.unit]
         tubes = [
             Tube(f"bone_{names[child]}", self.skeleton.side_of(child),
                  (names[parent], names[child]), ((0.0, radius, radius),),
                  ((0.0, f"bone_{child}"),), (radius, radius), rings=2)
-            for parent, child in self.skeleton.bones
+            for parent, child in self._bones
         ]
-        vectors = [f"bone_{child}" for _, child in self.skeleton.bones]
+        vectors = [f"bone_{child}" for _, child in self._bones]
         return tubes, [], vectors
 
     def _bone_vectors(self, joints: np.ndarray) -> np.ndarray:
         """Return a direction square to each bone (bone tubes are round: any will do)."""
-        bones = np.array(self.skeleton.bones).reshape(-1, 2)
+        bones = np.array(self._bones).reshape(-1, 2)
         along = joints[bones[:, 1]] - joints[bones[:, 0]]
         axis = np.eye(3)[np.argmin(np.abs(along), axis=1)]
-        return np.cross(along, axis)
+        across = np.cross(along, axis)
+        # A bone that has no length in this frame keeps some direction square to nothing.
+        return np.where(np.linalg.norm(across, axis=1, keepdims=True) > 1e-12, across, axis)

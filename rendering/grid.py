@@ -13,8 +13,9 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
+from generation import ops
 from generation.motion import Motion
-from rendering.batch import RenderError, check, resample
+from rendering.batch import RenderError, check
 from rendering.framing import Framing
 from rendering.styles import get_style
 from rendering.video import VideoWriter, save_poster
@@ -80,13 +81,14 @@ def render_grid(
     if size <= 0 or size % 2:
         raise ValueError(f"cell sizes must be positive and even; got {size}")
     style_class = get_style(style)
+    fps = float(fps or motions[0].fps)
+    # Every style draws z-up metres: each skeleton's axes and units are applied here, once.
+    motions = [ops.canonical(m, style_class.dims, fps) for m in motions]
     for index, motion in enumerate(motions):
         try:
             check(motion, style_class)
         except RenderError as exc:
             raise RenderError(f"motion {index} ({labels[index]}): {exc}") from None
-    fps = float(fps or motions[0].fps)
-    motions = [resample(m, fps) if m.fps != fps else m for m in motions]
     framing = framing or Framing.from_motions(motions, pad=style_class.pad)
     cols = cols or math.ceil(math.sqrt(len(motions)))
     rows = math.ceil(len(motions) / cols)

@@ -1,7 +1,7 @@
 """Datasets of real (and one synthetic) motion, in a registry.
 
 ``get_dataset("h36m").clips()`` gives fixed-length clips; importing this package
-registers ``demo``, ``h36m``, ``h36m2d`` and ``humanact12``.
+registers ``demo``, ``h36m``, ``h36m2d``, ``humanact12``, ``humanml3d`` and ``kit_ml``.
 """
 
 from generation.datasets.base import (
@@ -13,7 +13,7 @@ from generation.datasets.base import (
     register_dataset,
 )
 # Importing the dataset modules registers them.
-from generation.datasets import h36m, h36m2d, humanact12, synthetic  # noqa: F401, E402
+from generation.datasets import h36m, h36m2d, humanact12, humanml3d, synthetic  # noqa: F401, E402
 
 __all__ = ["Dataset", "DatasetError", "LoadReport", "get_dataset", "list_datasets",
            "register_dataset"]

@@ -1,11 +1,21 @@
 """Motion file formats, one module each with ``load``; :func:`load_motions` reads any.
 
-- ``npz``: the interchange file (README, "Interchange format"); option ``skeleton``
-  (checked against the file's);
-- ``a2m``: Action2Motion's joints and class-index ``.npy``; options ``classes_path``
-  (required), ``skeleton``, ``file_fps`` (the arrays' frame rate), ``action_names``;
-- ``bvh``: one BVH file, one motion; options ``skeleton`` and ``action`` (required),
-  ``mapping``, ``scale``, ``up``.
+Every format is registered by name (:func:`list_formats` is the authoritative list);
+``get_format(name).load(path, **options)`` returns the motions of a file or folder. The
+options of each format are its ``load``'s keyword arguments:
+
+- ``npz``: the interchange file (README, "Interchange format"); ``skeleton`` (checked);
+- ``a2m``: Action2Motion's joints and class-index ``.npy``; ``classes_path`` (required),
+  ``skeleton``, ``file_fps``, ``action_names``;
+- ``bvh``: BVH files, one motion each, as their own skeleton or mapped onto ``skeleton``;
+  ``action``, ``mapping``, ``scale``, ``up``, ``texts``;
+- ``mdm``: motion-diffusion-model's ``results.npy`` and ``*_smpl_params.npy``;
+- ``humanml3d``, ``humanml3d_vec``: HumanML3D's ``new_joints`` and ``new_joint_vecs``;
+- ``joints``: ``.npy`` joint arrays (MoMask, T2M-GPT, MotionGPT, MotionDiffuse);
+- ``amass``: AMASS ``.npz`` pose parameters, through SMPL body models the user supplies;
+- ``motioncritic``: MotionCritic's ``.npz`` (rot6d SMPL parameters, 4 per file);
+- ``actor``: ACTOR's ``generation.npy`` of SMPL vertices;
+- ``auto``: any of these, detected from the content.
 """
 
 from __future__ import annotations
@@ -14,67 +24,67 @@ import inspect
 from pathlib import Path
 
 from generation import ops
-from generation.formats import a2m, bvh, npz
-from generation.formats.npz import FormatError
+from generation.formats import (
+    a2m,
+    actor,
+    amass,
+    auto,
+    bvh,
+    humanml3d,
+    humanml3d_vec,
+    joints,
+    mdm,
+    motioncritic,
+    npz,
+)
+from generation.formats.base import (
+    FormatError,
+    MotionList,
+    get_format,
+    list_formats,
+    register_format,
+)
 from generation.motion import Motion
 
-
-def _load_npz(path, skeleton: str | None = None) -> list[Motion]:
-    motions = npz.load(path)
-    if skeleton and motions and motions[0].skeleton != skeleton:
-        raise FormatError(f"{path} holds {motions[0].skeleton} motions, not {skeleton}")
-    return motions
+for _module in (a2m, actor, amass, auto, bvh, humanml3d, humanml3d_vec, joints, mdm,
+                motioncritic, npz):
+    register_format(_module.__name__.rsplit(".", 1)[-1])(_module)
 
 
-def _load_a2m(path, classes_path=None, skeleton: str | None = None,
-              file_fps: float | None = None, action_names=None) -> list[Motion]:
-    if classes_path is None:
-        raise FormatError(f"{path}: Action2Motion joints need their class indices; pass "
-                          "classes_path, a .npy of shape (N,)")
-    return a2m.load(path, classes_path, skeleton, file_fps, action_names)
-
-
-def _load_bvh(path, skeleton: str | None = None, action: str | None = None, mapping=None,
-              scale="auto", up: str = "y") -> list[Motion]:
-    if not skeleton or not action:
-        raise FormatError(f"{path}: a BVH file needs skeleton (the project skeleton to map "
-                          "it onto, e.g. h36m17 or humanact12) and action")
-    try:
-        return [bvh.to_skeleton(bvh.load(path, scale, up), skeleton, mapping, action)]
-    except KeyError as exc:  # an unknown skeleton name
-        raise FormatError(exc.args[0]) from None
-
-
-LOADERS = {"npz": _load_npz, "a2m": _load_a2m, "bvh": _load_bvh}
-
-
-def list_formats() -> list[str]:
-    """Return the names of the formats :func:`load_motions` reads."""
-    return sorted(LOADERS)
+def format_options(format: str) -> list[str]:
+    """Return the option names a format's ``load`` takes (``auto``: every format's)."""
+    parameters = list(inspect.signature(get_format(format).load).parameters.values())[1:]
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in parameters):
+        return sorted({name for other in list_formats() if other != format
+                       for name in format_options(other)})
+    return [p.name for p in parameters]
 
 
 def load_motions(path: str | Path, format: str, fps: float | None = None,
                  source: str | None = None, **options) -> list[Motion]:
-    """Read the motions of a file of any format; ``fps`` resamples, ``source`` relabels.
+    """Read the motions of a file or folder of any format; ``fps`` resamples, ``source``
+    relabels. ``options`` go to the format (see the module docstring).
 
-    ``options`` go to the format (see the module docstring).
+    The result is a :class:`MotionList`: its ``problems`` name the files (or motions)
+    that could not be read, its ``notes`` what was found.
     """
-    try:
-        loader = LOADERS[format]
-    except KeyError:
-        raise FormatError(f"unknown motion format {format!r}; formats: "
-                          f"{', '.join(list_formats())}") from None
-    accepted = list(inspect.signature(loader).parameters)[1:]
+    loader = get_format(format)
+    accepted = format_options(format)
     unknown = sorted(set(options) - set(accepted))
     if unknown:
         raise FormatError(f"format {format!r} takes options {', '.join(accepted)}; "
                           f"got {', '.join(unknown)}")
-    motions = loader(path, **options)
-    if fps:
-        motions = [ops.resample(m, fps) for m in motions]
-    if source:
-        motions = [m.with_joints(m.joints, source=source, meta=dict(m.meta)) for m in motions]
-    return motions
+    loaded = loader.load(path, **options)
+    result = MotionList(problems=getattr(loaded, "problems", ()),
+                        notes=getattr(loaded, "notes", ()))
+    for motion in loaded:
+        if fps:
+            motion = ops.resample(motion, fps)
+        if source:
+            motion = motion.with_joints(motion.joints, source=source, meta=dict(motion.meta))
+        result.append(motion)
+    return result
 
 
-__all__ = ["FormatError", "LOADERS", "list_formats", "load_motions", "a2m", "bvh", "npz"]
+__all__ = ["FormatError", "MotionList", "format_options", "get_format", "list_formats",
+           "load_motions", "register_format", "a2m", "bvh", "npz"]

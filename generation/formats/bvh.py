@@ -1,4 +1,11 @@
-"""BVH motion capture files (CMU, Mixamo, ...): parse, forward kinematics, map to a skeleton.
+"""BVH motion capture files (CMU, Mixamo, MoMask, smpl2bvh, ...): parse, forward kinematics,
+map to a skeleton.
+
+:func:`load` (the ``bvh`` format) reads a file, or a folder of them, one motion per file:
+as the file's own skeleton (its hierarchy becomes a custom skeleton, drawn and used in a
+study as it is), or mapped onto a project skeleton (``skeleton``: ``smpl22``, ``smpl24``,
+``humanact12``, ``h36m17``) through the built-in maps of SMPL-, HumanML3D- (MoMask's
+``joints2bvh``), CMU- and Mixamo-style joint names. :func:`read` parses one file.
 
 A BVH file has two parts:
 
@@ -24,6 +31,11 @@ units; pass ``scale`` when the body's size matters.
 
 Axes: BVH is y up by convention; pass ``up`` for files that are not. :func:`to_skeleton`
 rotates the joints onto the project skeleton's up axis (h36m17 is z up, humanact12 y up).
+
+Lines starting with ``#`` (comments some converters write, e.g. ``#name: ...``) are
+skipped. Each motion's action is ``action`` when given, else its prompt (``texts``: a
+file of one prompt per line or a CSV, see :func:`generation.formats.base.read_prompts`),
+else the file's name.
 """
 
 from __future__ import annotations
@@ -34,9 +46,17 @@ from pathlib import Path
 
 import numpy as np
 
-from generation.formats.npz import FormatError
+from generation.formats.base import (
+    FormatError,
+    files_in,
+    load_each,
+    prompt_file_beside,
+    prompts_for,
+    read_prompts,
+)
 from generation.motion import Motion
-from generation.skeletons import get_skeleton
+from generation.ops import axis_rotation
+from generation.skeletons import custom_skeleton, get_skeleton
 
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "cmu": 0.0254 / 0.45}
 TYPICAL_HEIGHT = 1.7  # metres
@@ -58,6 +78,24 @@ _LIMBS_SMPL = {"left_hip": "LeftUpLeg", "right_hip": "RightUpLeg", "left_knee": 
                "left_shoulder": "LeftArm", "right_shoulder": "RightArm",
                "left_elbow": "LeftForeArm", "right_elbow": "RightForeArm",
                "left_wrist": "LeftHand", "right_wrist": "RightHand"}
+_SMPL_NAMES = ("pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee",
+               "spine2", "left_ankle", "right_ankle", "spine3", "left_foot", "right_foot",
+               "neck", "left_collar", "right_collar", "head", "left_shoulder",
+               "right_shoulder", "left_elbow", "right_elbow", "left_wrist", "right_wrist",
+               "left_hand", "right_hand")
+_SIDES = (("left", "Left"), ("right", "Right"))
+# MoMask's joints2bvh (HumanML3D's 22 joints), and the 24 of its smpl2bvh.
+_HUMANML3D = {
+    "pelvis": "Hips", "spine1": "Spine", "spine2": "Spine1", "spine3": "Spine2",
+    "neck": "Neck", "head": "Head",
+    **{f"{side}_{joint}": f"{Side}{bvh}" for side, Side in _SIDES for joint, bvh in (
+        ("hip", "UpLeg"), ("knee", "Leg"), ("ankle", "Foot"), ("foot", "Toe"),
+        ("collar", "Shoulder"), ("shoulder", "Arm"), ("elbow", "ForeArm"), ("wrist", "Hand"),
+        ("hand", "Thumb"))},
+}
+# SMPL names as smpl2bvh writes them: Pelvis, Left_hip, ... (compared ignoring case).
+_SMPL_STYLE = {name: name for name in _SMPL_NAMES}
+_SMPL_PALM = {**_SMPL_STYLE, "left_hand": "Left_palm", "right_hand": "Right_palm"}
 JOINT_MAPS: dict[str, dict[str, dict[str, str]]] = {
     "h36m17": {
         # CMU's Neck starts where Spine1 ends, between the shoulders; Head is the skull's
@@ -76,8 +114,14 @@ JOINT_MAPS: dict[str, dict[str, dict[str, str]]] = {
         "mixamo": {"pelvis": "Hips", "spine1": "Spine", "spine2": "Spine1", "spine3": "Spine2",
                    "neck": "Neck", "head": "Head", "left_hand": "LeftHandMiddle1",
                    "right_hand": "RightHandMiddle1", **_LIMBS_SMPL},
+        "smpl": _SMPL_STYLE,
+        "smpl_palm": _SMPL_PALM,
+        "humanml3d": _HUMANML3D,
     },
 }
+# smpl24 has humanact12's joints; smpl22 its first 22 (the maps' extra joints are unused).
+JOINT_MAPS["smpl24"] = JOINT_MAPS["humanact12"]
+JOINT_MAPS["smpl22"] = JOINT_MAPS["humanact12"]
 
 
 class BvhError(FormatError):
@@ -123,7 +167,38 @@ class _Joint:
     end_site: bool = False
 
 
-def load(path: str | Path, scale: float | str = "auto", up: str = "y") -> BvhMotion:
+def load(path: str | Path, skeleton: str | None = None, action: str | None = None,
+         mapping: dict[str, str] | None = None, scale: float | str = "auto", up: str = "y",
+         texts: str | Path | None = None, source: str = "real") -> list[Motion]:
+    """Read a BVH file, or every ``.bvh`` under a folder, one motion per file.
+
+    Without ``skeleton`` each file is its own skeleton; with one, its joints are mapped
+    onto it (see :func:`joint_map`). Bad files of a folder are reported by name in the
+    result's ``problems``. ``texts`` (or a ``prompts.txt``/``.csv`` beside the files)
+    gives each file's prompt.
+    """
+    path = Path(path)
+    files = files_in(path, ("*.bvh", "*.BVH"), "BVH files")
+    prompts = [None] * len(files)
+    prompt_file = Path(texts) if texts else prompt_file_beside(files, path)
+    if prompt_file is not None:
+        prompts = prompts_for(files, read_prompts(prompt_file), prompt_file)
+
+    def one(file: Path, text: str | None) -> list[Motion]:
+        parsed = read(file, scale, up)
+        label = action or text or file.stem
+        if not skeleton:
+            return [own_skeleton(parsed, label, source, text)]
+        try:
+            return [to_skeleton(parsed, skeleton, mapping, label, source, text)]
+        except KeyError as exc:  # an unknown skeleton name
+            raise BvhError(exc.args[0]) from None
+
+    by_file = dict(zip(files, prompts))
+    return load_each(files, lambda file: one(file, by_file[file]), "BVH file")
+
+
+def read(path: str | Path, scale: float | str = "auto", up: str = "y") -> BvhMotion:
     """Read a BVH file and return its joints' world positions in metres (see module doc)."""
     path = Path(path)
     if up not in ("x", "y", "z"):
@@ -131,6 +206,8 @@ def load(path: str | Path, scale: float | str = "auto", up: str = "y") -> BvhMot
     if not path.is_file():
         raise BvhError(f"BVH file {path} does not exist")
     text = path.read_text(encoding="utf-8", errors="replace")
+    # Blank comment lines, keeping the line numbers of errors true.
+    text = re.sub(r"^[ \t]*(#|//).*$", "", text, flags=re.MULTILINE)
     split = re.search(r"^\s*MOTION\s*$", text, flags=re.MULTILINE | re.IGNORECASE)
     if split is None:
         raise BvhError(f"{path}: no MOTION section; a BVH file is HIERARCHY ... then MOTION ...")
@@ -369,29 +446,7 @@ def _forward_kinematics(joints: list[_Joint], values: np.ndarray) -> np.ndarray:
     return world[:, :, :3, 3].transpose(1, 0, 2)
 
 
-def up_rotation(source: str, target: str) -> np.ndarray:
-    """Return the rotation ``(3, 3)`` taking axis ``source`` onto ``target``.
-
-    Axes are ``"x"``, ``"y"``, ``"z"``, optionally signed (``"-y"``); the rotation turns
-    by 90 degrees about the axis perpendicular to both (y up -> z up: ``(x, y, z) ->
-    (x, -z, y)``), by 180 degrees about the first other axis for opposite axes.
-    """
-    def unit(axis: str) -> np.ndarray:
-        vector = np.zeros(3)
-        vector["xyz".index(axis[-1])] = -1.0 if axis.startswith("-") else 1.0
-        return vector
-
-    a, b = unit(source), unit(target)
-    if np.allclose(a, b):
-        return np.eye(3)
-    if np.allclose(a, -b):
-        flip = np.zeros(3)
-        flip[(int(np.argmax(np.abs(a))) + 1) % 3] = 1.0
-        return 2.0 * np.outer(flip, flip) - np.eye(3)
-    cross = np.cross(a, b)
-    skew = np.array([[0, -cross[2], cross[1]], [cross[2], 0, -cross[0]],
-                     [-cross[1], cross[0], 0]])
-    return np.eye(3) + skew + skew @ skew
+up_rotation = axis_rotation  # the rotation taking one axis onto another
 
 
 def _plain(name: str) -> str:
@@ -436,8 +491,28 @@ def joint_map(bvh: BvhMotion, skeleton_name: str,
     return {joint: find(best[joint]) for joint in skeleton.joint_names}
 
 
+def own_skeleton(bvh: BvhMotion, action: str = "unlabelled", source: str = "real",
+                 text: str | None = None) -> Motion:
+    """Return the BVH's joints as a motion of its own (custom) skeleton, in its own axes.
+
+    End Sites that add no length (an offset of zero) are left out; the others mark the
+    tips of the chains (head top, toes, fingers) and are kept.
+    """
+    keep = [j for j in range(bvh.n_joints)
+            if j not in bvh.end_sites or np.linalg.norm(bvh.offsets[j]) > 1e-6]
+    index = {old: new for new, old in enumerate(keep)}
+    parents = [index[bvh.parents[j]] if bvh.parents[j] >= 0 else -1 for j in keep]
+    names = [bvh.joint_names[j] for j in keep]
+    skeleton = custom_skeleton(names, parents, up=bvh.up, units="m", prefix="bvh",
+                               description=f"the hierarchy of {Path(bvh.path).name}")
+    meta = {"file": bvh.path, "scale": bvh.scale}
+    return Motion(bvh.positions[:, keep], skeleton.name, bvh.fps, action, source, meta=meta,
+                  text=text)
+
+
 def to_skeleton(bvh: BvhMotion, skeleton_name: str, mapping: dict[str, str] | None = None,
-                action: str = "unlabelled", source: str = "real") -> Motion:
+                action: str = "unlabelled", source: str = "real",
+                text: str | None = None) -> Motion:
     """Return the BVH's joints that stand for a project skeleton's, on its up axis.
 
     ``joints`` ``(T, J, 3)`` metres; ``meta`` keeps the file and the BVH joint of each
@@ -448,8 +523,10 @@ def to_skeleton(bvh: BvhMotion, skeleton_name: str, mapping: dict[str, str] | No
         raise BvhError(f"skeleton {skeleton.name!r} is {skeleton.dims}D; a BVH file maps onto "
                        "a 3D skeleton")
     indices = joint_map(bvh, skeleton.name, mapping)
-    rotation = up_rotation(bvh.up, skeleton.up).astype(np.float32)
+    rotation = axis_rotation(bvh.up, skeleton.up).astype(np.float32)
+    per_unit = skeleton.metres_per_unit or 1.0
     joints = bvh.positions[:, [indices[name] for name in skeleton.joint_names]] @ rotation.T
     meta = {"file": bvh.path, "scale": bvh.scale,
             "bvh_joints": {name: bvh.joint_names[i] for name, i in indices.items()}}
-    return Motion(joints, skeleton.name, bvh.fps, action, source, meta=meta)
+    return Motion(joints / per_unit, skeleton.name, bvh.fps, action, source, meta=meta,
+                  text=text)

@@ -2,6 +2,8 @@
 
 The body (see :mod:`rendering.body`) is drawn offscreen by pyrender through EGL and laid
 over the same backdrop and soft floor shadow as the stick figures, in the set's framing.
+A motion that carries its own body surface (an SMPL mesh from an import) is drawn with
+that surface instead (:mod:`rendering.surface`), placed, lit and shadowed the same way.
 Every clip gets the same neutral body colour; left limbs are a shade warmer and right
 ones a shade cooler, just enough to tell the sides apart.
 """
@@ -18,6 +20,7 @@ from generation.skeletons import get_skeleton
 from rendering import palette
 from rendering.backdrop import Backdrop
 from rendering.body import Body
+from rendering.surface import SurfaceBody
 from rendering.framing import Framing
 from rendering.stage import Stage
 from rendering.styles.base import Style, register_style
@@ -79,11 +82,16 @@ class MeshStyle(Style):
             )
         placed = self.framing.place(motion)
         targets = self.framing.targets(motion, placed)
-        body = Body(skeleton, placed)
-        placed = placed + [0.0, 0.0, self._lift(body, placed)]
-        for pose, target in zip(placed, targets):
+        if motion.has_body:
+            body = SurfaceBody(skeleton, motion, placed)
+        else:
+            body = Body(skeleton, placed)
+        lift = self._lift(body, placed)
+        placed = placed + [0.0, 0.0, lift]
+        body.lift(lift)
+        for number, (pose, target) in enumerate(zip(placed, targets)):
             stage = self._stage_for(body)  # per frame: clips of a grid take turns
-            vertices, normals, centres, radii = body.pose(pose)
+            vertices, normals, centres, radii = body.pose_at(number, pose)
             camera = self.framing.camera(self.width, self.height, target)
             frame = self._scenery(target)
             self._cast_shadow(frame, camera, centres, radii)
@@ -98,14 +106,14 @@ class MeshStyle(Style):
             self._stage = None
 
     @staticmethod
-    def _lift(body: Body, placed: np.ndarray) -> float:
+    def _lift(body, placed: np.ndarray) -> float:
         """Return how far to raise a clip so that its soles, not its lowest joint, touch down.
 
         Measured where the lowest joint is lowest and applied to every frame, so a
         set's shared floor still shows a clip that floats or sinks.
         """
         lowest = int(np.argmin(placed[..., 2].min(axis=1)))
-        vertices = body.pose(placed[lowest])[0]
+        vertices = body.pose_at(lowest, placed[lowest])[0]
         return float(placed[lowest, :, 2].min() - vertices[:, 2].min())
 
     def _stage_for(self, body: Body) -> Stage:
@@ -122,7 +130,7 @@ class MeshStyle(Style):
                 near=0.02 * framing.distance, far=10.0 * framing.distance + 10.0 * framing.height,
                 lights=((key, KEY), (fill, FILL), (rim, RIM)), ambient=AMBIENT,
             )
-        key = (body.skeleton.name, body.n_vertices)
+        key = body.key
         if self._shown != key:
             self._stage.show(body.faces, body_colours(body.sides))
             self._shown = key

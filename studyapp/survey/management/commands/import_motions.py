@@ -1,99 +1,143 @@
 from django.core.management.base import BaseCommand, CommandError
 
-from generation.formats import FormatError, list_formats, load_motions, npz
+from generation.body_models import ENV_VAR
+from generation.formats import FormatError, format_options, list_formats, load_motions, npz
 from generation.formats.bvh import UNITS
 from generation.motion import MotionError
 
-# The flags that only some formats take, and the option each one becomes.
+# Command-line flags that become format options, and the option each one becomes.
 FORMAT_FLAGS = {
-    "classes": ("a2m", "classes_path"),
-    "action_names": ("a2m", "action_names"),
-    "file_fps": ("a2m", "file_fps"),
-    "action": ("bvh", "action"),
-    "joint_map": ("bvh", "mapping"),
-    "scale": ("bvh", "scale"),
+    "skeleton": "skeleton",
+    "classes": "classes_path",
+    "action_names": "action_names",
+    "file_fps": "file_fps",
+    "action": "action",
+    "joint_map": "mapping",
+    "scale": "scale",
+    "up": "up",
+    "texts": "texts",
+    "mean": "mean",
+    "std": "std",
+    "body_models": "body_models",
+    "gender": "gender",
 }
 
 
 class Command(BaseCommand):
     help = (
-        "Convert motions from other codebases or motion capture (an interchange .npz, "
-        "Action2Motion's .npy arrays, BVH files) into one interchange .npz."
+        "Convert motions from other codebases or motion capture into one interchange .npz: "
+        "MDM's results.npy and meshes, HumanML3D joints or feature vectors, folders of "
+        "joint arrays (MoMask, T2M-GPT, MotionGPT, MotionDiffuse), AMASS, MotionCritic, "
+        "ACTOR, Action2Motion, BVH, or --format auto to detect it. Files of a folder that "
+        "cannot be read are reported by name; the others are written."
     )
 
     def add_arguments(self, parser):
-        parser.add_argument("files", nargs="+", metavar="FILE",
-                            help="Files to import: one for a2m, one or more for npz and bvh "
-                                 "(one motion per BVH file).")
+        parser.add_argument("files", nargs="+", metavar="FILE_OR_DIR",
+                            help="Files or folders to import.")
         parser.add_argument("--format", required=True, choices=list_formats(),
-                            help="npz: an interchange file (checked and rewritten); a2m: "
-                                 "Action2Motion joints (N, T, J*3); bvh: BVH motion capture.")
+                            help="The layout of the files (auto: detect it from the content "
+                                 "and say what was found).")
         parser.add_argument("--out", required=True, metavar="F.npz", help="The .npz file to write.")
         parser.add_argument("--skeleton",
-                            help="Project skeleton. bvh: the one to map onto (required); a2m: "
-                                 "when the joint count does not tell; npz: checked.")
+                            help="Project skeleton (smpl22, smpl24, kit21, humanact12, h36m17). "
+                                 "bvh: map the files' joints onto it (default: each file's own "
+                                 "hierarchy); joints, a2m, mdm: when the joint count does not "
+                                 "tell; npz: checked.")
         parser.add_argument("--fps", type=float, help="Resample to this frame rate "
                                                       "(default: keep the files' rate).")
+        parser.add_argument("--file-fps", type=float,
+                            help="Frame rate of files that hold none (default: the codebase's: "
+                                 "20, KIT-ML 12.5; a2m: 20 for humanact12, 25 for h36m17).")
         parser.add_argument("--source", help="Source of the motions: 'real' or a method key "
-                                             "(default: npz: the file's; a2m: a2m; bvh: real).")
+                                             "(default: the format's, e.g. mdm, a2m, real).")
+        parser.add_argument("--action", help="The action of motions that name none "
+                                             "(default: bvh: the prompt or file name; "
+                                             "others: unknown).")
+        parser.add_argument("--texts", metavar="PROMPTS",
+                            help="joints, bvh: the prompts, one line per file (in name order, "
+                                 "or line k+1 for files named sample<k>...) or a CSV with file "
+                                 "and text columns (default: prompts.txt/.csv beside the files).")
         parser.add_argument("--classes", metavar="CLASSES.npy",
                             help="a2m (required): each motion's class index, shape (N,).")
         parser.add_argument("--action-names", metavar="A,B,...",
-                            help="a2m: names of classes 0, 1, ... (default: HumanAct12's 12 "
-                                 "classes for 24 joints, else class0, class1, ...).")
-        parser.add_argument("--file-fps", type=float,
-                            help="a2m: frame rate of the arrays (default: 20 for humanact12, "
-                                 "25 for h36m17).")
-        parser.add_argument("--action", help="bvh (required): the action the files show.")
+                            help="a2m, actor: names of classes 0, 1, ... (default: HumanAct12's "
+                                 "12 classes for 24 joints or 12 classes, else class0, ...).")
+        parser.add_argument("--mean", metavar="Mean.npy",
+                            help="humanml3d_vec: de-normalise features with this mean ...")
+        parser.add_argument("--std", metavar="Std.npy", help="... and this std.")
+        parser.add_argument("--body-models", metavar="DIR",
+                            help=f"amass, motioncritic, actor, mdm meshes: the folder of SMPL / "
+                                 f"SMPL+H model files (default: ${ENV_VAR}).")
+        parser.add_argument("--gender", choices=("neutral", "male", "female"),
+                            help="amass: the body model's gender (default: the file's).")
+        parser.add_argument("--joints-only", action="store_true",
+                            help="Drop the body surfaces imports carry (smaller files; the "
+                                 "mesh style then draws its own body).")
         parser.add_argument("--joint-map", metavar="JOINT=BVH_JOINT,...",
                             help="bvh: skeleton joints to take from BVH joints the built-in "
-                                 "CMU and Mixamo maps miss, e.g. Spine=Chest,Thorax=Neck.")
+                                 "maps miss, e.g. Spine=Chest,Thorax=Neck.")
         parser.add_argument("--scale",
                             help=f"bvh: metres per file unit, a unit ({', '.join(UNITS)}) or "
                                  "auto (default: the unit that makes the body about 1.7 m).")
+        parser.add_argument("--up", choices=("x", "y", "z"), help="bvh: the files' up axis "
+                                                                  "(default: y).")
 
     def handle(self, *args, **options):
         fmt, files = options["format"], options["files"]
-        load_options = format_options(fmt, options)
-        if fmt == "a2m" and len(files) != 1:
-            raise CommandError(f"--format a2m imports one file with its --classes; "
-                               f"got {len(files)}")
-        if fmt == "a2m" and "classes_path" not in load_options:
-            raise CommandError("--format a2m needs --classes CLASSES.npy, each motion's "
-                               "class index")
-        if fmt == "bvh" and not (options["skeleton"] and options["action"]):
-            raise CommandError("--format bvh needs --skeleton (h36m17 or humanact12) and "
-                               "--action (the action the files show)")
-        if options["skeleton"]:
-            load_options["skeleton"] = options["skeleton"]
+        load_options = format_flags(fmt, options)
+        if options["joints_only"] and ("vertices" in format_options(fmt)):
+            load_options["vertices"] = False
+        motions, problems = [], []
         try:
-            motions = [motion for path in files
-                       for motion in load_motions(path, fmt, fps=options["fps"],
-                                                  source=options["source"], **load_options)]
-            rates = sorted({motion.fps for motion in motions})
-            if len(rates) > 1:
-                raise CommandError(f"the files have frame rates {', '.join(map(str, rates))}; "
-                                   "pass --fps F to resample them to one")
+            for path in files:
+                loaded = load_motions(path, fmt, fps=options["fps"], source=options["source"],
+                                      **load_options)
+                for note in getattr(loaded, "notes", []):
+                    self.stdout.write(note)
+                problems.extend(getattr(loaded, "problems", []))
+                motions.extend(loaded)
+        except (FormatError, MotionError) as exc:
+            raise CommandError(str(exc)) from None
+        for problem in problems:
+            self.stderr.write(f"skipped: {problem}")
+        if options["joints_only"]:
+            motions = [m.with_joints(m.joints, vertices=None, faces=None, meta=dict(m.meta))
+                       for m in motions]
+        rates = sorted({motion.fps for motion in motions})
+        if len(rates) > 1:
+            raise CommandError(f"the files have frame rates {', '.join(map(str, rates))}; "
+                               "pass --fps F to resample them to one")
+        try:
             path = npz.save(options["out"], motions)
         except (FormatError, MotionError) as exc:
             raise CommandError(str(exc)) from None
-        actions = sorted({m.action for m in motions})
         first = motions[0]
+        actions = sorted({m.action for m in motions})
+        prompts = sum(1 for m in motions if m.text)
+        bodies = sum(1 for m in motions if m.has_body)
+        extras = [f"{prompts} with prompts"] if prompts else []
+        extras += [f"{bodies} with body surfaces"] if bodies else []
         self.stdout.write(
             f"wrote {len(motions)} {first.skeleton} motions at {first.fps:g} fps, source "
-            f"{first.source!r} ({', '.join(actions)}) to {path}"
+            f"{first.source!r} ({', '.join(actions[:8])}{', ...' if len(actions) > 8 else ''})"
+            f"{'; ' + ', '.join(extras) if extras else ''} to {path}"
+            f"{f'; skipped {len(problems)} (see above)' if problems else ''}"
         )
 
 
-def format_options(fmt: str, options: dict) -> dict:
-    """Return the options of the format's loader given on the command line."""
+def format_flags(fmt: str, options: dict) -> dict:
+    """Return the format options given on the command line, checked against the format."""
+    accepted = format_options(fmt)
     chosen = {}
-    for flag, (owner, option) in FORMAT_FLAGS.items():
+    for flag, option in FORMAT_FLAGS.items():
         value = options[flag]
         if value is None:
             continue
-        if owner != fmt:
-            raise CommandError(f"--{flag.replace('_', '-')} is for --format {owner}, not {fmt}")
+        if option not in accepted:
+            owners = [f for f in list_formats() if f != "auto" and option in format_options(f)]
+            raise CommandError(f"--{flag.replace('_', '-')} is not an option of --format {fmt} "
+                               f"(it is for {', '.join(owners)})")
         if flag == "action_names":
             value = [name.strip() for name in value.split(",")]
         elif flag == "joint_map":
