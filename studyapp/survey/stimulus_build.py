@@ -287,7 +287,10 @@ class Build:
         frames = c.frames or self.dataset.clip_frames
         base = sample_real(self.dataset, self.actions(), c.clips_per_source + EXTRA_REAL,
                            frames, c.seed, c.fps, c.subjects)
-        framing = Framing.from_motions(base, pad=get_style(c.style).pad)
+        style = get_style(c.style)
+        # Fitted in the renderer's frame (z up, metres), as render_set draws them.
+        framing = Framing.from_motions([ops.canonical(m, style.dims) for m in base],
+                                       pad=style.pad)
         npz.save(cached, base)
         framing_file.parent.mkdir(parents=True, exist_ok=True)
         framing_file.write_text(json.dumps(asdict(framing), sort_keys=True))
