@@ -97,8 +97,28 @@ def register_analysis(name: str):
     return decorator
 
 
+_DISCOVERED = False
+
+
+def _discover() -> None:
+    """Import every module of the ``analysis`` package once: each study type's analysis
+    module registers itself, so a new type needs no list here."""
+    global _DISCOVERED
+    if _DISCOVERED:
+        return
+    import importlib
+    import pkgutil
+    from pathlib import Path
+
+    for module in pkgutil.iter_modules([str(Path(__file__).resolve().parent)]):
+        if not module.name.startswith("_"):
+            importlib.import_module(f"analysis.{module.name}")
+    _DISCOVERED = True
+
+
 def get_analysis(name: str) -> StudyAnalysis:
     """Return an instance of the analysis registered for study type ``name``."""
+    _discover()
     try:
         return _ANALYSES[name]()
     except KeyError:
@@ -108,4 +128,5 @@ def get_analysis(name: str) -> StudyAnalysis:
 
 
 def list_analyses() -> list[str]:
+    _discover()
     return sorted(_ANALYSES)

@@ -16,8 +16,6 @@ from analysis import exclusions
 from analysis.agreement import krippendorff_alpha
 from analysis.registry import Analysis, Table, get_analysis
 from analysis.tables import AnalysisError, as_boolean
-# Importing the study types' modules registers their analyses.
-from analysis import fake_or_real, pairwise, ranking, ratings  # noqa: F401
 
 TRIAL_KINDS = ("main", "catch", "repeat")
 
@@ -61,6 +59,7 @@ class StudyResult:
     demographics: pd.DataFrame | None = None
     notes: list[str] = field(default_factory=list)
     design: str = ""
+    criterion: str = ""  # the question analysed, when a trial asked several
 
     @property
     def tables(self) -> list[Table]:
@@ -82,6 +81,7 @@ class StudyResult:
         return {
             "study": self.study,
             "study_type": self.study_type,
+            "criterion": self.criterion,
             "measure": self.analysis.measure,
             "confidence": self.config.confidence,
             "n_participants": self.counts["participants"],
@@ -110,16 +110,43 @@ class StudyResult:
         return methods_paragraph(self)
 
 
+def criteria_of(table: pd.DataFrame) -> list[str]:
+    """Return the criteria a table holds answers for, in the order they first appear
+    (``[""]`` for a table without a ``criterion`` column: one question)."""
+    if "criterion" not in table.columns or table["criterion"].isna().all():
+        return [""]
+    return list(dict.fromkeys(table["criterion"].dropna().astype(str)))
+
+
+def analyse_all(table: pd.DataFrame, config: AnalysisConfig | None = None,
+                participants: pd.DataFrame | None = None,
+                study_type: str | None = None) -> list["StudyResult"]:
+    """Return one :func:`analyse` result per criterion of ``table`` (the first first)."""
+    return [analyse(table, config, participants, study_type, criterion)
+            for criterion in criteria_of(table)]
+
+
 def analyse(table: pd.DataFrame, config: AnalysisConfig | None = None,
-            participants: pd.DataFrame | None = None, study_type: str | None = None) -> StudyResult:
+            participants: pd.DataFrame | None = None, study_type: str | None = None,
+            criterion: str | None = None) -> StudyResult:
     """Analyse ``table`` (one row per judgement) as its study type asks; see the module doc.
 
     ``participants`` is the optional per-participant table (demographics);
-    ``study_type`` overrides the table's ``study_type`` column.
+    ``study_type`` overrides the table's ``study_type`` column. A table answering
+    several questions of the same clips (a ``criterion`` column) is analysed for one
+    ``criterion`` (default: the first); :func:`analyse_all` does each.
     """
     config = config or AnalysisConfig()
     if table is None or len(table) == 0:
         raise AnalysisError("the study has no judgements yet; nothing to analyse")
+    criteria = criteria_of(table)
+    if criterion is None:
+        criterion = criteria[0]
+    if criterion not in criteria:
+        raise AnalysisError(f"the table has no answers for criterion {criterion!r}; it has "
+                            f"{', '.join(c for c in criteria if c) or 'one unnamed criterion'}")
+    if criterion:
+        table = table.loc[table["criterion"].astype(str) == criterion]
     study_type = study_type or _study_type(table)
     kind = get_analysis(study_type)
     rows, notes = _prepare(table, kind)
@@ -167,7 +194,7 @@ def analyse(table: pd.DataFrame, config: AnalysisConfig | None = None,
     names = table["study"].dropna() if "study" in table.columns else pd.Series(dtype=object)
     study = str(names.iloc[0]) if len(names) else ""
     return StudyResult(study, study_type, config, analysis, excluded, agreement, counts, quality,
-                       demographics, notes + analysis.notes, kind.design)
+                       demographics, notes + analysis.notes, kind.design, criterion)
 
 
 def _study_type(table) -> str:
@@ -195,8 +222,9 @@ def _prepare(table: pd.DataFrame, kind) -> tuple[pd.DataFrame, list[str]]:
     if blank.any():
         notes.append(f"{int(blank.sum())} row(s) with no participant or source were left out")
         table = table.loc[~blank]
-    wanted = ["participant", "action", "stimulus", "source", "position", "n_items", kind.answer,
-              "trial_kind", "is_catch", "catch_passed", "time_ms", "duration", "completed"]
+    wanted = ["participant", "action", "prompt", "stimulus", "source", "stimulus_role",
+              "position", "n_items", kind.answer, *getattr(kind, "required", ()), "trial_kind",
+              "is_catch", "catch_passed", "time_ms", "duration", "completed"]
     rows = table[[name for name in dict.fromkeys(wanted) if name in table.columns]].copy()
     rows["pcode"] = pd.factorize(rows["participant"])[0]
     if "trial_id" in table.columns and table["trial_id"].notna().all():

@@ -5,7 +5,7 @@ from django.core.management.base import BaseCommand, CommandError
 
 from analysis.formatting import interval, number
 from analysis.report import write_report
-from analysis.study import AnalysisConfig, analyse
+from analysis.study import AnalysisConfig, analyse_all
 from analysis.tables import AnalysisError, read_responses, write_responses
 from studyapp.survey import export
 from studyapp.survey.export import get_study, responses_frame
@@ -67,20 +67,29 @@ class Command(BaseCommand):
                 max_failed_repeats=options["max_failed_repeats"], completed_only=options["completed_only"],
                 bootstrap=options["bootstrap"], seed=options["seed"], real_source=options["real_source"],
             )
-            result = analyse(table, config, participants=participants)
+            results = analyse_all(table, config, participants=participants)
             out.mkdir(parents=True, exist_ok=True)
             if not responses:
                 write_responses(table, out / "responses.csv")
-            written = write_report(result, out, title=_title(study, result))
+            reports = []
+            for result in results:
+                # One question: the report is the folder's; several: one folder each.
+                folder = out if len(results) == 1 else out / result.criterion
+                written = write_report(result, folder, title=_title(study, result))
+                reports.append((result, written, folder))
+            if len(results) > 1:
+                _write_index(out, name, results)
         except (AnalysisError, OSError, ValueError) as error:
             raise CommandError(f"Cannot analyse {name}: {error}") from None
-        self._print(name, result, written, out)
+        for result, written, folder in reports:
+            self._print(name, result, written, folder)
 
     def _print(self, name, result, written, out):
         counts, summary = result.counts, result.summary()
         removed = counts["participants_before"] - counts["participants"]
+        asked = f", criterion {result.criterion}" if result.criterion else ""
         self.stdout.write(
-            f"Study {name} ({result.study_type}): {counts['participants']} participants, "
+            f"Study {name} ({result.study_type}{asked}): {counts['participants']} participants, "
             f"{counts['judgements']} judgements"
             + (f" ({removed} participants excluded or without answers)." if removed else ".")
         )
@@ -107,4 +116,18 @@ def _participants(study):
 
 
 def _title(slug, result):
-    return f"{slug or result.study or 'Study'}: {result.study_type.replace('_', ' ')}"
+    asked = f" ({result.criterion})" if result.criterion else ""
+    return f"{slug or result.study or 'Study'}: {result.study_type.replace('_', ' ')}{asked}"
+
+
+def _write_index(out: Path, name: str, results) -> None:
+    """Write ``report.html`` linking the report of each criterion of a study."""
+    from html import escape
+
+    links = "".join(
+        f'<li><a href="{escape(r.criterion)}/report.html">{escape(r.criterion)}</a>: '
+        f"{r.counts['participants']} participants, {r.counts['judgements']} judgements</li>"
+        for r in results)
+    (out / "report.html").write_text(
+        f"<!doctype html><meta charset=utf-8><title>{escape(name)}</title>"
+        f"<h1>{escape(name)}: one report per question</h1><ul>{links}</ul>\n")
