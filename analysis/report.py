@@ -19,6 +19,7 @@ import pandas as pd
 
 from analysis.figures import STYLE, save_figure
 from analysis.formatting import display_frame, interval, number
+from analysis.tables import neutralise_formulas
 
 LATEX_SPECIALS = {
     "\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
@@ -52,7 +53,7 @@ def write_table(frame: pd.DataFrame, stem: Path, title: str = "") -> list[Path]:
     stem = Path(stem)
     csv, md, tex = (stem.with_suffix(suffix) for suffix in (".csv", ".md", ".tex"))
     named_index = any(name is not None for name in frame.index.names)
-    frame.to_csv(csv, index=named_index)
+    neutralise_formulas(frame).to_csv(csv, index=named_index)
     shown = display_frame(frame)
     md.write_text(markdown_table(shown, title))
     tex.write_text(latex_table(shown, title, label=f"tab:{stem.name}"))

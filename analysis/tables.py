@@ -107,8 +107,30 @@ def ranked_judgements(table: pd.DataFrame, columns=("participant", "source", "ra
     return rows
 
 
+# A spreadsheet runs a cell starting with one of these as a formula (=HYPERLINK(...)).
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
+
+
+def neutralise_formulas(table: pd.DataFrame) -> pd.DataFrame:
+    """Return ``table`` with every text cell a spreadsheet would run as a formula
+    prefixed with ``'`` (OWASP's advice for CSV injection); numbers are left alone."""
+    out = table.copy()
+    for name in out.columns:
+        column = out[name]
+        if column.dtype == object or pd.api.types.is_string_dtype(column):
+            text = column.map(lambda v: isinstance(v, str) and v.startswith(FORMULA_STARTS))
+            if text.any():
+                out[name] = column.where(~text, "'" + column.astype(str))
+    return out
+
+
 def write_responses(table: pd.DataFrame, path) -> Path:
-    """Write ``table`` to ``path``: Parquet when it ends in ``.parquet``, CSV otherwise."""
+    """Write ``table`` to ``path``: Parquet when it ends in ``.parquet``, CSV otherwise.
+
+    In a CSV, text cells that a spreadsheet would run as formulas (crowd ids, comments
+    starting with ``= + - @``, a tab or a carriage return) are written with a leading
+    ``'`` so that they open as text.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.suffix.lower() == ".parquet":
@@ -116,7 +138,7 @@ def write_responses(table: pd.DataFrame, path) -> Path:
             raise AnalysisError(f"writing {path} needs pyarrow; pip install pyarrow or use .csv")
         table.to_parquet(path, index=False)
     else:
-        table.to_csv(path, index=False)
+        neutralise_formulas(table).to_csv(path, index=False)
     return path
 
 

@@ -33,10 +33,15 @@ if not SECRET_KEY:
     SECRET_KEY = "dev-only-insecure-key-set-DJANGO_SECRET_KEY"
 ALLOWED_HOSTS = os.environ.get("DJANGO_ALLOWED_HOSTS", "127.0.0.1,localhost,testserver").split(",")
 
+SILENCED_SYSTEM_CHECKS = []
 if not DEBUG:
     SESSION_COOKIE_SECURE = True
     CSRF_COOKIE_SECURE = True
     SECURE_SSL_REDIRECT = os.environ.get("STUDY_SSL_REDIRECT", "1") == "1"
+    if not SECURE_SSL_REDIRECT:
+        # Redirecting to HTTPS is left to the proxy in front (docs/PRODUCTION.md): the
+        # deploy check's warning about it would stop `make serve`.
+        SILENCED_SYSTEM_CHECKS.append("security.W008")
     SECURE_HSTS_SECONDS = int(os.environ.get("STUDY_HSTS_SECONDS", "31536000"))
     SECURE_HSTS_INCLUDE_SUBDOMAINS = True
     SECURE_HSTS_PRELOAD = True
@@ -70,6 +75,8 @@ MIDDLEWARE = [
 
 # New participants per IP address (entry link and consent); generous for shared NATs.
 STUDY_ENTRY_RATE_LIMIT = os.environ.get("STUDY_ENTRY_RATE_LIMIT", "120/min")
+# Failed admin logins per IP address; past it the login page answers 429 for the window.
+STUDY_LOGIN_RATE_LIMIT = os.environ.get("STUDY_LOGIN_RATE_LIMIT", "10/h")
 # An answer is taken only this many times the clips' length after its page was served
 # (and once every clip was fetched whole). 1: as long as the clips play. Tests of other
 # things lower it; a study should not.
@@ -79,13 +86,21 @@ STUDY_WATCH_TIME_FACTOR = 1.0
 STUDY_CELERY_BROKER = os.environ.get("STUDY_CELERY_BROKER", "")
 
 
+# Seconds a cache call may wait for Redis: a hung (not stopped) server must not hold up
+# every request; the rate limits fail open when the cache does not answer.
+CACHE_TIMEOUT_S = float(os.environ.get("STUDY_CACHE_TIMEOUT", "0.25"))
+
+
 def cache_from_url(url: str) -> dict:
     """Return Django's CACHES: per-process memory, or Redis for ``redis://...``."""
     if not url:
         return {"default": {"BACKEND": "django.core.cache.backends.locmem.LocMemCache"}}
     if urlparse(url).scheme not in ("redis", "rediss", "unix"):
         raise ValueError(f"STUDY_CACHE_URL {url!r}: use redis://host:6379/1 (or rediss://, unix://)")
-    return {"default": {"BACKEND": "django.core.cache.backends.redis.RedisCache", "LOCATION": url}}
+    return {"default": {
+        "BACKEND": "django.core.cache.backends.redis.RedisCache", "LOCATION": url,
+        "OPTIONS": {"socket_connect_timeout": CACHE_TIMEOUT_S, "socket_timeout": CACHE_TIMEOUT_S},
+    }}
 
 
 # The cache holds the participant-creation rate limit: set STUDY_CACHE_URL (e.g.

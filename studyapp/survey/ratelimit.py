@@ -1,4 +1,5 @@
-"""A per-IP request limit on the URLs that create participants (entry link, consent).
+"""Per-IP request limits: on the URLs that create participants (entry link, consent), and
+on failed logins to the admin.
 
 ``STUDY_ENTRY_RATE_LIMIT`` (default ``"120/min"``; ``"N/s"``, ``"N/min"``, ``"N/h"``)
 counts requests per address in fixed windows of the period. The counts live in
@@ -6,6 +7,10 @@ Django's cache: per process with the default local-memory cache, shared by every
 worker with Redis (``STUDY_CACHE_URL``, docs/PRODUCTION.md), where the limit is exact.
 When the cache cannot be reached, requests are let through (and logged): the limit
 stops scripts, and an outage of it must not stop the study.
+
+``STUDY_LOGIN_RATE_LIMIT`` (default ``"10/h"``) counts failed admin logins per address;
+past it, the login page answers 429 until the window ends (a success does not reset the
+window: guessing stays slow).
 """
 
 import logging
@@ -19,6 +24,7 @@ from django.http import HttpResponse
 log = logging.getLogger(__name__)
 
 DEFAULT = "120/min"
+LOGIN_DEFAULT = "10/h"
 PERIODS = {"s": 1, "sec": 1, "min": 60, "m": 60, "h": 3600, "hour": 3600}
 LIMITED = """<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>Too many requests</title></head>
@@ -47,6 +53,13 @@ def client_ip(request) -> str:
     return request.META.get("REMOTE_ADDR", "")
 
 
+def _window(key: str, rate: str, now: float | None) -> tuple[str, float, int]:
+    capacity, refill = parse_rate(rate)
+    period = capacity / refill
+    now = time.time() if now is None else now
+    return f"{key}:{int(now // period)}", capacity, int(period) + 60
+
+
 def allow(key: str, rate: str | None = None, now: float | None = None) -> bool:
     """Count one request against ``key`` in the current window; False past the limit.
 
@@ -54,21 +67,39 @@ def allow(key: str, rate: str | None = None, now: float | None = None) -> bool:
     minute). The count is an atomic increment in the cache (Redis INCR; a lock in the
     local-memory cache), so workers sharing a cache never let more through together.
     """
-    capacity, refill = parse_rate(rate or getattr(settings, "STUDY_ENTRY_RATE_LIMIT", DEFAULT))
-    period = capacity / refill
-    now = time.time() if now is None else now
-    window = f"{key}:{int(now // period)}"
+    window, capacity, timeout = _window(
+        key, rate or getattr(settings, "STUDY_ENTRY_RATE_LIMIT", DEFAULT), now)
     try:
-        cache.add(window, 0, timeout=int(period) + 60)
+        cache.add(window, 0, timeout=timeout)
         try:
             count = cache.incr(window)
         except ValueError:  # expired between add and incr
-            cache.add(window, 1, timeout=int(period) + 60)
+            cache.add(window, 1, timeout=timeout)
             count = 1
     except Exception as error:  # the cache (Redis) is down: fail open
         log.warning("rate limit not applied, the cache is unavailable: %s", error)
         return True
     return count <= capacity
+
+
+def spent(key: str, rate: str, now: float | None = None) -> bool:
+    """Whether ``key`` has used up ``rate`` in the current window (without counting)."""
+    window, capacity, _ = _window(key, rate, now)
+    try:
+        return (cache.get(window) or 0) >= capacity
+    except Exception as error:  # fail open, as allow() does
+        log.warning("login limit not applied, the cache is unavailable: %s", error)
+        return False
+
+
+def login_rate() -> str:
+    return getattr(settings, "STUDY_LOGIN_RATE_LIMIT", LOGIN_DEFAULT)
+
+
+def count_failed_login(sender, credentials=None, request=None, **kwargs):
+    """Count a failed login against the address it came from (``user_login_failed``)."""
+    if request is not None:
+        allow(f"ratelimit:login:{client_ip(request)}", login_rate())
 
 
 def retry_after(rate: str | None = None, now: float | None = None) -> int:
@@ -79,10 +110,20 @@ def retry_after(rate: str | None = None, now: float | None = None) -> int:
     return max(1, math.ceil(period - now % period))
 
 
-def too_many() -> HttpResponse:
-    wait = retry_after()
+LOGINS = """<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><title>Too many failed logins</title></head>
+<body style="font-family: system-ui, sans-serif; max-width: 36rem; margin: 4rem auto">
+<h1>Too many failed logins</h1>
+<p>Too many wrong passwords came from your address. Please wait a minute and try again,
+or ask another administrator to reset your password.</p>
+</body></html>
+"""
+
+
+def too_many(rate: str | None = None, page: str = LIMITED) -> HttpResponse:
+    wait = retry_after(rate)
     when = f"{wait} seconds" if wait < 120 else f"{math.ceil(wait / 60)} minutes"
-    page = LIMITED.replace("Please wait a minute", f"Please wait {when}")
+    page = page.replace("Please wait a minute", f"Please wait {when}")
     response = HttpResponse(page, status=429, content_type="text/html; charset=utf-8")
     response["Retry-After"] = str(wait)
     return response
@@ -110,4 +151,8 @@ class EntryRateLimitMiddleware:
     def process_view(self, request, view_func, view_args, view_kwargs):
         if creates_participants(request) and not allow(f"ratelimit:entry:{client_ip(request)}"):
             return too_many()
+        match = request.resolver_match
+        if (request.method == "POST" and match is not None and match.view_name == "admin:login"
+                and spent(f"ratelimit:login:{client_ip(request)}", login_rate())):
+            return too_many(login_rate(), LOGINS)
         return None

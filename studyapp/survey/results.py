@@ -9,7 +9,9 @@ from pathlib import Path
 
 from django.conf import settings
 from django.contrib import messages
+from django.core.exceptions import PermissionDenied
 from django.http import FileResponse, Http404
+from django.views.decorators.clickjacking import xframe_options_sameorigin
 from django.shortcuts import get_object_or_404, redirect
 from django.template.response import TemplateResponse
 
@@ -30,9 +32,14 @@ def start_analysis(study: Study) -> None:
 
 
 def results_view(admin_site, request, pk):
-    """Show the latest report; a POST starts a fresh analysis."""
+    """Show the latest report (staff who may view studies); a POST starts a fresh
+    analysis (staff who may change studies)."""
     study = get_object_or_404(Study, pk=pk)
+    if not request.user.has_perm("survey.view_study"):
+        raise PermissionDenied("viewing results needs the permission to view studies")
     if request.method == "POST":
+        if not request.user.has_perm("survey.change_study"):
+            raise PermissionDenied("starting an analysis needs the permission to change studies")
         start_analysis(study)
         messages.info(request, "The analysis is running; reload this page in a few seconds.")
         return redirect(request.path)
@@ -50,8 +57,11 @@ def results_view(admin_site, request, pk):
     return TemplateResponse(request, "admin/survey/study/results.html", context)
 
 
+@xframe_options_sameorigin  # shown in the Results page's frame, on this site only
 def report_view(request, pk):
     """Return the study's latest ``report.html`` (self-contained, figures embedded)."""
+    if not request.user.has_perm("survey.view_study"):
+        raise PermissionDenied("viewing results needs the permission to view studies")
     study = get_object_or_404(Study, pk=pk)
     report = report_folder(study) / "report.html"
     if not report.is_file():

@@ -56,8 +56,9 @@ def test_database_urls():
 def test_cache_urls():
     assert cache_from_url("")["default"]["BACKEND"].endswith("LocMemCache")
     redis = cache_from_url("redis://127.0.0.1:6379/1")["default"]
-    assert redis == {"BACKEND": "django.core.cache.backends.redis.RedisCache",
-                     "LOCATION": "redis://127.0.0.1:6379/1"}
+    assert redis["BACKEND"] == "django.core.cache.backends.redis.RedisCache"
+    assert redis["LOCATION"] == "redis://127.0.0.1:6379/1"
+    assert 0 < redis["OPTIONS"]["socket_timeout"] <= 1  # a hung Redis must not stall pages
     with pytest.raises(ValueError, match="STUDY_CACHE_URL 'memcached://x'.*redis://"):
         cache_from_url("memcached://x")
 
