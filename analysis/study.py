@@ -60,6 +60,7 @@ class StudyResult:
     notes: list[str] = field(default_factory=list)
     design: str = ""
     criterion: str = ""  # the question analysed, when a trial asked several
+    blindness: dict | None = None  # the blindness audit of the served clips, when run
 
     @property
     def tables(self) -> list[Table]:
@@ -73,6 +74,12 @@ class StudyResult:
             extra.append(Table("attention", "Attention checks and repeated trials", self.quality))
         if self.demographics is not None and not self.demographics.empty:
             extra.append(Table("participants", "Participants", self.demographics))
+        if self.blindness:
+            rows = [{"told apart": label, **part} for label, part in self.blindness.items()]
+            extra.append(Table(
+                "blindness", "Blindness audit: a classifier of what the browser receives per "
+                "clip (sizes, headers, MP4 boxes and frames), cross-validated accuracy against "
+                "chance", pd.DataFrame(rows)))
         return self.analysis.tables + extra
 
     def summary(self) -> dict:
@@ -100,6 +107,7 @@ class StudyResult:
             "agreement": _jsonable(self.agreement),
             "exclusions": self.exclusions.to_dict("records"),
             "config": asdict(self.config),
+            "blindness": _jsonable(self.blindness),
             "notes": self.notes,
         }
 

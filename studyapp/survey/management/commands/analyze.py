@@ -8,6 +8,7 @@ from analysis.report import write_report
 from analysis.study import AnalysisConfig, analyse_all
 from analysis.tables import AnalysisError, read_responses, write_responses
 from studyapp.survey import export
+from studyapp.survey.audit import audit_study, view_fetcher
 from studyapp.survey.export import get_study, responses_frame
 
 
@@ -39,6 +40,8 @@ class Command(BaseCommand):
         parser.add_argument("--bootstrap", type=int, default=1000, metavar="N",
                             help="Bootstrap resamples for intervals (default 1000; 0 = none).")
         parser.add_argument("--seed", type=int, default=0, help="Seed of the bootstrap.")
+        parser.add_argument("--no-audit", action="store_true",
+                            help="Skip the blindness audit of the study's clips.")
         parser.add_argument("--real-source", default="real", metavar="NAME",
                             help="The source holding real clips (fake_or_real; default 'real').")
         # Kept for old scripts: SVGs are always written now.
@@ -68,6 +71,10 @@ class Command(BaseCommand):
                 bootstrap=options["bootstrap"], seed=options["seed"], real_source=options["real_source"],
             )
             results = analyse_all(table, config, participants=participants)
+            if not responses and not options["no_audit"]:
+                blindness = audit_study(record, view_fetcher())
+                for result in results:
+                    result.blindness = blindness
             out.mkdir(parents=True, exist_ok=True)
             if not responses:
                 write_responses(table, out / "responses.csv")
@@ -103,6 +110,11 @@ class Command(BaseCommand):
             )
         for note in result.notes:
             self.stderr.write(self.style.WARNING(f"Note: {note}."))
+        for label, part in (result.blindness or {}).items():
+            if not part["passed"]:
+                self.stderr.write(self.style.WARNING(
+                    f"Blindness audit: {label} can be told apart from the served files "
+                    f"(accuracy {part['accuracy']:.2f}, chance {part['chance']:.2f})."))
         tables = sum(1 for path in written if path.suffix == ".csv")
         figures = sum(1 for path in written if path.suffix == ".png")
         self.stdout.write(f"Wrote report.html, summary.json, {tables} tables (CSV, Markdown, LaTeX) "
