@@ -35,6 +35,13 @@
     var log = eventLog(form);
     var cards = Array.prototype.slice.call(form.querySelectorAll("[data-clip-card]"));
     var gated = cards.filter(function (card) { return card.hasAttribute("data-required"); });
+    // The first time an action's scoring-standard examples are shown, they play first and
+    // the clips to judge start once each example has played through: never eight videos
+    // at once on a phone.
+    var leads = cards.filter(function (card) {
+      return card.dataset.role === "example" && card.hasAttribute("data-required");
+    });
+    var waiting = leads.length ? cards.filter(function (card) { return leads.indexOf(card) < 0; }) : [];
     var submit = form.querySelector("[data-submit]");
     var gate = form.querySelector("[data-gate]");
     var label = submit.textContent;
@@ -89,6 +96,11 @@
       video.addEventListener("ended", function () {
         log("ended", position);
         plays.value = String(playsOf(card) + 1);
+        if (waiting.length && leads.every(function (lead) { return playsOf(lead) > 0; })) {
+          var now = waiting;
+          waiting = [];
+          now.forEach(function (other) { start(other, other.querySelector("video")); });
+        }
         card.classList.add("is-watched");
         state.textContent = "Watched";
         update();
@@ -112,6 +124,8 @@
         // Folded examples: nothing plays until the participant opens them.
         state.textContent = "Tap to play";
         card.querySelector("[data-play]").hidden = false;
+      } else if (waiting.indexOf(card) >= 0) {
+        state.textContent = "Plays after the examples";
       } else {
         start(card, video);
       }
