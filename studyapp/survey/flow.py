@@ -118,6 +118,8 @@ class DatabaseStore:
 
     def enroll(self, request, study, outcome: str = ""):
         ids, key = self.pending_ids(request, study)
+        if not key and study.platform.require_id:
+            raise Unavailable("no_id")  # the consent page was posted without the entry link
         participant = Participant.objects.enroll(
             study, ids, key, request.headers.get("User-Agent", ""), outcome=outcome
         )
@@ -273,7 +275,8 @@ class Consent(Page):
         try:
             participant = store.enroll(request, study, outcome=form.outcome())
         except Unavailable as exc:
-            return unavailable(request, study, exc.reason)
+            detail = study.platform.id_params[0] if exc.reason == "no_id" else ""
+            return unavailable(request, study, exc.reason, detail=detail)
         return super().post(request, store, study, participant)
 
     def bot_fill(self, fields, form, bot):
@@ -300,13 +303,13 @@ class Trials(Page):
     def is_done(self, participant):
         return participant.is_finished()
 
-    def get(self, request, store, study, participant, problems=()):
+    def get(self, request, store, study, participant):
         trial, items, number, total = store.current_trial(request, participant)
         if trial is None:  # no unanswered trial with clips: broken data, not the person's fault
             log.error("participant %s of %s: no trial to show", participant.pk, study.slug)
             return unavailable(request, study, "broken", status=500)
         return render_trial(request, store, study, trial, items, number, total,
-                            participant.n_practice, problems=problems)
+                            participant.n_practice)
 
     def post(self, request, store, study, participant):
         trial, items, problem = store.posted_trial(request, participant)

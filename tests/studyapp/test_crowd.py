@@ -55,6 +55,8 @@ def test_entry_without_a_valid_prolific_id_gets_a_clear_page(prolific_study, mak
     response = bot.enter(**query)
     assert response.status_code == 400 and page in response.content
     assert b"Prolific" in response.content
+    assert bot.consent(screen_0="Yes").status_code == 200  # posting consent directly
+    assert b"missing your participant id" in bot.consent(screen_0="Yes").content
     assert not Participant.objects.exists()
 
 
