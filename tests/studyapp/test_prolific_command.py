@@ -385,3 +385,24 @@ def test_review_decisions_follow_the_analysis_rules():
     assert strict.why == "answered 2 repeated trial(s) differently, more than 1"
     with pytest.raises(ValueError, match="0 or more"):
         review.Rules(max_failed_catch=-1)
+
+
+def test_the_readmes_crowd_examples_are_valid_settings():
+    import re
+    from types import SimpleNamespace
+
+    import yaml
+
+    from studyapp.survey.crowd import make_platform
+    from tests.conftest import ROOT
+
+    text = (ROOT / "README.md").read_text()
+    section = text[text.index("## Crowd platforms"):text.index("## Results and benchmarks")]
+    blocks = re.findall(r"```yaml\n(.*?)```", section, re.S)
+    assert blocks
+    for block in blocks:
+        platform = make_platform(yaml.safe_load(block)["study"]["crowd"])
+        person = SimpleNamespace(external_ids={platform.id_params[0]: "12345"},
+                                 completion_code="C1", study=None)
+        assert platform.read_ids({platform.id_params[0]: "12345"})[1] == f"{platform.id_params[0]}:12345"
+        assert platform.completion_url(person) == platform.template.format(code="C1", id="12345")

@@ -236,7 +236,7 @@ class Client:
             try:
                 with urllib.request.urlopen(request, timeout=self.timeout) as response:
                     raw = response.read()
-                return json.loads(raw) if raw.strip() else None
+                break
             except urllib.error.HTTPError as error:
                 raw = error.read()
                 if error.code == 429 and not last:
@@ -256,9 +256,11 @@ class Client:
                     "submissions` before sending it again.")
                 raise Unreachable(f"Cannot reach Prolific at {url} ({reason}); check the "
                                   f"network and {URL_VARIABLE}.{sent}") from None
-            except ValueError:
-                raise ProlificError(f"Prolific's answer to {method} {url} is not JSON") from None
-        raise AssertionError("unreachable")  # the loop returns or raises
+        try:
+            return json.loads(raw) if raw.strip() else None
+        except ValueError:
+            raise ProlificError(f"Prolific's answer to {method} {url} is not JSON: "
+                                f"{raw[:200]!r}") from None
 
     def _wait(self, retry_after: str | None, attempt: int) -> float:
         """Return the seconds to wait: ``Retry-After`` (seconds or a date), else 2**attempt."""

@@ -256,6 +256,9 @@ class Command(BaseCommand):
     def do_bonus(self, study, options):
         if options["amount_cents"] is not None and not options["outcome"]:
             raise CommandError("--amount-cents needs --outcome (e.g. --outcome completed)")
+        if options["csv"] and options["outcome"]:
+            raise CommandError("--outcome goes with --amount-cents; a --csv file names its "
+                               "participants itself")
         prolific_id = _prolific_id(study)
         client = Client.from_env()
         submissions = client.study_submissions(prolific_id)
