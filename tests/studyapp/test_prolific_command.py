@@ -268,7 +268,8 @@ def test_review_dry_run_shows_every_decision_and_sends_nothing(fake, study, revi
     }
     assert "failed 1 of 1 catch trial(s), more than 0" in out
     assert "not a participant of ours" in out and "still taking part in our study" in out
-    assert "Dry run: would 1 approve, 2 request return, 0 reject; 5 untouched. Nothing was sent." in out
+    assert ("Dry run: would 1 approve, 2 request return, 0 reject; 5 untouched. Nothing was "
+            "sent.") in out
 
 
 def test_review_acts_by_our_exclusions_and_twice_is_once(fake, study, reviewed):
@@ -404,5 +405,6 @@ def test_the_readmes_crowd_examples_are_valid_settings():
         platform = make_platform(yaml.safe_load(block)["study"]["crowd"])
         person = SimpleNamespace(external_ids={platform.id_params[0]: "12345"},
                                  completion_code="C1", study=None)
-        assert platform.read_ids({platform.id_params[0]: "12345"})[1] == f"{platform.id_params[0]}:12345"
+        name = platform.id_params[0]
+        assert platform.read_ids({name: "12345"})[1] == f"{name}:12345"
         assert platform.completion_url(person) == platform.template.format(code="C1", id="12345")

@@ -130,9 +130,9 @@ class Command(BaseCommand):
                               f"https; pass --base-url https://... (or set STUDY_BASE_URL) "
                               f"for a public study.")
         if options["reward_cents"] is None:
-            self.stdout.write(f"Reward {payload['reward']} cents: {payload['estimated_completion_time']} "
-                              f"minutes at {options['hourly_cents']} cents an hour "
-                              f"(--reward-cents sets it).")
+            minutes = payload["estimated_completion_time"]
+            self.stdout.write(f"Reward {payload['reward']} cents: {minutes} minutes at "
+                              f"{options['hourly_cents']} cents an hour (--reward-cents sets it).")
         if not (study.crowd or {}).get("time_limit_minutes"):
             self.stdout.write("The study has no crowd.time_limit_minutes: Prolific applies its "
                               "own maximum time; set the same limit here so both agree.")
@@ -302,7 +302,8 @@ class Command(BaseCommand):
         for s in submissions:
             pid = str(s.get("participant_id", "")).lower()
             row = people.get(pid)
-            if row and row.get("outcome") == options["outcome"] and s.get("status") in bonus.PAYABLE:
+            wanted = row and row.get("outcome") == options["outcome"]
+            if wanted and s.get("status") in bonus.PAYABLE:
                 chosen[pid] = cents
         if not chosen:
             raise bonus.BonusError(f"no approved or awaiting-review submission of a participant "
