@@ -32,9 +32,9 @@ IN_PROGRESS = ("ACTIVE", "RESERVED")
 AWAITING = "AWAITING REVIEW"
 REJECT_CATEGORY = "FAILED_CHECK"
 DEFAULT_REJECT_MESSAGE = (
-    "Thank you for taking part. Your submission is rejected because it failed the "
-    "study's attention checks: clips that were obviously broken were judged as if they "
-    "were not, more often than the study allows. This was stated in the instructions.")
+    "Thank you for taking part. Your submission is rejected because it did not pass the "
+    "study's attention checks (trials showing an obviously broken clip, or a trial shown "
+    "again) as often as the instructions and the study require.")
 FAILED_REASON = "Failed the study's attention checks."
 RETURN_REASON = {"no_consent": "Withdrew consent.", "screened_out": "Screened out.",
                  "failed_attention": FAILED_REASON}
