@@ -5,7 +5,9 @@ A study's ``crowd`` field names its platform and that platform's settings:
 - ``prolific``: the entry link carries ``PROLIFIC_PID`` (24 hex digits, case-insensitive,
   required unless ``require_id: false``), ``STUDY_ID`` and ``SESSION_ID``; each outcome
   has the study's own completion code (``codes``), and the last page sends people to
-  ``https://app.prolific.com/submissions/complete?cc=CODE``.
+  ``https://app.prolific.com/submissions/complete?cc=CODE``. ``prolific_study_id`` is
+  the id of the study on Prolific (24 hex digits), which ``manage.py prolific create``
+  stores and its other subcommands read.
 - ``generic``: any other platform (CloudResearch Connect, SONA, a panel of your own):
   ``id_param`` names the query parameter that identifies a person, ``extra_params`` are
   recorded too, ``completion_url_template`` is where people go at the end, with
@@ -30,7 +32,7 @@ from generation.registry import Registry
 
 OUTCOMES = ("completed", "failed_attention", "no_consent", "screened_out")
 SETTINGS = ("platform", "codes", "time_limit_minutes", "id_param", "extra_params",
-            "completion_url_template", "require_id", "screening")
+            "completion_url_template", "require_id", "screening", "prolific_study_id")
 MAX_ID_LENGTH = 100
 PROLIFIC_ID = re.compile(r"^[0-9a-f]{24}$")
 
@@ -91,6 +93,11 @@ class Platform:
                              f"minutes, at least 1")
         if "require_id" in settings:
             self.require_id = bool(settings["require_id"])
+        study_id = settings.get("prolific_study_id")
+        if study_id is not None and not (isinstance(study_id, str)
+                                         and PROLIFIC_ID.match(study_id.lower())):
+            raise ValueError(f"crowd.prolific_study_id: {study_id!r} must be the 24 hex digits "
+                             f"of the study's id on Prolific (in its page's address)")
         self.screening = self._screening(settings.get("screening") or [])
 
     @staticmethod
