@@ -405,6 +405,10 @@ class Build:
                                  f"{c.study_type}; pick another slug")
             else:
                 changes = {"title": c.title, **self.study_fields()}
+                if "crowd" in changes:
+                    # Settings stored since (e.g. by `prolific create`: its codes and study
+                    # id) are kept; the config's own settings win.
+                    changes["crowd"] = {**(study.crowd or {}), **changes["crowd"]}
                 if any(getattr(study, k) != v for k, v in changes.items()):
                     changed = True
                     for name, value in changes.items():

@@ -227,3 +227,17 @@ def test_every_preset_builds_with_small_counts(tmp_path, media_root, preset, dat
     sources = {source.name for source in config.sources}
     assert set(judged.values_list("source", flat=True)) == sources
     assert judged.count() == len(sources) * 2  # one clip per source for each of 2 actions
+
+
+@pytest.mark.django_db
+def test_a_rebuild_keeps_crowd_settings_stored_since(tmp_path, media_root):
+    crowd = {"platform": "prolific", "codes": {"completed": "AAAA1111"}}
+    build_stimuli(parse(small(study={"type": "ranking", "crowd": crowd}), tmp_path), tmp_path / "b")
+    study = Study.objects.get(slug="tiny-ranking")
+    stored = {**study.crowd, "prolific_study_id": "6" * 24,
+              "codes": {"completed": "AAAA1111", "failed_attention": "BBBB2222"}}
+    Study.objects.filter(pk=study.pk).update(crowd=stored)  # as `prolific create` does
+    build_stimuli(parse(small(study={"type": "ranking", "crowd": {**crowd, "time_limit_minutes": 20}}),
+                        tmp_path), tmp_path / "b")
+    study.refresh_from_db()
+    assert study.crowd["prolific_study_id"] == "6" * 24 and study.crowd["time_limit_minutes"] == 20

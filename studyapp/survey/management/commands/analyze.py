@@ -32,8 +32,9 @@ class Command(BaseCommand):
                                  "(the report still counts them).")
         parser.add_argument("--min-time-factor", type=float, default=1.0, metavar="F",
                             help="Exclude trials answered in less than F x the clip length (default 1).")
-        parser.add_argument("--max-failed-catch", type=int, default=0, metavar="N",
-                            help="Exclude participants who failed more than N catch trials (default 0).")
+        parser.add_argument("--max-failed-catch", type=int, default=None, metavar="N",
+                            help="Exclude participants who failed more than N catch trials "
+                                 "(default: the study's own max_failed_catch, else 0).")
         parser.add_argument("--max-failed-repeats", type=int, default=None, metavar="N",
                             help="Also exclude participants who answered more than N repeated "
                                  "trials differently (default: counted, not applied).")
@@ -55,11 +56,15 @@ class Command(BaseCommand):
             except (AnalysisError, OSError, ValueError) as error:
                 raise CommandError(f"Cannot read {responses}: {error}") from None
             name = Path(responses).name
+            if options["max_failed_catch"] is None:
+                options["max_failed_catch"] = 0
         else:
             record = get_study(study)
             table = responses_frame(record)
             participants = _participants(record)
             name = record.slug
+            if options["max_failed_catch"] is None:
+                options["max_failed_catch"] = record.max_failed_catch  # as its outcomes
             if table.empty:
                 raise CommandError(f"Study {name} has no answers yet; nothing to analyse.")
         out = Path(out)
