@@ -219,15 +219,17 @@ def render_set(
     workers: int = 1,
     progress: bool = True,
     framing: Framing | None = None,
-    follow: bool = False,
+    follow: bool = True,
     formats=("mp4",),
 ) -> RenderReport:
     """Render every motion in one framing to ``out_dir/<hash>.mp4`` and ``<hash>.png``.
 
     Clips that cannot be rendered are listed in ``failures``; the rest still render.
     ``fps`` resamples every clip to one rate (``None`` keeps each motion's own).
-    ``framing`` reuses another set's framing; otherwise one is fitted to these motions
-    (``follow``: the camera tracks each root horizontally). ``out_dir/renders.json``
+    ``framing`` reuses another set's framing (pass the study's, so that catch, reference
+    and example clips rendered later keep its rule); otherwise one is fitted to these
+    motions, measured on the real ones (``follow``: the camera tracks each root
+    horizontally; ``False`` keeps it still). ``out_dir/renders.json``
     records what was rendered from what, for the researcher only: never serve it.
     ``formats`` may add ``"webm"`` (VP9) and ``"gif"``, as ``<hash>.webm`` and
     ``<hash>.gif`` beside the mp4. ``workers > 1`` spawns processes, so a calling

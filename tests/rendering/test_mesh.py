@@ -24,9 +24,9 @@ JUNCTIONS = [("trunk", "neck"), ("neck", "head")] + [
 ]
 
 
-def _changed(frame: np.ndarray, framing: Framing) -> np.ndarray:
+def _changed(frame: np.ndarray, framing: Framing, target=None) -> np.ndarray:
     """Return where a frame differs from the bare scenery: the body and its shadow."""
-    scenery = Backdrop(framing, frame.shape[1], frame.shape[0]).image().astype(int)
+    scenery = Backdrop(framing, frame.shape[1], frame.shape[0]).image(target).astype(int)
     return np.abs(frame.astype(int) - scenery).max(axis=-1) > 30
 
 
@@ -58,10 +58,12 @@ def test_mesh_clips_decode_with_their_frames_and_size(rendered):
 
 
 def test_body_stays_inside_the_frame(rendered):
-    _, report = rendered
-    for clip in report.clips:
-        for frame in decode(clip.video)[1]:
-            ys, xs = np.nonzero(_changed(frame, report.framing))
+    motions, report = rendered
+    framing = report.framing
+    for clip, motion in zip(report.clips, motions):
+        targets = framing.targets(motion, framing.place(motion))
+        for frame, target in zip(decode(clip.video)[1], targets):
+            ys, xs = np.nonzero(_changed(frame, framing, target))
             assert len(xs) > 200, "no body drawn"
             assert xs.min() >= 2 and ys.min() >= 2
             assert xs.max() < SIZE - 2 and ys.max() < SIZE - 2
