@@ -17,7 +17,14 @@ from generation.motion import Motion, MotionError
 from generation.skeletons import get_skeleton
 from rendering.framing import Framing
 from rendering.styles import Style, get_style
-from rendering.video import ENCODER, FORMATS, VideoWriter, file_hash, save_poster
+from rendering.video import (
+    FORMATS,
+    OverBudget,
+    VideoWriter,
+    encoder_settings,
+    file_hash,
+    save_poster,
+)
 
 SIDECAR = "renders.json"
 
@@ -111,12 +118,30 @@ def _formats(formats) -> tuple[str, ...]:
     return ("mp4",) + tuple(dict.fromkeys(f for f in formats if f != "mp4"))
 
 
+RATE_SCALES = (1.0, 0.8, 0.6)  # a clip over its byte budget is encoded again, lower
+
+
 def _encode(style: Style, motion: Motion, videos: list[Path], poster: Path) -> int:
-    """Stream a motion's frames into every video, save its middle frame; return the count."""
+    """Stream a motion's frames into every video, save its middle frame; return the count.
+
+    Every file comes out at its budget's size; the rare clip whose encoder overshoots it
+    is drawn and encoded again at a lower rate.
+    """
+    for scale in RATE_SCALES[:-1]:
+        try:
+            return _encode_at(style, motion, videos, poster, scale)
+        except OverBudget:
+            pass
+    return _encode_at(style, motion, videos, poster, RATE_SCALES[-1])
+
+
+def _encode_at(style: Style, motion: Motion, videos: list[Path], poster: Path, scale) -> int:
     middle = (motion.frames - 1) // 2
     with ExitStack() as stack:
         writers = [
-            stack.enter_context(VideoWriter(video, style.width, style.height, motion.fps))
+            stack.enter_context(
+                VideoWriter(video, style.width, style.height, motion.fps, rate_scale=scale)
+            )
             for video in videos
         ]
         for number, frame in enumerate(style.frames(motion)):
@@ -346,7 +371,7 @@ def _write_sidecar(out_dir: Path, report: RenderReport, motions, style, size, fp
         "style": style,
         "size": list(size),
         "fps": fps,
-        "encoder": ENCODER,
+        "encoder": encoder_settings(),
         "formats": list(formats),
         "framing": report.framing.as_dict() if report.framing else None,
         "clips": entries,
