@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -145,12 +146,13 @@ class Framing:
     def _solve(self, drawn: float, fill: float) -> tuple[float, float]:
         """Return the distance and look-at height that put a pole of height ``drawn``,
         standing at the look-at, from ``FLOOR_AT`` up ``fill`` of the frame."""
+        elevation = math.radians(self.elevation)
+        across = 2 * math.tan(math.radians(self.fov) / 2)  # frame heights per unit depth
 
-        def rows(distance, look_at):  # the pole's foot and top, as shares of the height
-            camera = Camera.look_at((0.0, 0.0, look_at), self.azimuth, self.elevation,
-                                    distance, self.fov, 2, 2, orthographic=self.orthographic)
-            pixels, _ = camera.project(np.array([[0.0, 0.0, 0.0], [0.0, 0.0, drawn]]))
-            return pixels[:, 1] / 2
+        def row(z, distance, look_at):  # where a point above the look-at shows, 0 = top
+            rise = z - look_at
+            depth = distance if self.orthographic else distance - rise * math.sin(elevation)
+            return 0.5 - rise * math.cos(elevation) / (across * depth)
 
         def bisect(function, low, high):  # function increases from low to high
             for _ in range(60):
@@ -159,11 +161,11 @@ class Framing:
             return (low + high) / 2
 
         def aimed(distance):  # the look-at height that puts the foot at FLOOR_AT
-            return bisect(lambda z: rows(distance, z)[0] - FLOOR_AT, -10 * drawn, 10 * drawn)
+            return bisect(lambda z: row(0.0, distance, z) - FLOOR_AT, -10 * drawn, drawn)
 
-        def span(distance):
-            foot, top = rows(distance, aimed(distance))
-            return fill - (foot - top)  # grows with the distance
+        def span(distance):  # grows with the distance
+            look_at = aimed(distance)
+            return fill - (row(0.0, distance, look_at) - row(drawn, distance, look_at))
 
         distance = bisect(span, 0.3 * drawn, 100.0 * drawn)
         return distance, aimed(distance)
@@ -237,17 +239,18 @@ class Framing:
 
     def camera(self, width: int, height: int, target=None) -> Camera:
         """Return the camera for an image of this size looking at ``target`` (default: ours)."""
-        return Camera.look_at(
-            self.target if target is None else target,
-            self.azimuth,
-            self.elevation,
-            self.distance,
-            self.fov,
-            width,
-            height,
-            orthographic=self.orthographic,
-        )
+        camera = _base_camera(self, width, height)
+        if target is None:
+            return camera
+        return camera.looking_at(np.asarray(target, dtype=np.float64) - self.target)
 
     def as_dict(self) -> dict:
         """Return the framing as plain data (for the researcher's sidecar)."""
         return asdict(self)
+
+
+@lru_cache(maxsize=64)
+def _base_camera(framing: Framing, width: int, height: int) -> Camera:
+    """Return a framing's camera at its own look-at (made once: clips move it per frame)."""
+    return Camera.look_at(framing.target, framing.azimuth, framing.elevation, framing.distance,
+                          framing.fov, width, height, orthographic=framing.orthographic)

@@ -12,6 +12,7 @@ time, so memory does not grow with a clip's length.
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import io
 import math
@@ -63,7 +64,7 @@ def budget(kind: str, width: int, height: int, frames: int, fps) -> int:
     return int(math.ceil(size / BLOCK) * BLOCK)
 
 
-def _encoder(kind: str, width: int, height: int, fps, scale: float) -> list[str]:
+def encoder_options(kind: str, width: int, height: int, fps, scale: float = 1.0) -> list[str]:
     """Return ffmpeg's output options for a constant-rate mp4 or WebM."""
     rate = bit_rate(width, height, fps, scale)
     common = ["-map_metadata", "-1", "-metadata:s:v:0", "encoder=", "-fflags", "+bitexact",
@@ -96,7 +97,7 @@ def _encoder(kind: str, width: int, height: int, fps, scale: float) -> list[str]
 def encoder_settings() -> dict:
     """Return the encoding rule, for the researcher's record."""
     return {"bits_per_pixel": BITS_PER_PIXEL, "headroom": HEADROOM,
-            "mp4": _encoder("mp4", 2, 2, 1, 1.0)[:2] + ["constant rate, filler, no B-frames"],
+            "mp4": encoder_options("mp4", 2, 2, 1)[:2] + ["constant rate, filler, no B-frames"],
             "padded": True}
 
 
@@ -140,22 +141,10 @@ class VideoWriter:
         self._sender.start()
 
     def _yuv_writer(self):
-        mp4 = self.format == "mp4"
-        writer = imageio_ffmpeg.write_frames(
-            str(self.path),
-            (self.width, self.height),
-            pix_fmt_in="rgb24",
-            pix_fmt_out="yuv420p",
-            fps=self.fps,
-            quality=None,
-            codec="libx264" if mp4 else "libvpx-vp9",
-            macro_block_size=2,
-            ffmpeg_log_level="error",
-            output_params=_encoder(self.format, self.width, self.height, self.fps,
-                                   self.rate_scale),
-        )
-        writer.send(None)
-        return writer
+        codec = "libx264" if self.format == "mp4" else "libvpx-vp9"
+        options = encoder_options(self.format, self.width, self.height, self.fps, self.rate_scale)
+        return _Pipe(_raw_input(self.width, self.height, self.fps)
+                     + ["-c:v", codec, "-pix_fmt", "yuv420p", *options, str(self.path)])
 
     def write(self, frame: np.ndarray) -> None:
         """Append one frame."""
@@ -207,7 +196,40 @@ class VideoWriter:
                 self.path.unlink(missing_ok=True)
 
 
-class _GifPipe:
+PIPE_BYTES = 1 << 20  # a whole 480x480 frame fits: one wake-up of ffmpeg per frame, not 11
+
+
+def _raw_input(width: int, height: int, fps) -> list[str]:
+    return ["-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{width}x{height}", "-r", str(fps),
+            "-i", "-"]
+
+
+class _Pipe:
+    """An ffmpeg process reading raw RGB frames on its standard input."""
+
+    def __init__(self, arguments: list[str], describe: str = "the video"):
+        command = [imageio_ffmpeg.get_ffmpeg_exe(), "-hide_banner", "-loglevel", "error", "-y",
+                   *arguments]
+        self._describe = describe
+        self._process = subprocess.Popen(
+            command, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+        )
+        try:
+            fcntl.fcntl(self._process.stdin.fileno(), fcntl.F_SETPIPE_SZ, PIPE_BYTES)
+        except (AttributeError, OSError):  # not Linux, or a lower system limit: still works
+            pass
+
+    def send(self, data: bytes) -> None:
+        self._process.stdin.write(data)
+
+    def close(self) -> None:
+        self._process.stdin.close()
+        errors = self._process.stderr.read().decode(errors="replace").strip()
+        if self._process.wait() != 0:
+            raise RuntimeError(f"ffmpeg could not write {self._describe}: {errors}")
+
+
+class _GifPipe(_Pipe):
     """An ffmpeg process turning raw frames into a GIF with the first frame's palette."""
 
     def __init__(self, path: Path, first: np.ndarray, fps: Fraction):
@@ -218,25 +240,16 @@ class _GifPipe:
         swatch[: len(colours.getpalette())] = colours.getpalette()[:768]
         Image.fromarray(swatch.reshape(16, 16, 3)).save(palette)
         height, width = first.shape[:2]
-        command = [
-            imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-loglevel", "error",
-            "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{width}x{height}", "-r", str(fps),
-            "-i", "-", "-i", str(palette), "-lavfi", GIF_FILTER,
-            "-loop", "0", "-map_metadata", "-1", "-fflags", "+bitexact", str(path),
-        ]
-        self._process = subprocess.Popen(
-            command, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+        super().__init__(
+            _raw_input(width, height, fps)
+            + ["-i", str(palette), "-lavfi", GIF_FILTER, "-loop", "0", "-map_metadata", "-1",
+               "-fflags", "+bitexact", str(path)],
+            "the GIF",
         )
-
-    def send(self, data: bytes) -> None:
-        self._process.stdin.write(data)
 
     def close(self) -> None:
         try:
-            self._process.stdin.close()
-            errors = self._process.stderr.read().decode(errors="replace").strip()
-            if self._process.wait() != 0:
-                raise RuntimeError(f"ffmpeg could not write the GIF: {errors}")
+            super().close()
         finally:
             self._folder.cleanup()
 
@@ -250,7 +263,7 @@ def save_poster(path: str | Path, frame: np.ndarray, padded: bool = True) -> Pat
     path = Path(path)
     image = Image.fromarray(frame)
     encoded = io.BytesIO()
-    image.save(encoded, format="PNG", compress_level=9)
+    image.save(encoded, format="PNG", compress_level=3)  # level 9 costs 10x the time
     size = budget("png", image.width, image.height, 1, 1)
     if padded and encoded.tell() > size - 12:
         encoded = io.BytesIO()
