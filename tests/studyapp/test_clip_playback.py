@@ -10,6 +10,13 @@ import pytest
 from rendering import render_set
 from tests.rendering.conftest import make_figure
 
+
+class QuietHandler(http.server.SimpleHTTPRequestHandler):
+    """Serve files without a log line per request."""
+
+    def log_message(self, *args):
+        pass
+
 pytestmark = pytest.mark.browser
 
 FRAMES = 20
@@ -29,8 +36,7 @@ def served(tmp_path_factory):
     (out / "index.html").write_text("<!doctype html><body>" + "".join(
         f'<video src="{name}" muted playsinline preload="auto"></video>'
         for pair in names for name in pair) + "</body>")
-    handler = functools.partial(http.server.SimpleHTTPRequestHandler, directory=str(out))
-    handler.log_message = lambda *args: None
+    handler = functools.partial(QuietHandler, directory=str(out))
     server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
     threading.Thread(target=server.serve_forever, daemon=True).start()
     yield f"http://127.0.0.1:{server.server_address[1]}/index.html"

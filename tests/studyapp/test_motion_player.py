@@ -12,6 +12,13 @@ from rendering import Framing
 from rendering.player import write_payloads
 from tests.rendering.conftest import make_figure
 
+
+class QuietHandler(http.server.SimpleHTTPRequestHandler):
+    """Serve files without a log line per request."""
+
+    def log_message(self, *args):
+        pass
+
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 STATIC = Path(__file__).resolve().parents[2] / "studyapp" / "survey" / "static" / "survey"
@@ -30,8 +37,7 @@ def site(tmp_path_factory):
     swayer = make_figure(frames=FRAMES, phase=1.5)
     framing = Framing.from_motions([walker, swayer])
     names = [path.name for path, _ in write_payloads([walker, swayer], root, framing)]
-    handler = functools.partial(http.server.SimpleHTTPRequestHandler, directory=str(root))
-    handler.log_message = lambda *args: None
+    handler = functools.partial(QuietHandler, directory=str(root))
     server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
     threading.Thread(target=server.serve_forever, daemon=True).start()
     yield f"http://127.0.0.1:{server.server_address[1]}/index.html?clips={','.join(names)}"
