@@ -27,6 +27,9 @@ from rendering.video import (
 )
 
 SIDECAR = "renders.json"
+# Changes whenever the same motions and settings would give other pixels or bytes (the
+# camera rule, the encoder, the padding): caches of rendered clips should key on it.
+VERSION = 2
 
 
 class RenderError(ValueError):
@@ -368,6 +371,7 @@ def _write_sidecar(out_dir: Path, report: RenderReport, motions, style, size, fp
         for clip in report.clips
     ]
     record = {
+        "version": VERSION,
         "style": style,
         "size": list(size),
         "fps": fps,

@@ -24,6 +24,7 @@ from rendering.styles.base import Style, register_style
 SUPERSAMPLE = 2
 SHADOW_SHRINK = 4  # the shadow is drawn this much smaller, then blurred and stretched
 LIGHT = np.array([-0.55, -0.83])  # on screen: from the upper left
+NEAR = 0.05  # parts nearer the eye than this share of the camera distance are not drawn
 
 # Sizes as fractions of the figure height, the same for every clip of a set.
 BONE_RADIUS = 0.021
@@ -116,7 +117,9 @@ class StickStyle(Style):
             if self.shadow:
                 _darken(frame, self._shadow(camera, pose, figure))
             # Only the patch around the figure is drawn large and halved.
-            box = _cover(pixels, figure.joint_radii * camera.pixel_size(depth), self._size)
+            seen = depth > NEAR * self.framing.distance  # a joint flung at or behind the eye
+            box = _cover(pixels[seen], (figure.joint_radii * camera.pixel_size(depth))[seen],
+                         self._size) if seen.any() else None
             if box is None:
                 yield frame
                 continue
@@ -142,16 +145,22 @@ class StickStyle(Style):
         blurred and stretched, and only over the patch it covers.
         """
         pixels, depth = camera.project(self.framing.shadows(pose))
+        seen = depth > NEAR * self.framing.distance
+        if not seen.any():
+            return None
         pixels /= SHADOW_SHRINK
         reach = camera.pixel_size(depth) / SHADOW_SHRINK
         unit = self.framing.height * float(camera.pixel_size(self.framing.distance)) / SHADOW_SHRINK
         closeness = 1.0 - np.clip(pose[:, 2] / (0.2 * self.framing.height), 0.0, 1.0)
-        layers = ((np.full(len(pose), 100.0), 1.4, 0.012), (closeness**2 * 150, 1.2, 0.006))
+        strength = np.where(seen, 100.0, 0.0)  # nothing of what lies at or behind the eye
+        layers = ((strength, 1.4, 0.012), (np.where(seen, closeness**2 * 150, 0.0), 1.2, 0.006))
+        reach = np.where(seen, reach, 0.0)
 
-        border = 1.4 * figure.joint_radii * reach + 3 * 0.012 * unit + 2
+        border = (1.4 * figure.joint_radii * reach + 3 * 0.012 * unit + 2)[seen, None]
         size = (self._size[0] // SHADOW_SHRINK, self._size[1] // SHADOW_SHRINK)
-        low = np.maximum(np.floor((pixels - border[:, None]).min(axis=0)), 0).astype(int)
-        high = np.minimum(np.ceil((pixels + border[:, None]).max(axis=0)), size).astype(int)
+        low = np.maximum(np.floor((pixels[seen] - border).min(axis=0)), 0).astype(int)
+        high = np.minimum(np.ceil((pixels[seen] + border).max(axis=0)), size).astype(int)
+        pixels = np.where(seen[:, None], pixels, low)  # unseen parts are drawn at no size
         if (high <= low).any():
             return None
         pixels = pixels - low
@@ -215,9 +224,12 @@ class StickStyle(Style):
             axis=1).tolist()
 
         n_bones = len(bones)
+        near = NEAR * self.framing.distance
+        seen = np.concatenate([(depth[bones[:, 0]] > near) & (depth[bones[:, 1]] > near),
+                               depth > near])
         # Balls sit a little nearer than the tubes meeting at them, so they cap the ends.
         order = np.argsort(-np.concatenate([bone_depth, depth - figure.joint_radii]), kind="stable")
-        for k in order.tolist():
+        for k in order[seen[order]].tolist():
             rim, body, highlight = tones[k]
             if k < n_bones:
                 (x0, y0, x1, y1, bx0, by0, bx1, by1, hx0, hy0, hx1, hy1,

@@ -25,13 +25,6 @@ def figure_box(frame: np.ndarray) -> tuple[int, int, int, int] | None:
     return xs.min(), ys.min(), xs.max(), ys.max()
 
 
-def figure_rows(frame: np.ndarray, scenery: np.ndarray, threshold: int = 24):
-    """Return the top and bottom rows where ``frame`` differs from its ``scenery``, or ``None``."""
-    changed = np.abs(frame.astype(int) - scenery.astype(int)).max(axis=-1) > threshold
-    rows = np.nonzero(changed.any(axis=1))[0]
-    return (int(rows.min()), int(rows.max())) if len(rows) else None
-
-
 def to_2d(motion):
     """Return an ``h36m17`` motion seen from its side as an ``h36m15_2d`` one (pixels, y down)."""
     from generation.skeletons import H36M15_2D_FROM_17

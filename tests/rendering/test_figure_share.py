@@ -2,7 +2,7 @@
 
 Measured on drawn frames of the demo dataset's walking, sitting and jumping clips, in the
 framing a study fits on its real clips (every action), with shadows left out so that only
-the body counts. Catch-like clips (jittered joints) keep the framing, and so the scale.
+the body counts.
 """
 
 import numpy as np
@@ -10,9 +10,8 @@ import pytest
 
 from generation.datasets import get_dataset
 from rendering import Framing, get_style
-from rendering.backdrop import Backdrop
-from rendering.styles.mesh import MeshStyle
-from tests.rendering.helpers import decode, figure_box, figure_rows, to_2d
+from rendering.measure import figure_shares
+from tests.rendering.helpers import to_2d
 
 SIZE = 128
 ACTIONS = ("walk", "sit_down", "jump")
@@ -29,36 +28,14 @@ def _study_set(clips, style):
     return [to_2d(m) for m in clips] if get_style(style).dims == 2 else list(clips)
 
 
-def _bare(style):
-    """Return the style drawing its figure without a floor shadow."""
-    base = get_style(style)
-    if issubclass(base, MeshStyle):
-        return type("BareMesh", (base,), {"_cast_shadow": lambda self, *args: None})
-    return type("Bare", (base,), {"shadow": False})
-
-
-def figure_shares(style, framing, motion, size=SIZE):
-    """Return the figure's height share of each frame, and whether any frame cut it off."""
-    motion = motion.with_joints(motion.joints[::2], fps=motion.fps / 2)  # every other frame
-    backdrop = Backdrop(framing, size, size)
-    targets = framing.targets(motion, framing.place(motion))
-    shares, cut = [], False
-    with _bare(style)(framing, size, size) as drawer:
-        for frame, target in zip(drawer.frames(motion), targets):
-            rows = figure_rows(frame, backdrop.image(target))
-            assert rows is not None, "no figure drawn"
-            shares.append((rows[1] - rows[0] + 1) / size)
-            cut |= rows[0] == 0 or rows[1] == size - 1
-    return np.array(shares), cut
-
-
+@pytest.mark.slow
 @pytest.mark.parametrize("style", STYLES)
 def test_the_body_fills_half_the_frame_in_every_style(style, demo_clips):
     motions = _study_set(demo_clips, style)
     framing = Framing.from_motions(motions, pad=get_style(style).pad)
     for action in ACTIONS:
         motion = next(m for m in motions if m.action == action)
-        shares, cut = figure_shares(style, framing, motion)
+        shares, cut = figure_shares(style, framing, motion, SIZE, every=2)
         assert np.median(shares) >= 0.5, f"{style} {action}: {np.median(shares):.2f}"
         assert shares.max() < 0.95, f"{style} {action}: the camera is too close"
         if action != "jump":
