@@ -35,6 +35,7 @@ PAD = 0.07  # room kept around joints for the parts drawn on them, per figure he
 # below for the shadow, and a seated figure still fills about half the frame.
 FILL = 0.65
 FLOOR_AT = 0.86
+GROUND_PERCENTILE = 10  # of per-frame lowest points: where a clip meets the floor
 HEIGHT_PERCENTILE = 75  # of per-frame heights: a set's typical standing height
 REAL = "real"
 
@@ -77,7 +78,7 @@ class Framing:
     distance whose perspective view would show the same height), ``height`` the figures'
     typical height (sets the scale, limb thickness and floor tiles). ``facing`` turns
     each clip to start facing that direction (``None`` keeps it); ``ground`` is
-    ``"clip"`` (each clip's lowest point on the floor) or ``"set"`` (one floor,
+    ``"clip"`` (each clip's lowest points on the floor: a tenth of its frames may reach below) or ``"set"`` (one floor,
     ``floor``, for all, so constant floating or sinking shows). ``follow`` moves the
     look-at with the smoothed root horizontally; without it the camera stays put.
     """
@@ -204,8 +205,10 @@ class Framing:
     def place(self, motion: Motion) -> np.ndarray:
         """Return the motion's joints as placed in this framing's world, ``(T, J, 3)``."""
         joints = self._placed_xy(motion)
-        if self.ground == "clip":
-            joints[..., 2] -= joints[..., 2].min() if joints.size else 0.0
+        if self.ground == "clip" and joints.size:
+            # The floor meets the clip's lowest points, not its single lowest: a glitch
+            # in a few frames (a tenth) must not lift the whole clip off the floor.
+            joints[..., 2] -= np.percentile(joints[..., 2].min(axis=1), GROUND_PERCENTILE)
         else:
             joints[..., 2] -= self.floor
         return joints
