@@ -78,8 +78,9 @@ class Framing:
     distance whose perspective view would show the same height), ``height`` the figures'
     typical height (sets the scale, limb thickness and floor tiles). ``facing`` turns
     each clip to start facing that direction (``None`` keeps it); ``ground`` is
-    ``"clip"`` (each clip's lowest points on the floor: a tenth of its frames may reach below) or ``"set"`` (one floor,
-    ``floor``, for all, so constant floating or sinking shows). ``follow`` moves the
+    ``"clip"`` (each clip's lowest points on the floor; a tenth of its frames may reach
+    below) or ``"set"`` (one floor, ``floor``, for all, so constant floating or sinking
+    shows). ``follow`` moves the
     look-at with the smoothed root horizontally; without it the camera stays put.
     """
 
