@@ -2,9 +2,9 @@
 
 Every clip is first *placed* in a z-up world the same way: turned so it starts facing
 one direction, centred on its mean root position and stood on the floor (z = 0). The
-camera then follows the rule: it looks at the smoothed root horizontally (``follow``),
-from one angle, at one distance, so that a figure of the set's typical height fills
-``FILL`` of the frame's height with the floor under its root at ``FLOOR_AT``. Only that
+camera then follows the rule: it looks at the smoothed body centre horizontally
+(``follow``), from one angle, at one distance, so that a figure of the set's typical
+height fills ``FILL`` of the frame's height with the floor under it at ``FLOOR_AT``. Only that
 height comes from the motions, measured once on the set's real clips when it has any, so
 no clip's own content (a jump, a jittered catch clip, a long walk) changes the scale.
 """
@@ -33,8 +33,8 @@ PAD = 0.07  # room kept around joints for the parts drawn on them, per figure he
 # A standing figure (its drawn height: joints plus a style's pad) spans this share of the
 # frame's height, its feet this far down the frame: room above for jumps and raised arms,
 # below for the shadow, and a seated figure still fills about half the frame.
-FILL = 0.65
-FLOOR_AT = 0.86
+FILL = 0.70
+FLOOR_AT = 0.88
 GROUND_PERCENTILE = 10  # of per-frame lowest points: where a clip meets the floor
 HEIGHT_PERCENTILE = 75  # of per-frame heights: a set's typical standing height
 REAL = "real"
@@ -74,14 +74,14 @@ class Framing:
     """The camera and placement shared by every clip of a set (build with ``from_motions``).
 
     ``target`` is the look-at point (with ``follow``, relative to each frame's smoothed
-    root), ``distance`` the eye's distance from it (for an orthographic view, the
+    body centre, the mean of its joints), ``distance`` the eye's distance from it (for an orthographic view, the
     distance whose perspective view would show the same height), ``height`` the figures'
     typical height (sets the scale, limb thickness and floor tiles). ``facing`` turns
     each clip to start facing that direction (``None`` keeps it); ``ground`` is
     ``"clip"`` (each clip's lowest points on the floor; a tenth of its frames may reach
     below) or ``"set"`` (one floor, ``floor``, for all, so constant floating or sinking
     shows). ``follow`` moves the
-    look-at with the smoothed root horizontally; without it the camera stays put.
+    look-at with the smoothed body centre horizontally; without it the camera stays put.
     """
 
     dims: int
@@ -229,13 +229,15 @@ class Framing:
         """Return the look-at point of each frame, ``(T, 3)``."""
         targets = np.tile(np.asarray(self.target, dtype=np.float64), (len(placed), 1))
         if self.follow and len(placed):
-            root = placed[:, get_skeleton(motion.skeleton).root, :2]
+            # The body's centre (mean joint), not its hips: a seated figure's feet reach
+            # far ahead of its hips, and would leave the frame's bottom.
+            centre = placed[..., :2].mean(axis=1)
             window = max(1, int(round(motion.fps)))  # one second smooths the stride's sway
-            # Odd reflection at the ends continues the root's line, so the camera keeps
+            # Odd reflection at the ends continues the centre's line, so the camera keeps
             # up with a steady walker to the last frame instead of lagging behind it.
             padding = ((window // 2, window - 1 - window // 2), (0, 0))
-            padded = np.pad(root, padding, mode="reflect", reflect_type="odd") if len(root) > 1 \
-                else np.pad(root, padding, mode="edge")
+            padded = np.pad(centre, padding, mode="reflect", reflect_type="odd") \
+                if len(centre) > 1 else np.pad(centre, padding, mode="edge")
             kernel = np.ones(window) / window
             targets[:, 0] += np.convolve(padded[:, 0], kernel, mode="valid")
             targets[:, 1] += np.convolve(padded[:, 1], kernel, mode="valid")

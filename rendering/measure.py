@@ -17,7 +17,8 @@ from rendering.styles.mesh import MeshStyle
 THRESHOLD = 24  # colour levels a pixel must differ from the backdrop by to be the figure
 
 
-def _bare(style: str):
+def bare_style(style: str):
+    """Return the style class drawing its figure without a floor shadow."""
     base = get_style(style)
     if issubclass(base, MeshStyle):
         return type("BareMesh", (base,), {"_cast_shadow": lambda self, *args: None})
@@ -32,20 +33,21 @@ def figure_rows(frame: np.ndarray, scenery: np.ndarray, threshold: int = THRESHO
 
 
 def figure_shares(style: str, framing: Framing, motion: Motion, size: int = 128,
-                  every: int = 1) -> tuple[np.ndarray, bool]:
-    """Return the figure's height share of every ``every``-th frame, and whether any frame
-    cuts it off at the top or bottom edge."""
+                  every: int = 1) -> tuple[np.ndarray, tuple[int, int]]:
+    """Return the figure's height share of every ``every``-th frame, and how many of those
+    frames it touches the top and the bottom edge in."""
     if every > 1:
         motion = motion.with_joints(motion.joints[::every], fps=motion.fps / every)
     backdrop = Backdrop(framing, size, size)
     targets = framing.targets(motion, framing.place(motion))
-    shares, cut = [], False
-    with _bare(style)(framing, size, size) as drawer:
+    shares, top, bottom = [], 0, 0
+    with bare_style(style)(framing, size, size) as drawer:
         for frame, target in zip(drawer.frames(motion), targets):
             rows = figure_rows(frame, backdrop.image(target))
             if rows is None:
                 shares.append(0.0)
                 continue
             shares.append((rows[1] - rows[0] + 1) / size)
-            cut |= rows[0] == 0 or rows[1] == size - 1
-    return np.array(shares), cut
+            top += rows[0] == 0
+            bottom += rows[1] == size - 1
+    return np.array(shares), (top, bottom)

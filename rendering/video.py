@@ -29,8 +29,10 @@ from PIL import Image
 
 from rendering.padding import PaddingError, pad
 
-# Bits per pixel and frame: at 480x480 and 25 fps, 259 kbit/s, about 78 KB for 60 frames.
+# Bits per pixel and frame: at 480x480 and 25 fps, 259 kbit/s, about 78 KB for 60 frames;
+# small videos (thumbnails) get at least 64 kbit/s.
 BITS_PER_PIXEL = 0.045
+MIN_BIT_RATE = 64_000
 # Room above the constant rate's bytes for what an encoder overshoots (x264 stays within
 # about 10 %, libvpx within 20 %) and the container's tables, per file and per frame.
 HEADROOM = {"mp4": 1.15, "webm": 1.3}
@@ -45,7 +47,7 @@ FORMATS = ("mp4", "webm", "gif")
 
 def bit_rate(width: int, height: int, fps, scale: float = 1.0) -> int:
     """Return the constant bit rate (bits per second) of a video of this size and rate."""
-    return int(BITS_PER_PIXEL * scale * width * height * float(fps))
+    return int(scale * max(BITS_PER_PIXEL * width * height * float(fps), MIN_BIT_RATE))
 
 
 def budget(kind: str, width: int, height: int, frames: int, fps) -> int:

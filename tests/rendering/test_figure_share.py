@@ -35,8 +35,9 @@ def test_the_body_fills_half_the_frame_in_every_style(style, demo_clips):
     framing = Framing.from_motions(motions, pad=get_style(style).pad)
     for action in ACTIONS:
         motion = next(m for m in motions if m.action == action)
-        shares, cut = figure_shares(style, framing, motion, SIZE, every=2)
+        shares, (top, bottom) = figure_shares(style, framing, motion, SIZE, every=2)
         assert np.median(shares) >= 0.5, f"{style} {action}: {np.median(shares):.2f}"
         assert shares.max() < 0.95, f"{style} {action}: the camera is too close"
-        if action != "jump":
-            assert not cut, f"{style} {action}: the figure leaves the frame"
+        assert bottom == 0, f"{style} {action}: the feet leave the frame"
+        if action != "jump":  # raised hands may reach the top at a jump's peak
+            assert top == 0, f"{style} {action}: the figure leaves the frame"
