@@ -275,9 +275,9 @@ class Figure {
     this.ballJoints = balls.map(([j]) => j);
     this.ballRadii = balls.map(([, r]) => r);
     this.boneRadii = bones.map(([, c]) => (body ? payload.bodyRadii[c] : payload.stickBone));
-    const material = body
-      ? new THREE.MeshLambertMaterial()
-      : new THREE.MeshPhongMaterial({ shininess: 40, specular: new THREE.Color(0.25, 0.25, 0.25) });
+    // Lambert shading for both: the cheapest lit shader to compile and run, which is what
+    // software WebGL (no GPU) spends the first frame on.
+    const material = new THREE.MeshLambertMaterial();
     const sphere = new THREE.SphereGeometry(1, 16, 10);
     const tube = new THREE.CylinderGeometry(1, 1, 1, 14, 1, true);
     this.balls = new THREE.InstancedMesh(sphere, material, balls.length);
