@@ -5,6 +5,7 @@ Django or torch.
 """
 
 from rendering.batch import (
+    VERSION,
     RenderedClip,
     RenderError,
     RenderReport,
@@ -32,4 +33,5 @@ __all__ = [
     "render_motion",
     "render_set",
     "resample",
+    "VERSION",
 ]

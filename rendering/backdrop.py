@@ -49,27 +49,69 @@ class Backdrop:
         rows = np.linspace(0.0, 1.0, height)[:, None, None]
         sky = palette.SKY_TOP * (1 - rows) + palette.SKY_HORIZON * rows
 
-        # Single precision, and all that does not move precomputed: a following camera
-        # redraws the floor every frame.
-        single = np.float32
-        self._u, self._v = u.astype(single), v.astype(single)
-        self._wu, self._wv = np.maximum(wu, 1e-4).astype(single), np.maximum(wv, 1e-4).astype(single)
-        self._fade = fade[..., 0].astype(single)
-        self._light = (sky * (1 - fade) + palette.FLOOR_LIGHT * fade).astype(single)
-        self._darker = (palette.FLOOR_DARK - palette.FLOOR_LIGHT).astype(single)
+        # Only the rows where the tiles can change the picture by a quarter level are
+        # redrawn per frame (the checker darkens by at most |FLOOR_DARK - FLOOR_LIGHT|),
+        # through tables: of the box-filtered square wave, and of the darkening per
+        # level of shade. A following camera redraws the floor every frame; this keeps it
+        # to a few integer operations per floor pixel.
+        light = sky * (1 - fade) + palette.FLOOR_LIGHT * fade
+        darker = palette.FLOOR_LIGHT - palette.FLOOR_DARK
+        self._base = np.rint(light).astype(np.uint8)
+        rows = np.flatnonzero((fade[..., 0] * darker.max() >= 0.25).any(axis=1))
+        self._rows = slice(int(rows.min()), int(rows.max()) + 1) if len(rows) else slice(0, 0)
+        band = np.s_[self._rows]
+        self._u = (u[band] * _BINS + _OFFSET).astype(np.float32)
+        self._v = (v[band] * _BINS + _OFFSET).astype(np.float32)
+        self._rows_u = _width_rows(wu[band])
+        self._rows_v = _width_rows(wv[band])
+        self._fade = (fade[band][..., 0] * _SHADES).astype(np.float32)
+        self._darkening = np.rint(np.arange(_SHADES + 1)[:, None] / _SHADES * darker).astype(np.uint8)
+        self._still = None
 
-    def image(self, target=None, box=None) -> np.ndarray:
-        """Return the backdrop ``(H, W, 3)`` uint8 with the look-at at ``target``.
+    def image(self, target=None) -> np.ndarray:
+        """Return a fresh backdrop ``(H, W, 3)`` uint8 with the look-at at ``target``."""
+        if target is None or not self.framing.follow:
+            if self._still is None:
+                self._still = self._draw(0.0, 0.0)
+            return self._still.copy()
+        du = (target[0] - self.framing.target[0]) / self._tile
+        dv = (target[1] - self.framing.target[1]) / self._tile
+        return self._draw(du % 2.0, dv % 2.0)  # the checker repeats every two tiles
 
-        ``box`` (left, top, right, bottom) draws only that part.
-        """
-        du = dv = 0.0
-        if target is not None:
-            du = (target[0] - self.framing.target[0]) / self._tile
-            dv = (target[1] - self.framing.target[1]) / self._tile
-        left, top, right, bottom = box or (0, 0, self._u.shape[1], self._u.shape[0])
-        part = np.s_[top:bottom, left:right]
-        u, v = self._u[part] + np.float32(du), self._v[part] + np.float32(dv)
-        tiles = checker(u, v, self._wu[part], self._wv[part])
-        image = self._light[part] + (tiles * self._fade[part])[..., None] * self._darker
-        return np.rint(image).astype(np.uint8)
+    def _draw(self, du: float, dv: float) -> np.ndarray:
+        image = self._base.copy()
+        if self._u.size:
+            wave_u = _WAVE.take(self._rows_u + _bin(self._u, du))
+            wave_v = _WAVE.take(self._rows_v + _bin(self._v, dv))
+            shade = (0.5 - 0.5 * wave_u * wave_v) * self._fade
+            image[self._rows] -= self._darkening.take(shade.astype(np.uint8), axis=0)
+        return image
+
+
+_SHADES = 255  # levels of the checker's darkening, each a row of a table
+_BINS = 256  # table columns per tile: positions to 1/256 of a tile
+_PERIOD = 2 * _BINS  # the square wave repeats every two tiles
+_OFFSET = 64 * _PERIOD  # keeps table positions positive, so truncation is a floor
+_WIDTHS = np.concatenate([[0.0], np.geomspace(1e-3, 4.0, 63)])  # footprints, in tiles
+
+
+def _width_rows(width: np.ndarray) -> np.ndarray:
+    """Return each footprint's table row offset (the nearest tabulated width)."""
+    index = np.clip(np.searchsorted(_WIDTHS, width), 1, len(_WIDTHS) - 1)
+    nearer = np.where(width - _WIDTHS[index - 1] < _WIDTHS[index] - width, index - 1, index)
+    return (nearer * _PERIOD).astype(np.int32)
+
+
+def _bin(position: np.ndarray, shift: float) -> np.ndarray:
+    """Return table columns of positions (already in bins, offset) moved by ``shift`` tiles."""
+    return (position + np.float32(shift * _BINS)).astype(np.int32) & (_PERIOD - 1)
+
+
+def _table() -> np.ndarray:
+    """Return the box-filtered square wave, a row per footprint width, a column per bin."""
+    x = (np.arange(_PERIOD) + 0.5) / _BINS
+    widths = np.maximum(_WIDTHS, 1e-4)[:, None]
+    return _square_wave_mean(x[None, :], widths).astype(np.float32).reshape(-1)
+
+
+_WAVE = _table()

@@ -18,9 +18,19 @@ from generation.motion import Motion, MotionError
 from generation.skeletons import get_skeleton
 from rendering.framing import Framing
 from rendering.styles import Style, get_style
-from rendering.video import ENCODER, FORMATS, VideoWriter, file_hash, save_poster
+from rendering.video import (
+    FORMATS,
+    OverBudget,
+    VideoWriter,
+    encoder_settings,
+    file_hash,
+    save_poster,
+)
 
 SIDECAR = "renders.json"
+# Changes whenever the same motions and settings would give other pixels or bytes (the
+# camera rule, the encoder, the padding): caches of rendered clips should key on it.
+VERSION = 2
 
 
 class RenderError(ValueError):
@@ -112,12 +122,30 @@ def _formats(formats) -> tuple[str, ...]:
     return ("mp4",) + tuple(dict.fromkeys(f for f in formats if f != "mp4"))
 
 
+RATE_SCALES = (1.0, 0.8, 0.6)  # a clip over its byte budget is encoded again, lower
+
+
 def _encode(style: Style, motion: Motion, videos: list[Path], poster: Path) -> int:
-    """Stream a motion's frames into every video, save its middle frame; return the count."""
+    """Stream a motion's frames into every video, save its middle frame; return the count.
+
+    Every file comes out at its budget's size; the rare clip whose encoder overshoots it
+    is drawn and encoded again at a lower rate.
+    """
+    for scale in RATE_SCALES[:-1]:
+        try:
+            return _encode_at(style, motion, videos, poster, scale)
+        except OverBudget:
+            pass
+    return _encode_at(style, motion, videos, poster, RATE_SCALES[-1])
+
+
+def _encode_at(style: Style, motion: Motion, videos: list[Path], poster: Path, scale) -> int:
     middle = (motion.frames - 1) // 2
     with ExitStack() as stack:
         writers = [
-            stack.enter_context(VideoWriter(video, style.width, style.height, motion.fps))
+            stack.enter_context(
+                VideoWriter(video, style.width, style.height, motion.fps, rate_scale=scale)
+            )
             for video in videos
         ]
         for number, frame in enumerate(style.frames(motion)):
@@ -223,15 +251,17 @@ def render_set(
     workers: int = 1,
     progress: bool = True,
     framing: Framing | None = None,
-    follow: bool = False,
+    follow: bool = True,
     formats=("mp4",),
 ) -> RenderReport:
     """Render every motion in one framing to ``out_dir/<hash>.mp4`` and ``<hash>.png``.
 
     Clips that cannot be rendered are listed in ``failures``; the rest still render.
     ``fps`` resamples every clip to one rate (``None`` keeps each motion's own).
-    ``framing`` reuses another set's framing; otherwise one is fitted to these motions
-    (``follow``: the camera tracks each root horizontally). ``out_dir/renders.json``
+    ``framing`` reuses another set's framing (pass the study's, so that catch, reference
+    and example clips rendered later keep its rule); otherwise one is fitted to these
+    motions, measured on the real ones (``follow``: the camera tracks each root
+    horizontally; ``False`` keeps it still). ``out_dir/renders.json``
     records what was rendered from what, for the researcher only: never serve it.
     ``formats`` may add ``"webm"`` (VP9) and ``"gif"``, as ``<hash>.webm`` and
     ``<hash>.gif`` beside the mp4. ``workers > 1`` spawns processes, so a calling
@@ -348,10 +378,11 @@ def _write_sidecar(out_dir: Path, report: RenderReport, motions, style, size, fp
         for clip in report.clips
     ]
     record = {
+        "version": VERSION,
         "style": style,
         "size": list(size),
         "fps": fps,
-        "encoder": ENCODER,
+        "encoder": encoder_settings(),
         "formats": list(formats),
         "framing": report.framing.as_dict() if report.framing else None,
         "clips": entries,

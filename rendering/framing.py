@@ -1,15 +1,19 @@
-"""One framing for a whole stimulus set, so clips differ in nothing but the motion.
+"""One camera rule for a whole stimulus set, so clips differ in nothing but the motion.
 
 Every clip is first *placed* in a z-up world the same way: turned so it starts facing
 one direction, centred on its mean root position and stood on the floor (z = 0). The
-camera's look-at, distance and the figure scale then come from the extent of all placed
-clips together.
+camera then follows the rule: it looks at the smoothed body centre horizontally
+(``follow``), from one angle, at one distance, so that a figure of the set's typical
+height fills ``FILL`` of the frame's height with the floor under it at ``FLOOR_AT``. Only that
+height comes from the motions, measured once on the set's real clips when it has any, so
+no clip's own content (a jump, a jittered catch clip, a long walk) changes the scale.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -26,6 +30,14 @@ _TO_Z_UP = {
 GROUNDS = ("clip", "set")
 SHADOW_SLANT = 0.35  # how far a shadow falls sideways per unit of height
 PAD = 0.07  # room kept around joints for the parts drawn on them, per figure height
+# A standing figure (its drawn height: joints plus a style's pad) spans this share of the
+# frame's height, its feet this far down the frame: room above for jumps and raised arms,
+# below for the shadow, and a seated figure still fills about half the frame.
+FILL = 0.70
+FLOOR_AT = 0.88
+GROUND_PERCENTILE = 10  # of per-frame lowest points: where a clip meets the floor
+HEIGHT_PERCENTILE = 75  # of per-frame heights: a set's typical standing height
+REAL = "real"
 
 
 def to_z_up(joints: np.ndarray, skeleton: Skeleton) -> np.ndarray:
@@ -61,13 +73,15 @@ def heading(joints: np.ndarray, skeleton: Skeleton) -> float | None:
 class Framing:
     """The camera and placement shared by every clip of a set (build with ``from_motions``).
 
-    ``target`` is the look-at point, ``distance`` the eye's distance from it (for an
-    orthographic view, the distance whose perspective view would show the same width),
-    ``height`` the figures' typical height (sets limb thickness and floor tiles).
-    ``facing`` turns each clip to start facing that direction (``None`` keeps it);
-    ``ground`` is ``"clip"`` (each clip's lowest point on the floor) or ``"set"`` (one
-    floor, ``floor``, for all, so constant floating or sinking shows). ``follow`` moves
-    the look-at with the smoothed root horizontally.
+    ``target`` is the look-at point (with ``follow``, relative to each frame's smoothed
+    body centre, the mean of its joints), ``distance`` the eye's distance from it (for an orthographic view, the
+    distance whose perspective view would show the same height), ``height`` the figures'
+    typical height (sets the scale, limb thickness and floor tiles). ``facing`` turns
+    each clip to start facing that direction (``None`` keeps it); ``ground`` is
+    ``"clip"`` (each clip's lowest points on the floor; a tenth of its frames may reach
+    below) or ``"set"`` (one floor, ``floor``, for all, so constant floating or sinking
+    shows). ``follow`` moves the
+    look-at with the smoothed body centre horizontally; without it the camera stays put.
     """
 
     dims: int
@@ -82,7 +96,7 @@ class Framing:
     recentre: bool = True
     ground: str = "clip"
     floor: float = 0.0
-    follow: bool = False
+    follow: bool = True
 
     @classmethod
     def from_motions(
@@ -90,17 +104,19 @@ class Framing:
         motions: list[Motion],
         *,
         aspect: float = 1.0,
-        follow: bool = False,
+        follow: bool = True,
         ground: str = "clip",
-        margin: float = 0.05,
         pad: float = PAD,
+        fill: float = FILL,
         **view,
     ) -> "Framing":
-        """Fit one framing around all motions (all 3D or all 2D).
+        """Fit the camera rule to a set of motions (all 3D or all 2D).
 
-        ``view`` may set ``azimuth``, ``elevation``, ``fov`` (degrees), ``facing`` and
-        ``recentre``; ``margin`` is the share of the half-frame kept free at the edges,
-        ``pad`` the room kept around every joint, per figure height (a style's ``pad``).
+        Only the figures' typical height is measured, on the set's real clips when there
+        are any (``source == "real"``), else on all. ``view`` may set ``azimuth``,
+        ``elevation``, ``fov`` (degrees), ``facing`` and ``recentre``; ``pad`` is the room
+        a style draws beyond the joints, per figure height (the drawn figure fills
+        ``fill`` of the frame's height).
         """
         if not motions:
             raise ValueError("cannot frame an empty set of motions")
@@ -109,32 +125,57 @@ class Framing:
             raise ValueError("a set to frame together must be all 3D or all 2D motions")
         if ground not in GROUNDS:
             raise ValueError(f"ground must be one of {GROUNDS}; got {ground!r}")
+        if not 0.0 < fill < FLOOR_AT:
+            raise ValueError(f"fill must be between 0 and {FLOOR_AT}; got {fill!r}")
         dims = dims.pop()
         if dims == 2:
             view = {"azimuth": -90.0, "elevation": 0.0, "facing": None, **view}
         probe = cls(dims, (0.0,) * 3, 1.0, 1.0, aspect=aspect, ground=ground, follow=follow, **view)
+        measured = [m for m in motions if m.source == REAL] or list(motions)
         floor = 0.0
         if ground == "set":
-            floor = min(float(probe._placed_xy(m)[..., 2].min()) for m in motions)
+            floor = min(float(probe._placed_xy(m)[..., 2].min()) for m in measured)
         probe = probe._with(floor=floor)
-
-        points, extents = [], []
-        for motion in motions:
+        extents = []
+        for motion in measured:
             placed = probe.place(motion)
             extents.append(placed[..., 2].max(axis=1) - placed[..., 2].min(axis=1))
-            relative = placed - probe.targets(motion, placed)[:, None, :] * [1, 1, 0]
-            points.append(relative.reshape(-1, 3))
-            if dims == 3:  # the shadow on the floor must stay in view too
-                points.append(probe.shadows(relative).reshape(-1, 3))
-        points = np.concatenate(points)
-        height = float(np.percentile(np.concatenate(extents), 90)) or 1.0
-        probe = probe._with(height=height)
-        centre, pad = (points.min(axis=0) + points.max(axis=0)) / 2, pad * height
-        for _ in range(4):  # perspective shifts the picture off the look-at; re-aim
-            distance = probe._fit(points - centre, margin, pad)
-            centre = centre + probe._off_centre(points - centre, distance, pad)
-        distance = probe._fit(points - centre, margin, pad)
-        return probe._with(target=tuple(float(c) for c in centre), distance=distance)
+        height = float(np.percentile(np.concatenate(extents), HEIGHT_PERCENTILE)) or 1.0
+        distance, look_at = probe._with(height=height)._solve((1.0 + pad) * height, fill)
+        start = (0.0, 0.0) if follow else tuple(probe._centre(measured))
+        return probe._with(height=height, distance=distance, target=(*start, look_at))
+
+    def _solve(self, drawn: float, fill: float) -> tuple[float, float]:
+        """Return the distance and look-at height that put a pole of height ``drawn``,
+        standing at the look-at, from ``FLOOR_AT`` up ``fill`` of the frame."""
+        elevation = math.radians(self.elevation)
+        across = 2 * math.tan(math.radians(self.fov) / 2)  # frame heights per unit depth
+
+        def row(z, distance, look_at):  # where a point above the look-at shows, 0 = top
+            rise = z - look_at
+            depth = distance if self.orthographic else distance - rise * math.sin(elevation)
+            return 0.5 - rise * math.cos(elevation) / (across * depth)
+
+        def bisect(function, low, high):  # function increases from low to high
+            for _ in range(60):
+                middle = (low + high) / 2
+                low, high = (middle, high) if function(middle) < 0 else (low, middle)
+            return (low + high) / 2
+
+        def aimed(distance):  # the look-at height that puts the foot at FLOOR_AT
+            return bisect(lambda z: row(0.0, distance, z) - FLOOR_AT, -10 * drawn, drawn)
+
+        def span(distance):  # grows with the distance
+            look_at = aimed(distance)
+            return fill - (row(0.0, distance, look_at) - row(drawn, distance, look_at))
+
+        distance = bisect(span, 0.3 * drawn, 100.0 * drawn)
+        return distance, aimed(distance)
+
+    def _centre(self, motions: list[Motion]) -> np.ndarray:
+        """Return the mean root position over a set's placed clips (a camera that stays)."""
+        roots = [self.place(m)[:, get_skeleton(m.skeleton).root, :2] for m in motions]
+        return np.concatenate(roots).mean(axis=0)
 
     def _with(self, **changes) -> "Framing":
         return type(self)(**{**asdict(self), **changes})
@@ -142,28 +183,6 @@ class Framing:
     def _axes(self) -> np.ndarray:
         """Return the camera's right, down and forward axes as rows."""
         return Camera.look_at((0, 0, 0), self.azimuth, self.elevation, 1.0, self.fov, 2, 2).rotation
-
-    def _fit(self, points: np.ndarray, margin: float, pad: float) -> float:
-        """Return the smallest distance that keeps every point, padded, inside the margin."""
-        right, down, forward = self._axes()
-        tan_y = math.tan(math.radians(self.fov) / 2) * (1 - margin)
-        tan_x = tan_y * self.aspect
-        sideways = (np.abs(points @ right) + pad) / tan_x
-        across = np.maximum(sideways, (np.abs(points @ down) + pad) / tan_y)
-        if self.orthographic:
-            return float(across.max()) or 1.0
-        towards = -(points @ forward)
-        return float(max((towards + across).max(), (towards + 0.2 * self.height).max()))
-
-    def _off_centre(self, points: np.ndarray, distance: float, pad: float) -> np.ndarray:
-        """Return the move of the look-at that centres the picture of padded points."""
-        right, down, forward = self._axes()
-        depth = distance if self.orthographic else distance + points @ forward
-        shift = np.zeros(3)
-        for axis in (right, down):
-            slope, reach = points @ axis / depth, pad / depth
-            shift += axis * distance * ((slope + reach).max() + (slope - reach).min()) / 2
-        return shift
 
     @property
     def orthographic(self) -> bool:
@@ -187,8 +206,10 @@ class Framing:
     def place(self, motion: Motion) -> np.ndarray:
         """Return the motion's joints as placed in this framing's world, ``(T, J, 3)``."""
         joints = self._placed_xy(motion)
-        if self.ground == "clip":
-            joints[..., 2] -= joints[..., 2].min() if joints.size else 0.0
+        if self.ground == "clip" and joints.size:
+            # The floor meets the clip's lowest points, not its single lowest: a glitch
+            # in a few frames (a tenth) must not lift the whole clip off the floor.
+            joints[..., 2] -= np.percentile(joints[..., 2].min(axis=1), GROUND_PERCENTILE)
         else:
             joints[..., 2] -= self.floor
         return joints
@@ -208,9 +229,15 @@ class Framing:
         """Return the look-at point of each frame, ``(T, 3)``."""
         targets = np.tile(np.asarray(self.target, dtype=np.float64), (len(placed), 1))
         if self.follow and len(placed):
-            root = placed[:, get_skeleton(motion.skeleton).root, :2]
+            # The body's centre (mean joint), not its hips: a seated figure's feet reach
+            # far ahead of its hips, and would leave the frame's bottom.
+            centre = placed[..., :2].mean(axis=1)
             window = max(1, int(round(motion.fps)))  # one second smooths the stride's sway
-            padded = np.pad(root, ((window // 2, window - 1 - window // 2), (0, 0)), mode="edge")
+            # Odd reflection at the ends continues the centre's line, so the camera keeps
+            # up with a steady walker to the last frame instead of lagging behind it.
+            padding = ((window // 2, window - 1 - window // 2), (0, 0))
+            padded = np.pad(centre, padding, mode="reflect", reflect_type="odd") \
+                if len(centre) > 1 else np.pad(centre, padding, mode="edge")
             kernel = np.ones(window) / window
             targets[:, 0] += np.convolve(padded[:, 0], kernel, mode="valid")
             targets[:, 1] += np.convolve(padded[:, 1], kernel, mode="valid")
@@ -218,17 +245,18 @@ class Framing:
 
     def camera(self, width: int, height: int, target=None) -> Camera:
         """Return the camera for an image of this size looking at ``target`` (default: ours)."""
-        return Camera.look_at(
-            self.target if target is None else target,
-            self.azimuth,
-            self.elevation,
-            self.distance,
-            self.fov,
-            width,
-            height,
-            orthographic=self.orthographic,
-        )
+        camera = _base_camera(self, width, height)
+        if target is None:
+            return camera
+        return camera.looking_at(np.asarray(target, dtype=np.float64) - self.target)
 
     def as_dict(self) -> dict:
         """Return the framing as plain data (for the researcher's sidecar)."""
         return asdict(self)
+
+
+@lru_cache(maxsize=64)
+def _base_camera(framing: Framing, width: int, height: int) -> Camera:
+    """Return a framing's camera at its own look-at (made once: clips move it per frame)."""
+    return Camera.look_at(framing.target, framing.azimuth, framing.elevation, framing.distance,
+                          framing.fov, width, height, orthographic=framing.orthographic)

@@ -107,7 +107,8 @@ def render_grid(
         canvas[top:top + band, left:left + size] = _label_band(label, size, band)
     with style_class(framing, size, size) as drawer:
         streams = [drawer.frames(m) for m in motions]
-        with VideoWriter(path, canvas.shape[1], canvas.shape[0], fps) as writer:
+        # Not padded: grids are for papers and the admin, never served to participants.
+        with VideoWriter(path, canvas.shape[1], canvas.shape[0], fps, pad=False) as writer:
             for number in range(length):
                 for index, stream in enumerate(streams):
                     if number >= motions[index].frames:
@@ -119,7 +120,7 @@ def render_grid(
                         strips[index].append(frame)
                 writer.write(canvas)
     sheet = _contact_sheet(strips, labels, size, band)
-    save_poster(path.with_suffix(".png"), sheet)
+    save_poster(path.with_suffix(".png"), sheet, padded=False)
     size = (canvas.shape[1], canvas.shape[0])
     return RenderedGrid(path, path.with_suffix(".png"), length, fps, size, framing)
 

@@ -1,13 +1,21 @@
 """Stream frames to videos (H.264 mp4, VP9 WebM, GIF) and save poster images.
 
-The encoder settings are one constant per format, and the files carry no metadata
-(no title, encoder or creation time), so identical frames give identical bytes. Frames
-go to the encoder one at a time, so memory does not grow with a clip's length.
+Nothing a participant can observe about a clip's files depends on what it shows: the
+encoders run at a constant bit rate per pixel (x264 adds filler data to keep it), with
+no content-dependent choices (no scene-cut keyframes, no B-frames, so the mp4's tables
+are the same for every clip of one length), and every file is padded to one byte size
+per format, resolution, length and frame rate (:func:`budget`, see
+:mod:`rendering.padding`). The files carry no metadata (no title, encoder or creation
+time), so identical frames give identical bytes. Frames go to the encoder one at a
+time, so memory does not grow with a clip's length.
 """
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
+import io
+import math
 import queue
 import subprocess
 import tempfile
@@ -19,43 +27,102 @@ import imageio_ffmpeg
 import numpy as np
 from PIL import Image
 
-ENCODER = [
-    "-preset", "superfast",  # encoding keeps pace with drawing (veryfast: ~20 % slower, half the size)
-    "-crf", "18",
-    "-threads", "1",  # x264's output depends on its thread count; fix it everywhere
-    "-movflags", "+faststart",
-    "-map_metadata", "-1",
-    "-metadata:s:v:0", "encoder=",
-    "-fflags", "+bitexact",
-    "-flags:v", "+bitexact",
-    "-bsf:v", "filter_units=remove_types=6",  # drop x264's SEI banner with its settings
-]
-WEBM_ENCODER = [
-    "-b:v", "0",
-    "-crf", "33",
-    "-deadline", "good",
-    "-cpu-used", "5",
-    "-row-mt", "0",
-    "-threads", "1",  # one thread: libvpx's output then never depends on scheduling
-    "-map_metadata", "-1",
-    "-metadata:s:v:0", "encoder=",
-    "-fflags", "+bitexact",
-    "-flags:v", "+bitexact",
-]
+from rendering.padding import PaddingError, pad
+
+# Bits per pixel and frame: at 480x480 and 25 fps, 259 kbit/s, about 78 KB for 60 frames;
+# small videos (thumbnails) get at least 64 kbit/s.
+BITS_PER_PIXEL = 0.045
+MIN_BIT_RATE = 64_000
+# Room above the constant rate's bytes for what an encoder overshoots (x264 stays within
+# about 10 %, libvpx within 20 %) and the container's tables, per file and per frame.
+HEADROOM = {"mp4": 1.15, "webm": 1.3}
+OVERHEAD = {"mp4": (2048, 24), "webm": (2048, 24)}
+# GIFs have no rate control, so their budget is LZW's worst case (12-bit codes for 8-bit
+# pixels, plus the sub-blocks' length bytes): large; prefer mp4 or WebM.
+GIF_BYTES_PER_PIXEL = 1.51
+POSTER_BYTES_PER_PIXEL = 0.3
+BLOCK = 1024  # budgets are whole KiB
+FORMATS = ("mp4", "webm", "gif")
+
+
+def bit_rate(width: int, height: int, fps, scale: float = 1.0) -> int:
+    """Return the constant bit rate (bits per second) of a video of this size and rate."""
+    return int(scale * max(BITS_PER_PIXEL * width * height * float(fps), MIN_BIT_RATE))
+
+
+def budget(kind: str, width: int, height: int, frames: int, fps) -> int:
+    """Return the byte size of every ``kind`` file (mp4, webm, gif, png) of these dimensions.
+
+    It depends on nothing else, so a clip's size tells nothing about its content.
+    """
+    if kind == "png":
+        size = POSTER_BYTES_PER_PIXEL * width * height + 4096
+    elif kind == "gif":
+        size = (GIF_BYTES_PER_PIXEL * width * height + 1024) * frames + 4096
+    else:
+        payload = bit_rate(width, height, fps) / 8 * frames / float(fps)
+        fixed, per_frame = OVERHEAD[kind]
+        size = payload * HEADROOM[kind] + fixed + per_frame * frames
+    return int(math.ceil(size / BLOCK) * BLOCK)
+
+
+def encoder_options(kind: str, width: int, height: int, fps, scale: float = 1.0) -> list[str]:
+    """Return ffmpeg's output options for a constant-rate mp4 or WebM."""
+    rate = bit_rate(width, height, fps, scale)
+    common = ["-map_metadata", "-1", "-metadata:s:v:0", "encoder=", "-fflags", "+bitexact",
+              "-flags:v", "+bitexact"]
+    if kind == "mp4":
+        return [
+            "-preset", "superfast",
+            "-b:v", str(rate), "-minrate", str(rate), "-maxrate", str(rate),
+            "-bufsize", str(rate // 2),
+            # Hard constant rate with filler; keyframes every 250 frames whatever is shown,
+            # no B-frames: frame types and so the mp4's tables never depend on content.
+            "-x264-params", "filler=1:bframes=0:scenecut=0:keyint=250:min-keyint=250",
+            "-threads", "1",  # x264's output depends on its thread count; fix it everywhere
+            "-movflags", "+faststart",
+            *common,
+            "-bsf:v", "filter_units=remove_types=6",  # drop x264's SEI banner with its settings
+        ]
+    return [
+        "-b:v", str(rate), "-minrate", str(rate), "-maxrate", str(rate),
+        "-deadline", "good",
+        "-cpu-used", "5",
+        "-row-mt", "0",
+        "-auto-alt-ref", "0",  # no hidden frames placed by content
+        "-g", "250",
+        "-threads", "1",  # one thread: libvpx's output then never depends on scheduling
+        *common,
+    ]
+
+
+def encoder_settings() -> dict:
+    """Return the encoding rule, for the researcher's record."""
+    return {"bits_per_pixel": BITS_PER_PIXEL, "headroom": HEADROOM,
+            "mp4": encoder_options("mp4", 2, 2, 1)[:2] + ["constant rate, filler, no B-frames"],
+            "padded": True}
+
+
+class OverBudget(RuntimeError):
+    """A file came out larger than its budget; encode it again at a lower rate."""
+
+
 # GIFs share one palette, taken from the first frame: the scenery and the figure's
 # colours are all in it, and a palette per frame would flicker.
 GIF_FILTER = "[0:v][1:v]paletteuse=dither=bayer:bayer_scale=4:diff_mode=rectangle"
-FORMATS = ("mp4", "webm", "gif")
 
 
 class VideoWriter:
     """Write ``(H, W, 3)`` uint8 frames one at a time (use as a context manager).
 
     The format follows the file's suffix: ``.mp4`` (H.264), ``.webm`` (VP9) or
-    ``.gif``. If the block raises, the partial file is removed.
+    ``.gif``. If the block raises, the partial file is removed. ``pad`` makes the file
+    its :func:`budget`'s size on closing (:class:`OverBudget` if it is larger: encode
+    again with a smaller ``rate_scale``).
     """
 
-    def __init__(self, path: str | Path, width: int, height: int, fps: float):
+    def __init__(self, path: str | Path, width: int, height: int, fps: float,
+                 pad: bool = True, rate_scale: float = 1.0):
         self.path = Path(path)
         self.format = self.path.suffix[1:].lower()
         if self.format not in FORMATS:
@@ -65,6 +132,7 @@ class VideoWriter:
         self.width, self.height = width, height
         self.fps = Fraction(fps).limit_denominator(1001)
         self.frames = 0
+        self.pad, self.rate_scale = pad, rate_scale
         self._writer = None if self.format == "gif" else self._yuv_writer()
         # Frames go to ffmpeg from a thread of their own: a frame is larger than the
         # pipe's buffer, so a direct write would wait for ffmpeg to read it, and the
@@ -75,21 +143,10 @@ class VideoWriter:
         self._sender.start()
 
     def _yuv_writer(self):
-        mp4 = self.format == "mp4"
-        writer = imageio_ffmpeg.write_frames(
-            str(self.path),
-            (self.width, self.height),
-            pix_fmt_in="rgb24",
-            pix_fmt_out="yuv420p",
-            fps=self.fps,
-            quality=None,
-            codec="libx264" if mp4 else "libvpx-vp9",
-            macro_block_size=2,
-            ffmpeg_log_level="error",
-            output_params=list(ENCODER if mp4 else WEBM_ENCODER),
-        )
-        writer.send(None)
-        return writer
+        codec = "libx264" if self.format == "mp4" else "libvpx-vp9"
+        options = encoder_options(self.format, self.width, self.height, self.fps, self.rate_scale)
+        return _Pipe(_raw_input(self.width, self.height, self.fps)
+                     + ["-c:v", codec, "-pix_fmt", "yuv420p", *options, str(self.path)])
 
     def write(self, frame: np.ndarray) -> None:
         """Append one frame."""
@@ -122,6 +179,13 @@ class VideoWriter:
             raise RuntimeError(f"ffmpeg stopped writing {self.path}: {self._failure}")
         if self._writer is not None:
             self._writer.close()
+        if self.pad and self.frames:
+            size = budget(self.format, self.width, self.height, self.frames, self.fps)
+            try:
+                pad(self.path, size)
+            except PaddingError as exc:
+                self.path.unlink(missing_ok=True)
+                raise OverBudget(str(exc)) from None
 
     def __enter__(self):
         return self
@@ -134,7 +198,40 @@ class VideoWriter:
                 self.path.unlink(missing_ok=True)
 
 
-class _GifPipe:
+PIPE_BYTES = 1 << 20  # a whole 480x480 frame fits: one wake-up of ffmpeg per frame, not 11
+
+
+def _raw_input(width: int, height: int, fps) -> list[str]:
+    return ["-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{width}x{height}", "-r", str(fps),
+            "-i", "-"]
+
+
+class _Pipe:
+    """An ffmpeg process reading raw RGB frames on its standard input."""
+
+    def __init__(self, arguments: list[str], describe: str = "the video"):
+        command = [imageio_ffmpeg.get_ffmpeg_exe(), "-hide_banner", "-loglevel", "error", "-y",
+                   *arguments]
+        self._describe = describe
+        self._process = subprocess.Popen(
+            command, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+        )
+        try:
+            fcntl.fcntl(self._process.stdin.fileno(), fcntl.F_SETPIPE_SZ, PIPE_BYTES)
+        except (AttributeError, OSError):  # not Linux, or a lower system limit: still works
+            pass
+
+    def send(self, data: bytes) -> None:
+        self._process.stdin.write(data)
+
+    def close(self) -> None:
+        self._process.stdin.close()
+        errors = self._process.stderr.read().decode(errors="replace").strip()
+        if self._process.wait() != 0:
+            raise RuntimeError(f"ffmpeg could not write {self._describe}: {errors}")
+
+
+class _GifPipe(_Pipe):
     """An ffmpeg process turning raw frames into a GIF with the first frame's palette."""
 
     def __init__(self, path: Path, first: np.ndarray, fps: Fraction):
@@ -145,33 +242,42 @@ class _GifPipe:
         swatch[: len(colours.getpalette())] = colours.getpalette()[:768]
         Image.fromarray(swatch.reshape(16, 16, 3)).save(palette)
         height, width = first.shape[:2]
-        command = [
-            imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-loglevel", "error",
-            "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{width}x{height}", "-r", str(fps),
-            "-i", "-", "-i", str(palette), "-lavfi", GIF_FILTER,
-            "-loop", "0", "-map_metadata", "-1", "-fflags", "+bitexact", str(path),
-        ]
-        self._process = subprocess.Popen(
-            command, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+        super().__init__(
+            _raw_input(width, height, fps)
+            + ["-i", str(palette), "-lavfi", GIF_FILTER, "-loop", "0", "-map_metadata", "-1",
+               "-fflags", "+bitexact", str(path)],
+            "the GIF",
         )
-
-    def send(self, data: bytes) -> None:
-        self._process.stdin.write(data)
 
     def close(self) -> None:
         try:
-            self._process.stdin.close()
-            errors = self._process.stderr.read().decode(errors="replace").strip()
-            if self._process.wait() != 0:
-                raise RuntimeError(f"ffmpeg could not write the GIF: {errors}")
+            super().close()
         finally:
             self._folder.cleanup()
 
 
-def save_poster(path: str | Path, frame: np.ndarray) -> Path:
-    """Save a frame as a PNG without metadata."""
+def save_poster(path: str | Path, frame: np.ndarray, padded: bool = True) -> Path:
+    """Save a frame as a PNG without metadata, padded to its :func:`budget`'s size.
+
+    A frame too busy to fit is saved with 256 colours instead; one that still does not
+    fit raises :class:`OverBudget`.
+    """
     path = Path(path)
-    Image.fromarray(frame).save(path, format="PNG", optimize=False, compress_level=6)
+    image = Image.fromarray(frame)
+    encoded = io.BytesIO()
+    image.save(encoded, format="PNG", compress_level=3)  # level 9 costs 10x the time
+    size = budget("png", image.width, image.height, 1, 1)
+    if padded and encoded.tell() > size - 12:
+        encoded = io.BytesIO()
+        image.quantize(256, method=Image.Quantize.MEDIANCUT).save(encoded, format="PNG",
+                                                                  compress_level=9)
+    path.write_bytes(encoded.getvalue())
+    if padded:
+        try:
+            pad(path, size)
+        except PaddingError as exc:
+            path.unlink(missing_ok=True)
+            raise OverBudget(str(exc)) from None
     return path
 
 

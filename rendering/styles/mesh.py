@@ -24,6 +24,7 @@ from rendering.surface import SurfaceBody
 from rendering.framing import Framing
 from rendering.stage import Stage
 from rendering.styles.base import Style, register_style
+from rendering.styles.stick import NEAR
 
 BODY = np.array([168.0, 172.0, 182.0])  # a cool light grey, sRGB
 TINT = 0.16  # how far left and right limbs lean towards the palette's warm and cool
@@ -151,6 +152,10 @@ class MeshStyle(Style):
         parts near the floor add a tighter, darker layer, as the stick figures' do.
         """
         height = self.framing.height
+        seen = camera.project(self.framing.shadows(centres))[1] > NEAR * self.framing.distance
+        if not seen.any():
+            return
+        centres, radii = centres[seen], radii[seen]  # none of what lies at or behind the eye
         pixels, depth = camera.project(self.framing.shadows(centres))
         pixels = pixels / SHADOW_SHRINK
         reach = camera.pixel_size(depth) * radii / SHADOW_SHRINK

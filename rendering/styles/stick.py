@@ -1,7 +1,9 @@
 """Stick figures: shaded tubes and balls in perspective over a floor with a soft shadow.
 
 Drawn with Pillow far to near, at twice the size and halved (4 samples a pixel), and
-only around the figure; an order of magnitude faster than matplotlib 3D or pyrender.
+only around the figure, over the backdrop drawn once at the frame's size (the floor is
+box-filtered, so it needs no extra samples); an order of magnitude faster than
+matplotlib 3D or pyrender.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from rendering.styles.base import Style, register_style
 SUPERSAMPLE = 2
 SHADOW_SHRINK = 4  # the shadow is drawn this much smaller, then blurred and stretched
 LIGHT = np.array([-0.55, -0.83])  # on screen: from the upper left
+NEAR = 0.05  # parts nearer the eye than this share of the camera distance are not drawn
 
 # Sizes as fractions of the figure height, the same for every clip of a set.
 BONE_RADIUS = 0.021
@@ -56,26 +59,38 @@ def _disc(draw: ImageDraw.ImageDraw, centre, radius: float, fill) -> None:
     draw.ellipse((x - radius, y - radius, x + radius, y + radius), fill=fill)
 
 
-def _tube(draw: ImageDraw.ImageDraw, start, end, radius: float, fill) -> None:
+def _tube(draw: ImageDraw.ImageDraw, start, end, radius: float, fill, capped=True) -> None:
     draw.line((start[0], start[1], end[0], end[1]), fill=fill, width=max(1, int(round(2 * radius))))
-    _disc(draw, start, radius, fill)
-    _disc(draw, end, radius, fill)
+    if capped:
+        _disc(draw, start, radius, fill)
+        _disc(draw, end, radius, fill)
 
 
-def _cover(pixels, radii, shadow, size) -> tuple[int, int, int, int] | None:
-    """Return the even-aligned box around the figure and its shadow, inside the image."""
+def _cover(pixels, radii, size) -> tuple[int, int, int, int] | None:
+    """Return the even-aligned box around the figure, inside the image."""
     low = (pixels - radii[:, None]).min(axis=0) - 4
     high = (pixels + radii[:, None]).max(axis=0) + 4
-    if shadow is not None:
-        mask, corner = shadow
-        low = np.minimum(low, corner)
-        high = np.maximum(high, (corner[0] + mask.width, corner[1] + mask.height))
     step = SUPERSAMPLE
     left, top = (max(0, int(np.floor(v / step)) * step) for v in low)
     right, bottom = (min(limit, int(np.ceil(v / step)) * step) for v, limit in zip(high, size))
     if right <= left or bottom <= top:
         return None
     return left, top, right, bottom
+
+
+def _darken(frame: np.ndarray, shadow) -> None:
+    """Lay the shadow colour over ``frame`` through a mask ``(mask, (left, top))``."""
+    if shadow is None:
+        return
+    mask, (left, top) = shadow
+    height, width = frame.shape[:2]
+    right, bottom = min(left + mask.shape[1], width), min(top + mask.shape[0], height)
+    if right <= left or bottom <= top:
+        return
+    alpha = mask[: bottom - top, : right - left, None].astype(np.uint16)
+    part = frame[top:bottom, left:right]
+    mixed = part * (255 - alpha) + np.array(palette.SHADOW, np.uint16) * alpha + 127
+    part[...] = (mixed // 255).astype(np.uint8)
 
 
 @register_style("stick")
@@ -88,9 +103,7 @@ class StickStyle(Style):
     def __init__(self, framing: Framing, width: int, height: int):
         super().__init__(framing, width, height)
         self._size = (width * SUPERSAMPLE, height * SUPERSAMPLE)
-        self._backdrop = Backdrop(framing, *self._size)
-        self._small_backdrop = Backdrop(framing, width, height) if framing.follow else None
-        self._still = None
+        self._backdrop = Backdrop(framing, width, height)
         self._figures: dict[str, Figure] = {}
 
     def frames(self, motion: Motion) -> Iterator[np.ndarray]:
@@ -100,76 +113,80 @@ class StickStyle(Style):
         for pose, target in zip(placed, targets):
             camera = self.framing.camera(*self._size, target)
             pixels, depth = camera.project(pose)
-            shadow = self._shadow(camera, pose, figure) if self.shadow else None
-            # Only the patch around the figure and its shadow is drawn large and halved.
-            box = _cover(pixels, figure.joint_radii * camera.pixel_size(depth), shadow, self._size)
-            patch, frame = self._scenery(target, box)
+            frame = self._backdrop.image(target)
+            if self.shadow:
+                _darken(frame, self._shadow(camera, pose, figure))
+            # Only the patch around the figure is drawn large and halved.
+            seen = depth > NEAR * self.framing.distance  # a joint flung at or behind the eye
+            box = _cover(pixels[seen], (figure.joint_radii * camera.pixel_size(depth))[seen],
+                         self._size) if seen.any() else None
             if box is None:
-                yield np.asarray(frame)
+                yield frame
                 continue
+            left, top, right, bottom = (v // SUPERSAMPLE for v in box)
+            part = Image.fromarray(frame[top:bottom, left:right])
+            patch = part.resize((part.width * SUPERSAMPLE, part.height * SUPERSAMPLE),
+                                Image.NEAREST)
             origin = np.array(box[:2], dtype=float)
-            if shadow is not None:
-                mask, corner = shadow
-                patch.paste(palette.SHADOW, (corner[0] - box[0], corner[1] - box[1]), mask)
             self._draw_figure(ImageDraw.Draw(patch), pixels - origin, depth, camera, figure)
-            frame.paste(patch.reduce(SUPERSAMPLE), (box[0] // SUPERSAMPLE, box[1] // SUPERSAMPLE))
-            yield np.asarray(frame)
+            frame[top:bottom, left:right] = np.asarray(patch.reduce(SUPERSAMPLE))
+            yield frame
 
     def _figure(self, skeleton: str) -> Figure:
         if skeleton not in self._figures:
             self._figures[skeleton] = Figure(get_skeleton(skeleton), self.framing.height)
         return self._figures[skeleton]
 
-    def _scenery(self, target, box) -> tuple[Image.Image | None, Image.Image]:
-        """Return the backdrop's patch inside ``box`` drawn large, and a fresh whole frame."""
-        if self.framing.follow:
-            patch = Image.fromarray(self._backdrop.image(target, box)) if box else None
-            return patch, Image.fromarray(self._small_backdrop.image(target))
-        if self._still is None:
-            large = Image.fromarray(self._backdrop.image())
-            self._still = (large, large.reduce(SUPERSAMPLE))
-        large, small = self._still
-        return (large.crop(box) if box else None), small.copy()
-
     def _shadow(self, camera: Camera, pose: np.ndarray, figure: Figure):
-        """Return the shadow's mask and its top-left corner in the large image, or ``None``.
+        """Return the shadow's mask and its top-left corner in the frame, or ``None``.
 
         A faint shadow of the whole figure, plus a darker one where parts are near the
         floor: contact, sliding and floating all show against it. It is drawn small,
         blurred and stretched, and only over the patch it covers.
         """
         pixels, depth = camera.project(self.framing.shadows(pose))
+        seen = depth > NEAR * self.framing.distance
+        if not seen.any():
+            return None
         pixels /= SHADOW_SHRINK
         reach = camera.pixel_size(depth) / SHADOW_SHRINK
         unit = self.framing.height * float(camera.pixel_size(self.framing.distance)) / SHADOW_SHRINK
         closeness = 1.0 - np.clip(pose[:, 2] / (0.2 * self.framing.height), 0.0, 1.0)
-        layers = ((np.full(len(pose), 100.0), 1.4, 0.012), (closeness**2 * 150, 1.2, 0.006))
+        strength = np.where(seen, 100.0, 0.0)  # nothing of what lies at or behind the eye
+        layers = ((strength, 1.4, 0.012), (np.where(seen, closeness**2 * 150, 0.0), 1.2, 0.006))
+        reach = np.where(seen, reach, 0.0)
 
-        border = 1.4 * figure.joint_radii * reach + 3 * 0.012 * unit + 2
+        border = (1.4 * figure.joint_radii * reach + 3 * 0.012 * unit + 2)[seen, None]
         size = (self._size[0] // SHADOW_SHRINK, self._size[1] // SHADOW_SHRINK)
-        low = np.maximum(np.floor((pixels - border[:, None]).min(axis=0)), 0).astype(int)
-        high = np.minimum(np.ceil((pixels + border[:, None]).max(axis=0)), size).astype(int)
+        low = np.maximum(np.floor((pixels[seen] - border).min(axis=0)), 0).astype(int)
+        high = np.minimum(np.ceil((pixels[seen] + border).max(axis=0)), size).astype(int)
+        pixels = np.where(seen[:, None], pixels, low)  # unseen parts are drawn at no size
         if (high <= low).any():
             return None
         pixels = pixels - low
-        bone_reach = (reach[figure.bones[:, 0]] + reach[figure.bones[:, 1]]) / 2
+        a, b = figure.bones[:, 0], figure.bones[:, 1]
+        bone_reach = (reach[a] + reach[b]) / 2
         masks = []
         for strength, spread, blur in layers:
             mask = Image.new("L", tuple(high - low), 0)
             draw = ImageDraw.Draw(mask)
-            for (a, b), bone_scale in zip(figure.bones, bone_reach):
-                level = int(min(strength[a], strength[b]))
-                if level > 0:
-                    radius = spread * figure.bone_radius * bone_scale
-                    _tube(draw, pixels[a], pixels[b], radius, level)
-            for j in np.argsort(strength):
-                if strength[j] >= 1:
-                    radius = spread * figure.joint_radii[j] * reach[j]
-                    _disc(draw, pixels[j], radius, int(strength[j]))
+            levels = np.minimum(strength[a], strength[b]).astype(int)
+            radii = spread * figure.bone_radius * bone_reach
+            for start, end, radius, level in zip(pixels[a].tolist(), pixels[b].tolist(),
+                                                 radii.tolist(), levels.tolist()):
+                if level > 0:  # the joints' wider discs cover the ends
+                    _tube(draw, start, end, radius, level, capped=False)
+            order = np.argsort(strength)
+            radii = spread * figure.joint_radii[order] * reach[order]
+            for centre, radius, level in zip(pixels[order].tolist(), radii.tolist(),
+                                             strength[order].tolist()):
+                if level >= 1:
+                    _disc(draw, centre, radius, int(level))
             masks.append(mask.filter(ImageFilter.GaussianBlur(max(0.5, blur * unit))))
         mask = ImageChops.add(*masks)
-        stretched = (mask.width * SHADOW_SHRINK, mask.height * SHADOW_SHRINK)
-        return mask.resize(stretched, Image.BILINEAR), tuple(int(v) * SHADOW_SHRINK for v in low)
+        grow = SHADOW_SHRINK // SUPERSAMPLE  # to the frame's own size
+        mask = mask.resize((mask.width * grow, mask.height * grow), Image.BILINEAR)
+        return np.asarray(mask), tuple(int(v) * grow for v in low)
 
     def _draw_figure(self, draw: ImageDraw.ImageDraw, pixels, depth, camera: Camera, figure):
         """Draw bones and joints far to near, each a tube or ball lit from the upper left."""
@@ -192,23 +209,37 @@ class StickStyle(Style):
         along = end - start
         length = np.linalg.norm(along, axis=1, keepdims=True)
         normal = np.stack([-along[:, 1], along[:, 0]], axis=1) / np.maximum(length, 1e-6)
-        lit = normal @ LIGHT
+        lit = (normal * LIGHT).sum(axis=1)
         light_offset = normal * lit[:, None]  # the light's component across the tube
 
+        # Every primitive's place and size at once, as plain floats for Pillow.
+        r = bone_radii[:, None]
+        body_shift, shine = light_offset * 0.2 * r, light_offset * 0.48 * r
+        bones_drawn = np.concatenate(
+            [start, end, start + body_shift, end + body_shift, start + shine, end + shine, r,
+             0.72 * r, 0.25 * r], axis=1).tolist()
+        j = joint_radii[:, None]
+        joints_drawn = np.concatenate(
+            [pixels, pixels + LIGHT * 0.2 * j, pixels + LIGHT * 0.45 * j, j, 0.76 * j, 0.3 * j],
+            axis=1).tolist()
+
         n_bones = len(bones)
+        near = NEAR * self.framing.distance
+        seen = np.concatenate([(depth[bones[:, 0]] > near) & (depth[bones[:, 1]] > near),
+                               depth > near])
         # Balls sit a little nearer than the tubes meeting at them, so they cap the ends.
         order = np.argsort(-np.concatenate([bone_depth, depth - figure.joint_radii]), kind="stable")
-        for k in order:
+        for k in order[seen[order]].tolist():
             rim, body, highlight = tones[k]
             if k < n_bones:
-                r, shift = bone_radii[k], light_offset[k]
-                _tube(draw, start[k], end[k], r, rim)
-                _tube(draw, start[k] + shift * 0.2 * r, end[k] + shift * 0.2 * r, 0.72 * r, body)
-                shine = shift * 0.48 * r
-                _tube(draw, start[k] + shine, end[k] + shine, 0.25 * r, highlight)
+                (x0, y0, x1, y1, bx0, by0, bx1, by1, hx0, hy0, hx1, hy1,
+                 radius, body_radius, shine_radius) = bones_drawn[k]
+                # No round caps: every bone ends in a joint's larger ball, drawn nearer.
+                _tube(draw, (x0, y0), (x1, y1), radius, rim, capped=False)
+                _tube(draw, (bx0, by0), (bx1, by1), body_radius, body, capped=False)
+                _tube(draw, (hx0, hy0), (hx1, hy1), shine_radius, highlight, capped=False)
             else:
-                j = k - n_bones
-                r, centre = joint_radii[j], pixels[j]
-                _disc(draw, centre, r, rim)
-                _disc(draw, centre + LIGHT * 0.2 * r, 0.76 * r, body)
-                _disc(draw, centre + LIGHT * 0.45 * r, 0.3 * r, highlight)
+                x, y, bx, by, hx, hy, radius, body_radius, shine_radius = joints_drawn[k - n_bones]
+                _disc(draw, (x, y), radius, rim)
+                _disc(draw, (bx, by), body_radius, body)
+                _disc(draw, (hx, hy), shine_radius, highlight)

@@ -11,11 +11,12 @@ def test_one_framing_holds_the_whole_set():
     walker = make_figure(frames=50, speed=2.0)
     stander = make_figure(frames=5)
     framing = Framing.from_motions([walker, stander])
-    camera = framing.camera(200, 200)
     for motion in (walker, stander):
-        pixels, depth = camera.project(framing.place(motion))
-        assert (depth > 0).all()
-        assert (pixels > 10).all() and (pixels < 190).all()
+        placed = framing.place(motion)
+        for pose, target in zip(placed, framing.targets(motion, placed)):
+            pixels, depth = framing.camera(200, 200, target).project(pose)
+            assert (depth > 0).all()
+            assert (pixels > 10).all() and (pixels < 190).all()
 
 
 def test_clips_are_placed_alike_whatever_their_coordinates():
@@ -52,3 +53,25 @@ def test_mixed_dimensions_are_refused():
 
     with pytest.raises(ValueError, match="all 3D or all 2D"):
         Framing.from_motions([make_motion(skeleton="h36m17"), make_motion(skeleton="h36m15_2d")])
+
+
+def test_the_scale_comes_from_the_real_clips_only():
+    """Catch, example and generated clips in the set change nothing about the camera."""
+    real = [make_figure(frames=20, speed=s) for s in (0.0, 1.0)]
+    rng = np.random.default_rng(0)
+    jittered = real[0].with_joints(real[0].joints + rng.normal(scale=0.4, size=real[0].joints.shape),
+                                   source="broken")
+    far_walker = make_figure(frames=60, speed=5.0, source="a2m")
+    alone = Framing.from_motions(real)
+    assert Framing.from_motions(real + [jittered, far_walker]) == alone
+    assert alone.follow and alone.target[:2] == (0.0, 0.0)
+
+
+def test_a_standing_figure_fills_the_share_the_rule_asks():
+    stander = make_figure(frames=4)
+    for fill in (0.5, 0.65):
+        framing = Framing.from_motions([stander], pad=0.0, fill=fill)
+        camera = framing.camera(400, 400)
+        placed = framing.place(stander)[0]
+        pixels, _ = camera.project(placed)
+        assert np.ptp(pixels[:, 1]) / 400 == pytest.approx(fill, abs=0.03)

@@ -33,7 +33,8 @@ class Command(BaseCommand):
         parser.add_argument("--fps", type=float, help="resample every clip to this rate")
         parser.add_argument("--workers", type=int, default=1, help="rendering processes")
         parser.add_argument(
-            "--follow", action="store_true", help="let the camera follow each root sideways"
+            "--still-camera", action="store_true",
+            help="keep the camera still instead of following each root sideways",
         )
         parser.add_argument(
             "--formats", default="mp4", metavar="LIST",
@@ -87,7 +88,7 @@ class Command(BaseCommand):
             fps=fps,
             workers=workers,
             progress=options["verbosity"] > 0,
-            follow=options["follow"],
+            follow=not options["still_camera"],
             formats=formats,
         )
         self.stdout.write(
