@@ -109,13 +109,18 @@ def header_features(headers: dict, prefix: str) -> dict[str, float]:
 
 
 def clip_features(video: bytes, video_headers: dict, poster: bytes | None = None,
-                  poster_headers: dict | None = None) -> dict[str, float]:
-    """Return every observable feature of one served clip (see the module docstring)."""
+                  poster_headers: dict | None = None, motion: bytes | None = None,
+                  motion_headers: dict | None = None) -> dict[str, float]:
+    """Return every observable feature of one served clip (see the module docstring): its
+    video, poster and, when the study plays in the page, the player's payload."""
     out = {"video_bytes": float(len(video)), **mp4_features(video),
            **header_features(video_headers, "video")}
     if poster is not None:
         out.update(png_features(poster))
         out.update(header_features(poster_headers or {}, "poster"))
+    if motion is not None:
+        out["motion_bytes"] = float(len(motion))
+        out.update(header_features(motion_headers or {}, "motion"))
     return out
 
 

@@ -88,12 +88,13 @@ def audit_study(study, fetch) -> dict:
             status, headers, body = fetch(item.clip_url("mp4"))
             if status != 200:
                 raise RuntimeError(f"clip {item.clip_url('mp4')} answered HTTP {status}")
-            poster = poster_headers = None
-            if item.stimulus.poster:
-                code, poster_headers, poster = fetch(item.clip_url("png"))
-                if code != 200:
-                    raise RuntimeError(f"poster {item.clip_url('png')} answered HTTP {code}")
-            rows.append(clip_features(body, headers, poster, poster_headers))
+            extra = {}
+            for ext, name in (("png", "poster"), ("motion", "motion")):
+                if getattr(item.stimulus, name):
+                    code, extra[f"{name}_headers"], extra[name] = fetch(item.clip_url(ext))
+                    if code != 200:
+                        raise RuntimeError(f"{name} {item.clip_url(ext)} answered HTTP {code}")
+            rows.append(clip_features(body, headers, **extra))
             kinds.append((item.stimulus.role, item.stimulus.source))
     finally:
         person.delete()

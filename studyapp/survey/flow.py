@@ -407,10 +407,14 @@ class Question:
 def render_trial(request, store, study, trial, items, number, total, n_practice, **extra):
     """Render a trial page; ``number`` is None for a practice trial."""
     kind = study.kind
+    # The motion itself is played in the page when the study says so and every clip has
+    # its payload (the mp4 stays the fallback where WebGL 2 is missing).
+    player = study.player if all(item.stimulus.motion for item in items) else ""
     for item in items:
         item.label = shown_label(study, item)
         item.url = store.clip_url(item)
         item.poster_url = store.clip_url(item, "png") if item.stimulus.poster else ""
+        item.motion_url = store.clip_url(item, "motion") if player else ""
     judged = [item for item in items if item.role == TrialItem.Role.JUDGED]
     criteria = kind.criteria(study)
     context = {
@@ -429,6 +433,7 @@ def render_trial(request, store, study, trial, items, number, total, n_practice,
         "prompt": trial.prompt,
         "practice_over": bool(n_practice) and number == 1,
         "preview": store.preview,
+        "player": player,
         **extra,
     }
     context.update(kind.trial_context(study, trial, items))

@@ -156,6 +156,12 @@ class Study(models.Model):
     max_participants = models.PositiveIntegerField(
         null=True, blank=True, help_text="Finished and active participants at most."
     )
+    player = models.CharField(
+        max_length=8, blank=True, choices=[("", "Video (mp4)"), ("stick", "In the page: stick figure"),
+                                           ("body", "In the page: body")],
+        help_text="Play the motion itself in the page (WebGL) where the browser can, the mp4 "
+        "otherwise; needs clips built with render.player: webgl.",
+    )
     created_at = models.DateTimeField(auto_now_add=True)
 
     objects = StudyManager()
@@ -602,17 +608,19 @@ class TrialItemManager(models.Manager):
     def judged(self):
         return self.filter(role=TrialItem.Role.JUDGED)
 
-    def record_fetch(self, item_id: int, start: int, end: int, size: int) -> None:
-        """Record that bytes ``start..end`` (inclusive) of an item's clip were sent whole;
-        the first time the ranges cover the file, ``fetched_at`` is set."""
+    def record_fetch(self, item_id: int, ext: str, start: int, end: int, size: int) -> None:
+        """Record that bytes ``start..end`` (inclusive) of an item's ``ext`` file (its mp4,
+        or the in-browser player's payload) were sent whole; the first time the ranges
+        of one of its files cover that file, ``fetched_at`` is set."""
         with transaction.atomic():
             if connection.vendor == "sqlite":  # take the write lock first (see StudyManager.lock)
                 self.filter(pk=item_id).update(plays=F("plays"))
             item = self.select_for_update().only("fetched", "fetched_at").get(pk=item_id)
             if item.fetched_at is not None:
                 return
-            ranges = merge_ranges([*item.fetched, [start, end]])
-            fields = {"fetched": ranges}
+            fetched = item.fetched if isinstance(item.fetched, dict) else {}
+            ranges = merge_ranges([*fetched.get(ext, []), [start, end]])
+            fields = {"fetched": {**fetched, ext: ranges}}
             if ranges == [[0, size - 1]]:
                 fields["fetched_at"] = timezone.now()
             self.filter(pk=item_id).update(**fields)
@@ -648,7 +656,7 @@ class TrialItem(models.Model):
     answers = models.JSONField(default=dict, blank=True, help_text="Answers per criterion.")
     plays = models.PositiveIntegerField(default=0, help_text="Complete plays the page reported.")
     fetched = models.JSONField(
-        default=list, blank=True, help_text="Byte ranges of the clip sent whole."
+        default=dict, blank=True, help_text="Byte ranges sent whole, per file (mp4, motion)."
     )
     fetched_at = models.DateTimeField(
         null=True, blank=True, help_text="When the whole clip had been sent."
@@ -670,7 +678,9 @@ class TrialItem(models.Model):
         return f"{self.trial}: position {self.position}"
 
     def clip_url(self, ext: str = "mp4") -> str:
+        """Return the URL of this item's ``mp4``, ``png`` (poster) or ``motion`` (payload)."""
         return reverse("survey:clip", args=[self.token, ext])
+
 
 
 class ResponseManager(models.Manager):

@@ -45,6 +45,7 @@ class Clip:
     role: str = Stimulus.Role.JUDGED
     score: int | None = None
     prompt: str = ""
+    motion: Path | None = None  # the in-browser player's payload (rendering.player)
 
     @classmethod
     def rendered(cls, motion, rendered, **fields) -> "Clip":
@@ -142,6 +143,9 @@ def register_clips(study, clips: Iterable[Clip]) -> list[Stimulus]:
                         f"{existing.source} ({existing.role}), not {clip.action}/{clip.source} "
                         f"({clip.role})"
                     )
+                if clip.motion and not existing.motion:  # the study now plays in the page
+                    existing.motion = _store(Path(clip.motion), Path(clip.motion).name)
+                    existing.save(update_fields=["motion"])
                 stimuli.append(existing)
                 continue
             stimuli.append(
@@ -153,6 +157,7 @@ def register_clips(study, clips: Iterable[Clip]) -> list[Stimulus]:
                     role=clip.role,
                     video=_store(video, f"{video_hash}.mp4"),
                     poster=_store(Path(clip.poster), f"{video_hash}.png") if clip.poster else "",
+                    motion=_store(Path(clip.motion), Path(clip.motion).name) if clip.motion else "",
                     duration=float(clip.duration),
                     motion_hash=clip.motion_hash,
                     video_hash=video_hash,

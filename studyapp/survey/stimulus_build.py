@@ -361,8 +361,9 @@ class Build:
                 self.step(f"rendered {items[missing[done.index]][0].source}")
             shutil.rmtree(incoming, ignore_errors=True)
             _write_if_changed(index_file, json.dumps(index, sort_keys=True, indent=1))
+        payloads = self.payloads([m for m, _ in items], framing, folder)
         clips, entries = [], []
-        for (motion, spec), key in zip(items, keys):
+        for (motion, spec), key, payload in zip(items, keys, payloads):
             done = index[key]
             clip = Clip(
                 action=motion.action, source=spec["source"], role=spec["role"],
@@ -370,6 +371,7 @@ class Build:
                 motion_hash=motion.content_hash(), video_hash=done["video_hash"],
                 video=folder / f"{done['video_hash']}.mp4",
                 poster=folder / f"{done['video_hash']}.png", duration=done["duration"],
+                motion=payload,
             )
             clips.append(clip)
             entry = {**spec, "action": clip.action, "motion_hash": clip.motion_hash,
@@ -379,6 +381,15 @@ class Build:
                                                   "video_hash") if entry.get(k) is not None})
         return clips, entries, len(missing)
 
+    def payloads(self, motions, framing, folder) -> list:
+        """Write the in-browser player's payloads (render.player: webgl), or Nones."""
+        if self.config.player != "webgl":
+            return [None] * len(motions)
+        from rendering.player import write_payloads
+
+        placed = [ops.canonical(m, 3) for m in motions]  # as render_set draws them
+        return [path for path, _ in write_payloads(placed, folder / "payloads", framing)]
+
     # --- study and manifest ---------------------------------------------------------
 
     def study_fields(self) -> dict:
@@ -387,6 +398,7 @@ class Build:
         fields.update({k: v for k, v in c.study_options.items() if v is not None})
         fields["dataset"] = c.dataset
         fields["options"] = dict(c.type_options)
+        fields["player"] = "" if c.player == "video" else ("body" if c.style == "mesh" else "stick")
         return fields
 
     def register(self, clips):

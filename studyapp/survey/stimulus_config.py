@@ -27,6 +27,7 @@ from studyapp.survey.study_types.base import COMMON_OPTIONS, check_criteria
 TOP = ("slug", "title", "seed", "dataset", "data_root", "subjects", "actions", "frames", "fps",
        "clips_per_source", "train", "sources", "render", "study")
 MAX_EXTENDS = 5
+PLAYERS = ("video", "webgl")
 
 
 class ConfigError(ValueError):
@@ -68,6 +69,7 @@ class StudyConfig:
     sources: list[Source]
     style: str
     size: int
+    player: str  # "video" (the mp4) or "webgl" (the in-browser player, the mp4 as fallback)
     study_type: str
     study_options: dict  # Study fields every type has (clips_per_trial, crowd, ...)
     type_options: dict  # the study type's own options (Study.options)
@@ -183,6 +185,14 @@ def parse(raw: dict, folder: Path) -> StudyConfig:
     if style not in list_styles():
         raise ConfigError(f"render.style: {style!r} is not a style; choose one of "
                           f"{', '.join(list_styles())}")
+    player = _text(render, "player", "video", where="render.player")
+    if player not in PLAYERS:
+        raise ConfigError(f"render.player: {player!r} is not a player; choose one of "
+                          f"{', '.join(PLAYERS)} (video plays the mp4; webgl draws the motion "
+                          f"in the page, with the mp4 where WebGL 2 is missing)")
+    if player == "webgl" and style == "stick2d":
+        raise ConfigError("render.player: webgl draws 3D figures; use style stick or mesh, or "
+                          "player video for stick2d clips")
     study_type, options, type_options = _study(raw.get("study") or {})
     sources = _sources(raw.get("sources"), seed, iters, preset)
     fps = raw.get("fps")
@@ -202,6 +212,7 @@ def parse(raw: dict, folder: Path) -> StudyConfig:
         sources=sources,
         style=style,
         size=_int(render, "size", 480, minimum=16, where="render.size"),
+        player=player,
         study_type=study_type,
         study_options=options,
         type_options=type_options,

@@ -8,7 +8,7 @@ urlpatterns = [
     path("s/<slug:slug>/<slug:name>/", views.page, name="page"),
     path("preview/<slug:slug>/", views.preview_entry, name="preview"),
     path("preview/<slug:slug>/<slug:name>/", views.preview_page, name="preview_page"),
-    re_path(r"^c/(?P<token>[A-Za-z0-9_-]{8,64})\.(?P<ext>mp4|png)$", views.clip, name="clip"),
-    re_path(r"^p/(?P<token>[A-Za-z0-9_-]{8,64})\.(?P<ext>mp4|png)$", views.preview_clip,
+    re_path(r"^c/(?P<token>[A-Za-z0-9_-]{8,64})\.(?P<ext>mp4|png|motion)$", views.clip, name="clip"),
+    re_path(r"^p/(?P<token>[A-Za-z0-9_-]{8,64})\.(?P<ext>mp4|png|motion)$", views.preview_clip,
             name="preview_clip"),
 ]

@@ -10,7 +10,8 @@ from django.views.decorators.http import require_http_methods, require_safe
 from studyapp.survey import flow, media, preview
 from studyapp.survey.models import Stimulus, Study, TrialItem
 
-CONTENT_TYPES = {"mp4": "video/mp4", "png": "image/png"}
+CONTENT_TYPES = {"mp4": "video/mp4", "png": "image/png", "motion": "application/octet-stream"}
+FILES = {"mp4": "video", "png": "poster", "motion": "motion"}
 
 
 @never_cache
@@ -47,7 +48,7 @@ def preview_page(request, slug, name):
 
 
 def _serve(request, stimulus, ext, etag, on_sent=None):
-    name = stimulus.video if ext == "mp4" else stimulus.poster
+    name = getattr(stimulus, FILES[ext])
     try:
         # Only names under stimuli/ are opened, through default_storage (media.file_response).
         return media.file_response(request, name, CONTENT_TYPES[ext], etag, on_sent)
@@ -61,16 +62,16 @@ def clip(request, token, ext):
 
     Every item (the same clip in a repeated trial too) has its own token and ETag, so
     nothing in the URL or the headers tells two showings of a clip apart from two clips.
-    Sending a video's last byte records the range sent (``TrialItem.fetched``): the
-    server, not the page, knows whether a clip was fetched to its end.
+    Sending the last byte of a video (or of the in-browser player's payload) records the
+    range sent (``TrialItem.fetched``): the server, not the page, knows whether a clip
+    was fetched to its end.
     """
     item = get_object_or_404(TrialItem.objects.select_related("stimulus"), token=token)
     on_sent = None
-    if ext == "mp4" and request.method == "GET":
+    if ext in ("mp4", "motion") and request.method == "GET":
         def on_sent(start, end, size, pk=item.pk):
-            TrialItem.objects.record_fetch(pk, start, end, size)
-    suffix = "" if ext == "mp4" else "-p"
-    return _serve(request, item.stimulus, ext, f'"{item.token}{suffix}"', on_sent)
+            TrialItem.objects.record_fetch(pk, ext, start, end, size)
+    return _serve(request, item.stimulus, ext, f'"{item.token}-{ext}"', on_sent)
 
 
 @staff_member_required
@@ -78,4 +79,4 @@ def clip(request, token, ext):
 def preview_clip(request, token, ext):
     """Serve a stimulus' files to staff (previews, the admin) under the stimulus token."""
     stimulus = get_object_or_404(Stimulus, token=token)
-    return _serve(request, stimulus, ext, f'"s{stimulus.token}{ext}"')
+    return _serve(request, stimulus, ext, f'"s{stimulus.token}-{ext}"')

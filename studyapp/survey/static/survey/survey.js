@@ -79,12 +79,40 @@
       }
     }
 
-    cards.forEach(function (card) {
-      var video = card.querySelector("video");
+    function watchPlayer(card, player) {
+      // The in-page player (player-page.js): it loops on the page's one clock and fires
+      // one "ended" per whole loop, so a play is counted exactly as for a video.
       var plays = card.querySelector("[data-plays]");
       var state = card.querySelector("[data-state]");
       var position = Number(card.getAttribute("data-position"));
-      var lazy = video.getAttribute("preload") === "none";
+      ["play", "pause", "seek"].forEach(function (name) {
+        player.addEventListener(name, function () { log(name, position); });
+      });
+      player.addEventListener("loadeddata", function () { state.textContent = "Playing…"; });
+      player.addEventListener("ended", function () {
+        log("ended", position);
+        plays.value = String(playsOf(card) + 1);
+        card.classList.add("is-watched");
+        state.textContent = "Watched";
+        update();
+      });
+      player.addEventListener("error", function () {
+        log("error", position);
+        state.textContent = "Could not load: please reload the page";
+      });
+    }
+
+    cards.forEach(function (card) {
+      var video = card.querySelector("video");
+      var player = card.querySelector("motion-player[src]");
+      if (player || !video) {
+        if (player) { watchPlayer(card, player); }
+        return;
+      }
+      var plays = card.querySelector("[data-plays]");
+      var state = card.querySelector("[data-state]");
+      var position = Number(card.getAttribute("data-position"));
+      var lazy = card.hasAttribute("data-lazy");
       // Loop by hand: with the loop attribute a video never fires "ended", which is
       // exactly the event that proves it was played through.
       video.loop = false;
