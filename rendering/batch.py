@@ -30,7 +30,7 @@ from rendering.video import (
 SIDECAR = "renders.json"
 # Changes whenever the same motions and settings would give other pixels or bytes (the
 # camera rule, the encoder, the padding): caches of rendered clips should key on it.
-VERSION = 2
+VERSION = 3
 
 
 class RenderError(ValueError):
@@ -122,7 +122,7 @@ def _formats(formats) -> tuple[str, ...]:
     return ("mp4",) + tuple(dict.fromkeys(f for f in formats if f != "mp4"))
 
 
-RATE_SCALES = (1.0, 0.8, 0.6)  # a clip over its byte budget is encoded again, lower
+RATE_SCALES = (1.0, 0.8, 0.6, 0.4)  # a clip over its byte budget is encoded again, lower
 
 
 def _encode(style: Style, motion: Motion, videos: list[Path], poster: Path) -> int:

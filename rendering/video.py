@@ -27,7 +27,7 @@ import imageio_ffmpeg
 import numpy as np
 from PIL import Image
 
-from rendering.padding import PaddingError, pad
+from rendering.padding import PaddingError, equalise_mp4_frames, pad
 
 # Bits per pixel and frame: at 480x480 and 25 fps, 259 kbit/s, about 78 KB for 60 frames;
 # small videos (thumbnails) get at least 64 kbit/s.
@@ -36,6 +36,12 @@ MIN_BIT_RATE = 64_000
 # Room above the constant rate's bytes for what an encoder overshoots (x264 stays within
 # about 10 %, libvpx within 20 %) and the container's tables, per file and per frame.
 HEADROOM = {"mp4": 1.15, "webm": 1.3}
+# An mp4 lists every frame's byte size, so each is padded to a fixed budget: a keyframe to
+# the encoder's buffer (this many frames of the rate), every other frame to this share of
+# the rate above its mean (frames over it: encoded again, lower).
+BUFFER_FRAMES = 5
+FRAME_HEADROOM = 1.5
+KEYINT = 250
 OVERHEAD = {"mp4": (2048, 24), "webm": (2048, 24)}
 # GIFs have no rate control, so their budget is LZW's worst case (12-bit codes for 8-bit
 # pixels, plus the sub-blocks' length bytes): large; prefer mp4 or WebM.
@@ -50,12 +56,23 @@ def bit_rate(width: int, height: int, fps, scale: float = 1.0) -> int:
     return int(scale * max(BITS_PER_PIXEL * width * height * float(fps), MIN_BIT_RATE))
 
 
+def frame_budgets(width: int, height: int, fps) -> tuple[int, int]:
+    """Return the byte sizes every mp4 keyframe and every other frame is padded to."""
+    mean = bit_rate(width, height, fps) / 8 / float(fps)
+    return int(math.ceil(BUFFER_FRAMES * mean)), int(math.ceil(FRAME_HEADROOM * mean))
+
+
 def budget(kind: str, width: int, height: int, frames: int, fps) -> int:
     """Return the byte size of every ``kind`` file (mp4, webm, gif, png) of these dimensions.
 
     It depends on nothing else, so a clip's size tells nothing about its content.
     """
-    if kind == "png":
+    if kind == "mp4":
+        key, other = frame_budgets(width, height, fps)
+        keys = -(-frames // KEYINT)
+        fixed, per_frame = OVERHEAD[kind]
+        size = keys * key + (frames - keys) * other + fixed + per_frame * frames
+    elif kind == "png":
         size = POSTER_BYTES_PER_PIXEL * width * height + 4096
     elif kind == "gif":
         size = (GIF_BYTES_PER_PIXEL * width * height + 1024) * frames + 4096
@@ -66,19 +83,35 @@ def budget(kind: str, width: int, height: int, frames: int, fps) -> int:
     return int(math.ceil(size / BLOCK) * BLOCK)
 
 
+def mp4_qp_floor(scale: float) -> int:
+    """Return x264's lowest quantiser for an mp4 encoded again at ``scale`` (< 1).
+
+    An mp4's stream parameters (its SPS, read by anyone) carry the rate, so a clip over
+    its budget keeps the rate and is quantised more coarsely instead: nothing in its
+    headers then tells that it was encoded again.
+    """
+    return 0 if scale >= 1 else int(round(24 + 30 * (1 - scale)))
+
+
 def encoder_options(kind: str, width: int, height: int, fps, scale: float = 1.0) -> list[str]:
-    """Return ffmpeg's output options for a constant-rate mp4 or WebM."""
-    rate = bit_rate(width, height, fps, scale)
+    """Return ffmpeg's output options for a constant-rate mp4 or WebM (``scale`` < 1: a
+    clip encoded again to fit its budget: a lower rate for WebM, a coarser floor for mp4)."""
+    rate = bit_rate(width, height, fps, 1.0 if kind == "mp4" else scale)
     common = ["-map_metadata", "-1", "-metadata:s:v:0", "encoder=", "-fflags", "+bitexact",
               "-flags:v", "+bitexact"]
     if kind == "mp4":
         return [
             "-preset", "superfast",
             "-b:v", str(rate), "-minrate", str(rate), "-maxrate", str(rate),
-            "-bufsize", str(rate // 2),
-            # Hard constant rate with filler; keyframes every 250 frames whatever is shown,
-            # no B-frames: frame types and so the mp4's tables never depend on content.
-            "-x264-params", "filler=1:bframes=0:scenecut=0:keyint=250:min-keyint=250",
+            # A buffer of a few frames with a constant-rate HRD: x264 keeps every frame
+            # near the rate (the keyframe within the buffer), and the writer pads each
+            # frame to its fixed budget (padding.equalise_mp4_frames).
+            "-bufsize", str(int(rate * BUFFER_FRAMES / float(fps))),
+            # Keyframes every KEYINT frames whatever is shown, no B-frames: frame types and
+            # so the mp4's tables never depend on content.
+            "-x264-params",
+            f"filler=1:nal-hrd=cbr:bframes=0:scenecut=0:keyint={KEYINT}:min-keyint={KEYINT}"
+            f":qpmin={mp4_qp_floor(scale)}",
             "-threads", "1",  # x264's output depends on its thread count; fix it everywhere
             "-movflags", "+faststart",
             *common,
@@ -182,6 +215,9 @@ class VideoWriter:
         if self.pad and self.frames:
             size = budget(self.format, self.width, self.height, self.frames, self.fps)
             try:
+                if self.format == "mp4":
+                    equalise_mp4_frames(self.path, *frame_budgets(self.width, self.height,
+                                                                  self.fps))
                 pad(self.path, size)
             except PaddingError as exc:
                 self.path.unlink(missing_ok=True)
