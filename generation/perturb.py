@@ -2,8 +2,10 @@
 checks (catch trials), the graded examples of a scoring standard and the low anchors of
 MUSHRA-style trials. Each returns a new motion; the input is left alone.
 
-The size of a perturbation is a share of the figure's extent (the largest side of the
-box around every joint over the clip), so it means the same on any skeleton and unit.
+The size of a perturbation is a share of the figure's size (the largest side of the box
+around its joints in a frame, the median over the clip), so it means the same on any
+skeleton and unit, and a clip that travels far is not shaken further than one that
+stays put.
 """
 
 from __future__ import annotations
@@ -20,14 +22,15 @@ ANCHOR_NOISE = 0.12
 
 
 def extent(motion: Motion) -> float:
-    """Return the largest side of the box around every joint of the clip."""
-    joints = motion.joints
-    return float(np.ptp(joints.reshape(-1, joints.shape[-1]), axis=0).max())
+    """Return the figure's size: the largest side of the box around its joints in a frame,
+    the median over the clip's frames."""
+    per_frame = np.ptp(motion.joints, axis=1).max(axis=1)  # (T,)
+    return float(np.median(per_frame))
 
 
 def jitter(motion: Motion, noise: float, rng, source: str | None = None) -> Motion:
     """Return ``motion`` with each joint of each frame moved by Gaussian noise of
-    ``noise`` x its extent (0 leaves it as is), labelled ``source`` when given."""
+    ``noise`` x the figure's size (0 leaves it as is), labelled ``source`` when given."""
     joints = motion.joints
     shake = rng.normal(scale=noise * extent(motion), size=joints.shape) if noise > 0 else 0.0
     moved = (joints + shake).astype(np.float32)
