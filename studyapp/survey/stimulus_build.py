@@ -49,6 +49,7 @@ from tqdm import tqdm
 from generation import ops, perturb
 from generation.formats import load_motions, npz
 from generation.sampling import SamplingError, choose
+from rendering import VERSION as RENDERING_VERSION
 from rendering import Framing, get_style, render_set
 from studyapp.survey.models import ScoringStandard, Stimulus, Study
 from studyapp.survey.stimuli import Clip, file_hash, register_clips
@@ -277,7 +278,7 @@ class Build:
         """Return real clips (n + EXTRA_REAL per action) and the framing fitted to them, cached."""
         c = self.config
         key = digest({"data": self.data_fields(), "seed": c.seed, "style": c.style,
-                      "size": c.size, "extra": EXTRA_REAL})[:16]
+                      "size": c.size, "extra": EXTRA_REAL, "rendering": RENDERING_VERSION})[:16]
         cached = self.cache / "motions" / f"_real-{key}.npz"
         framing_file = self.cache / "motions" / f"_framing-{key}.json"
         if cached.is_file() and framing_file.is_file():
@@ -335,7 +336,8 @@ class Build:
         folder = self.cache / "renders"
         index_file = folder / "index.json"
         index = json.loads(index_file.read_text()) if index_file.is_file() else {}
-        settings = {"style": c.style, "size": c.size, "framing": asdict(framing)}
+        settings = {"style": c.style, "size": c.size, "framing": asdict(framing),
+                    "rendering": RENDERING_VERSION}
         items = [(m, {"role": Role.JUDGED, **meta}) for m, meta in judged]
         items += [(m, {"role": role, "score": score, "source": m.source, "seed": c.seed})
                   for m, role, score in extras]

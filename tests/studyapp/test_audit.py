@@ -71,3 +71,21 @@ def test_analyze_reports_the_audit(leaky_clips, media_root, make_bot, tmp_path):
     assert (tmp_path / "report" / "blindness.csv").is_file()
     assert "Blindness audit: source can be told apart" in err.getvalue()
     assert Participant.objects.count() == 2  # only the real ones
+
+
+@pytest.mark.slow
+@pytest.mark.django_db(transaction=True)
+def test_the_demo_passes_the_audit_through_http(media_root, live_server, tmp_path):
+    from studyapp.survey.management.commands.demo import DEMO_CONFIGS
+    from studyapp.survey.stimulus_build import build_stimuli
+    from studyapp.survey.stimulus_config import load_config
+
+    # The demo's ranking study, every action, at a small size: 48 judged and 8 catch clips.
+    config = load_config(DEMO_CONFIGS / "ranking.yaml", ["render.size=96"])
+    study = build_stimuli(config, tmp_path / "b", cache=tmp_path / "cache").study
+    out = tmp_path / "audit.json"
+    call_command("audit_blindness", study=study.slug, url=live_server.url, json_out=str(out),
+                 stdout=StringIO())
+    result = json.loads(out.read_text())
+    assert result["source"]["n"] == 48 and result["source"]["passed"]
+    assert result["catch"]["n"] == 56 and result["catch"]["passed"]
