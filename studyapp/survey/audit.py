@@ -22,6 +22,10 @@ AUDIT_KEY = "audit:blindness"
 TIMEOUT = 30
 
 
+class AuditUnavailable(RuntimeError):
+    """A clip of the study could not be fetched, so the audit cannot run."""
+
+
 def http_fetcher(base_url: str):
     """Return ``fetch(path) -> (status, headers, body)`` against a running server."""
     base = base_url.rstrip("/")
@@ -43,11 +47,16 @@ def view_fetcher():
     from django.test import RequestFactory
     from django.urls import resolve
 
+    from django.http import Http404
+
     factory = RequestFactory()
 
     def fetch(path):
         match = resolve(path)
-        response = match.func(factory.get(path), **match.kwargs)
+        try:
+            response = match.func(factory.get(path), **match.kwargs)
+        except Http404:
+            return 404, {}, b""
         body = b"".join(response.streaming_content) if response.streaming else response.content
         # Close the stored file, but not as the end of a request: that would also close
         # this process's database connection.
@@ -74,6 +83,12 @@ def _show_everything(study) -> tuple[Participant, list[TrialItem]]:
     return person, items
 
 
+def _unavailable(item, what, url, status) -> str:
+    return (f"the {what} of stimulus {item.stimulus} ({url}) answered HTTP {status}; "
+            f"rebuild the study's stimuli (manage.py build_stimuli) where its files are "
+            f"stored, or skip the audit with --no-audit")
+
+
 def audit_study(study, fetch) -> dict:
     """Return ``{"source": {...}, "catch": {...}}`` for ``study`` (see the module docstring).
 
@@ -87,13 +102,13 @@ def audit_study(study, fetch) -> dict:
         for item in items:
             status, headers, body = fetch(item.clip_url("mp4"))
             if status != 200:
-                raise RuntimeError(f"clip {item.clip_url('mp4')} answered HTTP {status}")
+                raise AuditUnavailable(_unavailable(item, "clip", item.clip_url("mp4"), status))
             extra = {}
             for ext, name in (("png", "poster"), ("motion", "motion")):
                 if getattr(item.stimulus, name):
                     code, extra[f"{name}_headers"], extra[name] = fetch(item.clip_url(ext))
                     if code != 200:
-                        raise RuntimeError(f"{name} {item.clip_url(ext)} answered HTTP {code}")
+                        raise AuditUnavailable(_unavailable(item, name, item.clip_url(ext), code))
             rows.append(clip_features(body, headers, **extra))
             kinds.append((item.stimulus.role, item.stimulus.source))
     finally:

@@ -26,8 +26,16 @@ from django.utils import timezone
 
 
 def new_token() -> str:
-    """Return an opaque, unguessable URL token."""
-    return secrets.token_urlsafe(16)
+    """Return an opaque, unguessable URL token.
+
+    It never starts with ``-`` or ``_``: in an exported CSV a spreadsheet would run a
+    cell starting with ``-`` as a formula, so the export would have to prefix it and the
+    token would no longer read back as itself.
+    """
+    while True:
+        token = secrets.token_urlsafe(16)
+        if token[0].isalnum():
+            return token
 
 
 def new_completion_code() -> str:

@@ -18,6 +18,13 @@ CRITERION = {"ranking": "preference", "fake_or_real": "real", "rating_standards"
              "rating_reference": "realism", "pairwise": "preference"}
 
 
+def _token():
+    while True:  # as models.new_token: never starting with "-" (a formula in a spreadsheet)
+        token = secrets.token_urlsafe(16)
+        if token[0].isalnum():
+            return token
+
+
 def forward(apps, schema_editor):
     Study = apps.get_model("survey", "Study")
     Stimulus = apps.get_model("survey", "Stimulus")
@@ -41,14 +48,14 @@ def forward(apps, schema_editor):
             last = TrialItem.objects.filter(trial=trial).order_by("-position").first()
             TrialItem.objects.create(
                 trial=trial, stimulus_id=trial.reference_id, role="reference",
-                position=(last.position + 1) if last else 0, token=secrets.token_urlsafe(16),
+                position=(last.position + 1) if last else 0, token=_token(),
                 required=trial.answered_at is None,
             )
     for item in TrialItem.objects.filter(token__isnull=True).select_related("trial__participant").iterator():
         criterion = CRITERION.get(key[item.trial.participant.study_id], "preference")
         value = next((v for v in (item.rank, item.rating, item.judged_real) if v is not None), None)
         item.answers = {criterion: value} if value is not None else {}
-        item.token = secrets.token_urlsafe(16)
+        item.token = _token()
         item.save(update_fields=["answers", "token"])
     for person in Participant.objects.filter(completed_at__isnull=False):
         failed = Trial.objects.filter(participant=person, kind="catch", catch_passed=False)

@@ -8,7 +8,7 @@ from analysis.report import write_report
 from analysis.study import AnalysisConfig, analyse_all
 from analysis.tables import AnalysisError, read_responses, write_responses
 from studyapp.survey import export
-from studyapp.survey.audit import audit_study, view_fetcher
+from studyapp.survey.audit import AuditUnavailable, audit_study, view_fetcher
 from studyapp.survey.export import get_study, responses_frame
 
 
@@ -77,9 +77,14 @@ class Command(BaseCommand):
             )
             results = analyse_all(table, config, participants=participants)
             if not responses and not options["no_audit"]:
-                blindness = audit_study(record, view_fetcher())
-                for result in results:
-                    result.blindness = blindness
+                try:
+                    blindness = audit_study(record, view_fetcher())
+                except AuditUnavailable as error:
+                    for result in results:
+                        result.notes.append(f"the blindness audit did not run: {error}")
+                else:
+                    for result in results:
+                        result.blindness = blindness
             out.mkdir(parents=True, exist_ok=True)
             if not responses:
                 write_responses(table, out / "responses.csv")

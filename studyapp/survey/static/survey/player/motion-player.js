@@ -81,7 +81,9 @@ export function parsePayload(buffer) {
 // --- one clock for the page ---------------------------------------------------------
 
 const players = new Set();
-const clock = { origin: performance.now(), offset: 0, paused: true, hiddenPause: false };
+// `shown`: the time of the frame on screen while playing (null until one is drawn), so a
+// pause freezes what the participant sees rather than a frame that was never drawn.
+const clock = { origin: performance.now(), offset: 0, paused: true, hiddenPause: false, shown: null };
 
 function now() {
   return clock.paused ? clock.offset : clock.offset + (performance.now() - clock.origin) / 1000;
@@ -99,18 +101,20 @@ export const playback = {
     if (!clock.paused) return;
     clock.origin = performance.now();
     clock.paused = false;
+    clock.shown = null;
     broadcast('play', { cause });
     wake();
   },
   pause(cause = 'api') {
     if (clock.paused) return;
-    clock.offset = now();
+    clock.offset = clock.shown ?? now();
     clock.paused = true;
     broadcast('pause', { cause });
   },
   seek(seconds, cause = 'api') {
     clock.offset = Math.max(0, seconds);
     clock.origin = performance.now();
+    clock.shown = null;
     for (const player of players) player._seeked();
     broadcast('seek', { cause });
     wake();
@@ -163,6 +167,7 @@ function tick() {
   let busy = false;
   const time = now(); // one reading for every player: the same frame everywhere
   for (const player of players) busy = player._draw(time) || busy;
+  if (!clock.paused) clock.shown = time;
   if (busy || !clock.paused) wake();
 }
 
