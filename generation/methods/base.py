@@ -104,6 +104,11 @@ class Method:
     Config: ClassVar[type[MethodConfig]] = MethodConfig
     # Motions generated per forward pass; bounds sampling memory.
     sample_chunk: ClassVar[int] = 1024
+    # The version of a method's networks, saved in its checkpoints: raise it when a change
+    # makes old weights mean something else, and say what changed in ``version_change``.
+    # Checkpoints saved before versions were recorded are version 1.
+    version: ClassVar[int] = 1
+    version_change: ClassVar[str] = ""
 
     def __init__(self, config: MethodConfig | None, skeleton: str, actions: Sequence[str],
                  fps: float, frames: int):
@@ -338,6 +343,7 @@ class Method:
         return {
             "format": CHECKPOINT_FORMAT,
             "method": self.name,
+            "method_version": self.version,
             "config": self.config.to_dict(),
             "skeleton": self.skeleton,
             "actions": list(self.actions),
@@ -379,6 +385,14 @@ class Method:
             raise CheckpointError(
                 f"{path} holds a checkpoint of {method!r}, not of {cls.name!r}; load it with "
                 f"get_method({method!r}).load or load_checkpoint"
+            )
+        saved_version = checkpoint.get("method_version", 1)
+        if saved_version != cls.version:
+            raise CheckpointError(
+                f"{path} holds a {method} checkpoint of version {saved_version!r}, but this "
+                f"{method} is version {cls.version}"
+                + (f" ({cls.version_change})" if cls.version_change else "")
+                + f"; its weights do not fit: train it again with manage.py train {method}"
             )
         if skeleton is not None and checkpoint["skeleton"] != skeleton:
             raise CheckpointError(
