@@ -211,10 +211,24 @@ def test_frame_decoder_is_pretrained_then_frozen(name, clips):
     assert all(torch.equal(pretrained[k], v) for k, v in state().items())
 
 
-def test_c_skeleton_gan_trains_with_data_labels_too(clips):
-    model = build("c_skeleton_gan", real_label="data")
-    losses = model.fit(clips, iters=3, seed=0, progress=False)
-    assert set(losses) == {"d", "g", "omega", "ce"}
+@pytest.mark.parametrize("real_label", [None, "data", "classifier"])
+def test_c_skeleton_gan_discriminator_labels(clips, real_label):
+    """Algorithm 1 (the default): D sees one-hot data labels on real and generated pairs."""
+    changes = {} if real_label is None else {"real_label": real_label}
+    model = build("c_skeleton_gan", **changes)
+    assert model.config.real_label == (real_label or "data")
+    model.fit(clips, iters=model.config.pretrain_iters, seed=0, progress=False)
+    rows = []
+    hook = model.networks["discriminator"].register_forward_hook(
+        lambda module, inputs, output: rows.append(inputs[1].detach().clone()))
+    losses = model.fit(clips, iters=2, seed=0, progress=False)
+    hook.remove()
+    assert set(losses) == {"d", "g", "omega", "ce"} and rows
+    one_hot_rows = [bool(torch.all((r == 0) | (r == 1)) and torch.all(r.sum(-1) == 1)) for r in rows]
+    if model.config.real_label == "data":
+        assert all(one_hot_rows)
+    else:  # the real pair of each D update carries softmax C(x), not one-hot rows
+        assert not all(one_hot_rows)
 
 
 @pytest.mark.parametrize("name", METHODS)
