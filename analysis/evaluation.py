@@ -17,6 +17,11 @@ would bias these pairwise estimates) and compare them with every real clip of th
 action (seed 003: "real test sequences of action class j"). Per-action values are
 averaged over the actions drawn; an action with fewer than 2 distinct motions in a
 draw is left out of that repeat's average.
+
+Mode homogeneity (seed 001, Sec. 4.3.1) is measured on *real* clips grouped by the
+modes a model finds in its latent space: it reads the ``modes`` of the real test clips
+(one per clip, from the model that generated the motions), on each repeat's draw of
+test clips, and has no Real column.
 """
 
 from __future__ import annotations
@@ -37,11 +42,15 @@ NEEDS = {
     "accuracy": ("predictions", "an action classifier"),
     "diversity": ("features", "an action classifier"),
     "multimodality": ("features", "an action classifier"),
-    "mode_homogeneity": ("modes", "a mode index per motion (array 'modes' in the motions file)"),
+    "mode_homogeneity": ("modes", "the code mode of each real test clip (from the model that "
+                                  "made the motions, e.g. an odmo checkpoint)"),
     "dist_e": ("end_targets", "target end points (array 'end_targets' in the motions file)"),
 }
-# Metrics with no meaning for real data (real clips have no modes or targets).
+# Metrics with no Real column: targets belong to generated motions only, and mode
+# homogeneity is itself measured on real clips (by the modes of a model's latent space).
 GENERATED_ONLY = ("mode_homogeneity", "dist_e")
+# Metrics of the real test clips, with what the model says of them (their modes).
+OF_REAL_CLIPS = ("mode_homogeneity",)
 LOWER_IS_BETTER = ("fid", "mmd_avg", "mmd_seq", "dist_e")
 
 
@@ -51,8 +60,9 @@ class MotionSet:
 
     ``joints`` ``(N, T, J, D)``; ``labels`` ``(N,)`` action indices; optional
     ``features`` ``(N, F)`` and ``predictions`` ``(N,)`` of the action classifier,
-    ``modes`` ``(N,)``, ``end_targets`` and ``end_points`` ``(N, D)`` (reached end of the
-    root, relative to its start).
+    ``modes`` ``(N,)`` (of real clips: the mode of each clip's code in a model's latent
+    space), ``end_targets`` and ``end_points`` ``(N, D)`` (reached end of the root,
+    relative to its start).
     """
 
     joints: np.ndarray
@@ -108,7 +118,10 @@ def run(generated: MotionSet, test: MotionSet, train: MotionSet, metrics=None, r
     metrics = check_metrics(metrics)
     if int(repeats) != repeats or repeats < 1:
         raise M.MetricError(f"repeats must be a positive integer; got {repeats!r}")
-    skipped = {name: f"needs {generated.missing(name)}" for name in metrics if generated.missing(name)}
+    def lacking(name):
+        return (test if name in OF_REAL_CLIPS else generated).missing(name)
+
+    skipped = {name: f"needs {lacking(name)}" for name in metrics if lacking(name)}
     metrics = [name for name in metrics if name not in skipped]
     actions = np.unique(generated.labels)
     for name, real_set in (("test", test), ("train", train)):
@@ -136,7 +149,10 @@ def run(generated: MotionSet, test: MotionSet, train: MotionSet, metrics=None, r
                         test, draw["real"], train, draw["real_ref"], rng, diversity_pairs,
                         multimodality_pairs,
                     )
-    pairwise = [name for name in metrics if name not in _POINTWISE]
+    pairwise = [name for name in metrics if name not in _POINTWISE and name not in OF_REAL_CLIPS]
+    of_real = [name for name in metrics if name in OF_REAL_CLIPS]
+    if of_real:
+        values.update(_pairwise(test, train, [draw["ref"] for draw in draws], of_real, bandwidths))
     if pairwise:
         gen_draws = [draw["gen"] for draw in draws]
         real_draws = [draw["real"] for draw in draws]

@@ -30,7 +30,8 @@ METRICS = protocol.METRICS
 LOWER_IS_BETTER = protocol.LOWER_IS_BETTER
 
 
-# Optional arrays of an interchange file that some metrics need, one entry per motion.
+# Optional arrays of an interchange file that some metrics need, one entry per motion
+# (``modes`` are read back for the record; mode homogeneity groups real clips instead).
 EXTRAS = ("modes", "end_targets")
 
 
@@ -46,14 +47,17 @@ def read_extras(path: str | Path) -> dict[str, np.ndarray]:
 
 def evaluate(dataset: Dataset | str, motions: Sequence[Motion], classifier: ActionClassifier | None = None,
              metrics: Sequence[str] | None = None, repeats: int = 20, seed: int = 0, *,
-             modes=None, end_targets=None, data_root=None, diversity_pairs: int = 200,
+             real_modes=None, end_targets=None, data_root=None, diversity_pairs: int = 200,
              multimodality_pairs: int = 20, bandwidths=BANDWIDTHS) -> dict:
     """Return every metric's mean, 95 % CI and per-repeat values, with the Real values beside.
 
-    ``motions`` share one skeleton (the dataset's), length and frame rate. ``modes``
-    ``(N,)`` and ``end_targets`` ``(N, D)`` (reached end point: the root's last position
-    minus its first) enable mode homogeneity and dist_e. Metrics needing what is
-    absent (a classifier, modes, targets) are listed under ``skipped`` with the reason.
+    ``motions`` share one skeleton (the dataset's), length and frame rate.
+    ``real_modes`` maps a list of real clips to their modes ``(N,)`` in the latent space
+    of the model that made the motions (e.g. ``ODMO.clip_modes``): with it, mode
+    homogeneity is measured on the real test clips grouped by those modes (seed 001,
+    Sec. 4.3.1). ``end_targets`` ``(N, D)`` (the root end point each motion was asked to
+    reach, relative to its start) enable dist_e. Metrics needing what is absent (a
+    classifier, modes, targets) are listed under ``skipped`` with the reason.
     """
     data = get_dataset(dataset, data_root) if isinstance(dataset, str) else dataset
     try:
@@ -80,7 +84,12 @@ def evaluate(dataset: Dataset | str, motions: Sequence[Motion], classifier: Acti
                 f"for {', '.join(actions)} ({split.describe()}); check --data-root and the motions' length"
             )
         sets[key] = _motion_set(group, index, classifier, key)
-    sets["generated"].modes = _optional(modes, len(motions), "modes")
+    if real_modes is not None and "mode_homogeneity" in metrics:
+        try:
+            found = real_modes(test)
+        except ValueError as exc:  # MethodError: clips the model cannot encode
+            raise EvaluationError(f"cannot find the modes of the real test clips: {exc}") from None
+        sets["test"].modes = _optional(found, len(test), "modes of the real test clips")
     sets["generated"].end_targets = _optional(end_targets, len(motions), "end_targets")
     try:
         result = protocol.run(sets["generated"], sets["test"], sets["train"], metrics, repeats, seed,

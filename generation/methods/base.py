@@ -388,12 +388,7 @@ class Method:
             )
         saved_version = checkpoint.get("method_version", 1)
         if saved_version != cls.version:
-            raise CheckpointError(
-                f"{path} holds a {method} checkpoint of version {saved_version!r}, but this "
-                f"{method} is version {cls.version}"
-                + (f" ({cls.version_change})" if cls.version_change else "")
-                + f"; its weights do not fit: train it again with manage.py train {method}"
-            )
+            checkpoint = cls.upgrade_checkpoint(dict(checkpoint), saved_version, path)
         if skeleton is not None and checkpoint["skeleton"] != skeleton:
             raise CheckpointError(
                 f"{path} was trained on skeleton {checkpoint['skeleton']!r}, not {skeleton!r}; "
@@ -426,6 +421,20 @@ class Method:
         model.losses = dict(checkpoint.get("losses") or {})
         model.extras = to_arrays(checkpoint["extras"])
         return model
+
+    @classmethod
+    def upgrade_checkpoint(cls, checkpoint: dict, version, path: Path) -> dict:
+        """Return a checkpoint of an older ``version`` made readable, or raise :class:`CheckpointError`.
+
+        The default reads none: a method whose change kept old weights meaningful
+        overrides this (e.g. to fill in the config values the old version had).
+        """
+        raise CheckpointError(
+            f"{path} holds a {cls.name} checkpoint of version {version!r}, but this "
+            f"{cls.name} is version {cls.version}"
+            + (f" ({cls.version_change})" if cls.version_change else "")
+            + f"; its weights do not fit: train it again with manage.py train {cls.name}"
+        )
 
 
 def read_checkpoint(path: str | Path) -> dict:

@@ -211,7 +211,7 @@ def motion_set(n, seed, shift=0.0, classes=2):
 
 def test_protocol_reports_every_metric_with_mean_ci_and_real():
     generated, test, train = motion_set(24, 0, shift=0.5), motion_set(16, 1), motion_set(20, 2)
-    generated.modes = np.arange(24) % 3
+    test.modes = np.arange(16) % 3  # mode homogeneity groups the real test clips
     test.end_targets = train.end_targets = None
     result = evaluation.run(generated, test, train, repeats=3, seed=0)
     assert set(result["metrics"]) == set(evaluation.METRICS) and not result["skipped"]
@@ -239,12 +239,33 @@ def test_protocol_pairwise_values_equal_the_metrics_on_each_draw():
             M.fid(generated.features[draw["gen"]], test.features[draw["ref"]]), rel=1e-9)
 
 
+def test_protocol_mode_homogeneity_is_of_each_draw_of_real_test_clips():
+    """Seed 001, Sec. 4.3.1: real clips grouped by their code modes; no Real column."""
+    generated, test, train = motion_set(20, 0, shift=0.3), motion_set(18, 1), motion_set(12, 2)
+    test.modes = np.arange(18) % 3
+    result = evaluation.run(generated, test, train, ["mode_homogeneity"], repeats=3, seed=2)
+    row = result["metrics"]["mode_homogeneity"]
+    assert row["real"] is None
+    for r in range(3):
+        draw = evaluation._draw(generated, test, train, np.random.default_rng([2, r]))
+        distinct = np.unique(draw["ref"])
+        expected = M.mode_homogeneity(test.joints[distinct], test.labels[distinct], test.modes[distinct])
+        assert row["values"][r] == pytest.approx(expected, rel=1e-9)
+    shuffled = motion_set(20, 5, shift=2.0)  # other generated motions: the same value
+    again = evaluation.run(shuffled, test, train, ["mode_homogeneity"], repeats=3, seed=2)
+    assert again["metrics"]["mode_homogeneity"]["values"] == row["values"]
+
+
 def test_protocol_skips_metrics_lacking_inputs_and_rejects_unknown_ones():
     generated, test, train = motion_set(10, 0), motion_set(10, 1), motion_set(10, 2)
     generated.features = generated.predictions = None
     result = evaluation.run(generated, test, train, ["fid", "mmd_seq", "mode_homogeneity"], repeats=2)
     assert set(result["metrics"]) == {"mmd_seq"}
-    assert "classifier" in result["skipped"]["fid"] and "modes" in result["skipped"]["mode_homogeneity"]
+    assert "classifier" in result["skipped"]["fid"]
+    assert "mode of each real test clip" in result["skipped"]["mode_homogeneity"]
+    generated.modes = np.arange(10) % 2  # modes of generated motions do not stand in
+    assert "mode_homogeneity" in evaluation.run(generated, test, train, ["mode_homogeneity"],
+                                                repeats=1)["skipped"]
     with pytest.raises(M.MetricError, match="unknown metric 'fidd'"):
         evaluation.run(generated, test, train, ["fidd"])
 

@@ -101,8 +101,9 @@ def test_evaluate_measures_modes_and_end_targets_of_an_odmo_file(tmp_path):
     with np.load(motions_path) as data:
         modes, targets = data["modes"], data["end_targets"]
     assert modes.shape == (8,) and targets.shape == (8, 3) and np.allclose(targets[:, :2], [0.5, 0.2])
-    call_command("evaluate", "--dataset", "demo", "--motions", str(motions_path), "--metrics",
-                 "mode_homogeneity,dist_e", "--repeats", "2", "--json", str(result_path), verbosity=0)
+    call_command("evaluate", "--dataset", "demo", "--motions", str(motions_path), "--checkpoint",
+                 str(checkpoint), "--metrics", "mode_homogeneity,dist_e", "--repeats", "2",
+                 "--json", str(result_path), verbosity=0)
     result = json.loads(result_path.read_text())
     assert not result["skipped"]
     assert result["metrics"]["dist_e"]["mean"] >= 0

@@ -7,6 +7,7 @@ from django.core.management.base import BaseCommand, CommandError
 from generation.datasets import DatasetError, get_dataset
 from generation.evaluation import LOWER_IS_BETTER, METRICS, EvaluationError, evaluate, read_extras
 from generation.formats import npz
+from generation.methods import CheckpointError, Method
 from generation.motion import MotionError
 from generation.recognition import ActionClassifier, ClassifierError
 from generation.sampling import split_names
@@ -23,8 +24,12 @@ class Command(BaseCommand):
         parser.add_argument("--dataset", required=True, help="Dataset the motions imitate.")
         parser.add_argument("--data-root", help="Folder of the dataset (default: its usual place).")
         parser.add_argument("--motions", required=True,
-                            help="Interchange .npz (from `sample`); optional arrays 'modes' (N,) "
-                                 "and 'end_targets' (N, D) enable mode_homogeneity and dist_e.")
+                            help="Interchange .npz (from `sample`); an optional array "
+                                 "'end_targets' (N, D) enables dist_e.")
+        parser.add_argument("--checkpoint",
+                            help="Checkpoint of the model that made the motions, if it has modes "
+                                 "(odmo): mode_homogeneity groups the real test clips by the modes "
+                                 "of their codes (seed 001, Sec. 4.3.1); without it, it is skipped.")
         parser.add_argument("--classifier",
                             help="Classifier checkpoint (from `train_classifier`); without it fid, "
                                  "accuracy, diversity and multimodality are skipped.")
@@ -44,12 +49,13 @@ class Command(BaseCommand):
             motions = npz.load(options["motions"])
             extras = read_extras(options["motions"])
             classifier = ActionClassifier.load(options["classifier"]) if options["classifier"] else None
+            real_modes = self._real_modes(options["checkpoint"], dataset)
             result = evaluate(
                 dataset, motions, classifier, split_names(options["metrics"]) or None,
-                options["repeats"], options["seed"], modes=extras.get("modes"),
+                options["repeats"], options["seed"], real_modes=real_modes,
                 end_targets=extras.get("end_targets"),
             )
-        except npz.FormatError as exc:
+        except (npz.FormatError, CheckpointError) as exc:
             raise CommandError(str(exc)) from None
         except (EvaluationError, ClassifierError, DatasetError, MotionError) as exc:
             raise CommandError(f"cannot evaluate {options['motions']}: {exc}") from None
@@ -60,6 +66,17 @@ class Command(BaseCommand):
         out.write_text(json.dumps(result, indent=2, allow_nan=False) + "\n")
         self.stdout.write(self._table(result))
         self.stdout.write(f"wrote {out}")
+
+    @staticmethod
+    def _real_modes(path, dataset):
+        """Return the model's ``clip_modes`` (real clips -> modes), or ``None`` without a checkpoint."""
+        if not path:
+            return None
+        model = Method.load(path, skeleton=dataset.skeleton)
+        if not hasattr(model, "clip_modes"):
+            raise CommandError(f"--checkpoint {path} is a {model.name} model, which has no modes; "
+                               f"pass an odmo checkpoint or leave --checkpoint out")
+        return model.clip_modes
 
     def _table(self, result) -> str:
         lines = [
@@ -72,7 +89,8 @@ class Command(BaseCommand):
             arrow = " (lower is better)" if name in LOWER_IS_BETTER else ""
             lines.append(f"{name:<18}{_cell(row):>24}{_cell(row['real']):>24}{arrow}")
         for name, reason in result["skipped"].items():
-            hint = ": pass --classifier" if "classifier" in reason else ""
+            hint = (": pass --classifier" if "classifier" in reason
+                    else ": pass --checkpoint" if "mode of each real" in reason else "")
             lines.append(f"skipped {name}: {reason}{hint}")
         return "\n".join(lines)
 
