@@ -4,8 +4,8 @@ from pathlib import Path
 from django.conf import settings
 from django.core.management.base import BaseCommand, CommandError
 
-from generation.benchmark import BenchmarkError, run_benchmark
-from generation.benchmark_report import render
+from motion_metrics.benchmark import BenchmarkError, run_benchmark
+from motion_metrics.benchmark_report import render
 from generation.datasets import DatasetError
 from generation.methods import CheckpointError, MethodError, list_methods
 from generation.recognition import ClassifierError

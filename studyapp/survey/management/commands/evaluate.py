@@ -5,7 +5,7 @@ from pathlib import Path
 from django.core.management.base import BaseCommand, CommandError
 
 from generation.datasets import DatasetError, get_dataset
-from generation.evaluation import LOWER_IS_BETTER, METRICS, EvaluationError, evaluate, read_extras
+from motion_metrics.evaluate import LOWER_IS_BETTER, METRICS, EvaluationError, evaluate, read_extras
 from generation.formats import npz
 from generation.methods import CheckpointError, Method
 from generation.motion import MotionError

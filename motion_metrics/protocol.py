@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis import metrics as M
+from motion_metrics import metrics as M
 
 METRICS = (
     "fid", "accuracy", "diversity", "multimodality", "mmd_avg", "mmd_seq", "apd", "n_apd",

@@ -2,7 +2,7 @@
 
 This module checks that the motions fit the dataset and the classifier, turns motions
 into arrays (classifier features and predictions included) and hands them to the
-repeat/CI protocol of :mod:`analysis.evaluation`, which works on numpy arrays only.
+repeat/CI protocol of :mod:`motion_metrics.protocol`, which works on numpy arrays only.
 
 Real clips are the dataset's clips of the motions' length and frame rate, divided as the
 classifier was trained (held-out subjects or takes; without a classifier, the default
@@ -19,8 +19,8 @@ from typing import Sequence
 
 import numpy as np
 
-from analysis import evaluation as protocol
-from analysis.metrics import BANDWIDTHS, MetricError
+from motion_metrics import protocol
+from motion_metrics.metrics import BANDWIDTHS, MetricError
 from generation.datasets import Dataset, get_dataset
 from generation.motion import Motion
 from generation.recognition import ActionClassifier, ClassifierError, make_split

@@ -1,4 +1,4 @@
-"""Turn the results of :func:`generation.benchmark.run_benchmark` into ``docs/RESULTS.md``.
+"""Turn the results of :func:`motion_metrics.benchmark.run_benchmark` into ``docs/RESULTS.md``.
 
 Per data setting: how the data was split and the classifier trained, the methods'
 training within the budget, our numbers (mean ± 95 % CI) with the Real values beside
@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from datetime import datetime
 
-from generation.paper_numbers import TABLES, PaperTable
+from motion_metrics.paper_numbers import TABLES, PaperTable
 
 NAMES = {"mmd_avg": "MMD_avg ↓", "mmd_seq": "MMD_seq ↓", "accuracy": "accuracy ↑",
          "fid": "FID ↓", "diversity": "diversity →", "multimodality": "multimodality →"}
@@ -71,7 +71,7 @@ def _provenance(result: dict, command: str) -> list[str]:
     }
     summed = ", ".join(f"{name} {seconds / 60:.1f} min" for name, seconds in work.items() if seconds)
     return [
-        f"Written by `benchmark_methods` (`generation/benchmark.py`) on {when}, in "
+        f"Written by `benchmark_methods` (`motion_metrics/benchmark.py`) on {when}, in "
         f"{result['wall_seconds'] / 60:.1f} minutes of wall time{earlier}:",
         "",
         "```",
@@ -87,7 +87,7 @@ def _provenance(result: dict, command: str) -> list[str]:
         f"their CPU seconds show how much of a core each method got on the shared machine.",
         f"- Each method draws {result['n']} motions per action (seed {result['seed']}; seed 003 "
         f"drew 100 per class); metrics are the mean ± 95 % CI over {result['repeats']} repeats "
-        f"(A2M's protocol, `generation/evaluation.py`: motions and real clips drawn with "
+        f"(A2M's protocol, `motion_metrics/protocol.py`: motions and real clips drawn with "
         f"replacement per repeat). **Real** compares held-out clips with training clips, as "
         f"the papers' \"Real motions\" rows do.",
         "",

@@ -9,7 +9,7 @@ import torch
 from django.core.management import CommandError, call_command
 
 from generation.datasets import get_dataset
-from generation.evaluation import METRICS
+from motion_metrics.evaluate import METRICS
 from generation.formats import npz
 from generation.methods import get_method
 from generation.recognition import ActionClassifier

@@ -3,8 +3,8 @@
 What ``manage.py benchmark_methods`` runs. For each data setting (:data:`SETTINGS`) the
 action classifier is trained on the training subjects and measured on the held-out
 ones; then each method trains for ``budget`` seconds of wall time, draws ``n`` motions
-per action and is evaluated (:func:`generation.evaluation.evaluate`) with the metrics of
-the papers whose tables the setting compares with (:mod:`generation.paper_numbers`).
+per action and is evaluated (:func:`motion_metrics.evaluate.evaluate`) with the metrics of
+the papers whose tables the setting compares with (:mod:`motion_metrics.paper_numbers`).
 
 Everything lands in ``work``: per setting the classifier, and per method its checkpoint,
 its samples (``.npz``) and a record (``.json``) of the seconds spent, iterations and
@@ -30,7 +30,7 @@ from tqdm import tqdm
 
 from generation.datasets import get_dataset
 from generation.datasets.base import DATASETS
-from generation.evaluation import EvaluationError, evaluate
+from motion_metrics.evaluate import EvaluationError, evaluate
 from generation.formats import npz
 from generation.methods import Method, MethodError, get_method, list_methods
 from generation.motion import MotionError
@@ -57,7 +57,7 @@ class Setting:
     train_subjects: tuple[str, ...] | None
     test_subjects: tuple[str, ...] | None
     metrics: tuple[str, ...]
-    tables: tuple[str, ...]  # keys of generation.paper_numbers.TABLES
+    tables: tuple[str, ...]  # keys of motion_metrics.paper_numbers.TABLES
 
 
 SETTINGS = {
@@ -306,7 +306,7 @@ def run_benchmark(datasets: Sequence[str], budget: float, work: str | Path, *,
                   progress: bool = True, log: Callable[[str], None] | None = None) -> dict:
     """Benchmark ``methods`` (default: all) on each dataset; return the results (JSON-ready).
 
-    Also written to ``work/results.json``; :func:`generation.benchmark_report.render`
+    Also written to ``work/results.json``; :func:`motion_metrics.benchmark_report.render`
     turns them into Markdown.
     """
     methods = list(methods or list_methods())
