@@ -188,14 +188,16 @@ def train_within_budget(method: str, clips, actions: Sequence[str], budget: floa
 
     The checkpoint ``folder/<method>.pt`` and the record ``folder/<method>.json`` (seconds,
     CPU seconds, iterations) resume an interrupted run; a model whose record says the
-    budget is spent is loaded and returned as it is. Another recipe, seed or data starts
-    afresh. Methods with their own ``fit`` (ODMO fits its modes there) get one call of it
+    budget is spent is loaded and returned as it is. Another recipe, config (a changed
+    default included), method version, seed or data starts afresh. Methods with their own ``fit`` (ODMO fits its modes there) get one call of it
     with no iterations at the end, timed apart as ``finish_seconds``.
     """
     cls = get_method(method)
     checkpoint, record_path = folder / f"{method}.pt", folder / f"{method}.json"
     first = clips[0]
-    signature = {"method": method, "preset": recipe.preset, "changes": recipe.changes, "seed": seed,
+    # The full config and the method's version: a changed default or network retrains.
+    signature = {"method": method, "version": cls.version, "preset": recipe.preset,
+                 "changes": recipe.changes, "config": recipe.config(cls).to_dict(), "seed": seed,
                  "skeleton": first.skeleton, "frames": first.frames, "fps": first.fps,
                  "actions": list(actions), "clips": len(clips)}
     record = read_json(record_path)

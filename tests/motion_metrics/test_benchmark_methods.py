@@ -73,6 +73,20 @@ def test_training_resumes_to_a_larger_budget(tmp_path):
     assert model.iteration == second["iterations"] > done and second["seconds"] >= 0.6
 
 
+def test_training_restarts_when_the_config_or_version_changed(tmp_path):
+    """A record of another version or config (e.g. a changed default) is not resumed."""
+    clips = get_dataset("demo").clips(frames=12, max_per_take=1, actions=["walk", "run"])
+    recipe = Recipe("tiny")
+    model, first = train_within_budget("cond_gru", clips, ["walk", "run"], 0.2, tmp_path, recipe)
+    record_path = tmp_path / "cond_gru.json"
+    record = json.loads(record_path.read_text())
+    assert record["signature"]["version"] == 1 and "config" in record["signature"]
+    for stale in ({"version": 0}, {"config": {**record["signature"]["config"], "hidden": 1}}):
+        record_path.write_text(json.dumps({**record, "signature": {**record["signature"], **stale}}))
+        _, again = train_within_budget("cond_gru", clips, ["walk", "run"], 0.2, tmp_path, recipe)
+        assert not again["reused"] and again["signature"] == record["signature"]
+
+
 def test_npz_round_trips_modes_and_end_targets(tmp_path):
     motions = [make_motion(frames=6, seed=i) for i in range(3)]
     for i, motion in enumerate(motions):
