@@ -88,6 +88,7 @@ def test_evaluate_writes_every_metric_with_mean_and_ci(classifier, real_motions,
         if name not in ("mode_homogeneity", "dist_e"):
             assert isinstance(row["real"]["mean"], float) and row["real"]["ci"] >= 0, name
     assert result["n_motions"] == 24 and result["repeats"] == 3
+    assert result["protocol"]["name"] == "bootstrap"
     printed = capsys.readouterr().out
     assert "mmd_avg" in printed and "±" in printed and str(out) in printed
 
@@ -119,6 +120,30 @@ def test_evaluate_rejects_a_checkpoint_without_modes(classifier, real_motions, w
     with pytest.raises(CommandError, match="skeleton_vae model, which has no modes"):
         call_command("evaluate", "--dataset", "demo", "--motions", str(real_motions), "--checkpoint",
                      str(path), "--json", str(workdir / "x.json"))
+
+
+def test_evaluate_by_a2ms_protocol_samples_fresh_motions_per_repeat(classifier, workdir, capsys):
+    data = get_dataset("demo")
+    cls = get_method("cond_gru")
+    model = cls(cls.Config.preset("tiny"), data.skeleton, ["walk", "run"], 25.0, FRAMES)
+    model.fit(data.clips(frames=FRAMES, max_per_take=1, actions=["walk", "run"]), 2, progress=False)
+    checkpoint = model.save(workdir / "cond_gru.pt")
+    out = workdir / "a2m.json"
+    call_command("evaluate", "--dataset", "demo", "--protocol", "a2m", "--checkpoint", str(checkpoint),
+                 "--n", "10", "--classifier", str(classifier), "--metrics", "fid,accuracy,apd",
+                 "--repeats", "3", "--json", str(out))
+    result = json.loads(out.read_text())
+    assert result["protocol"]["name"] == "a2m" and result["n_motions"] == 10
+    assert result["actions"] == {"run": 5, "walk": 5}
+    assert result["protocol"]["real"] == "held-out clips against another draw of the held-out clips"
+    fid = result["metrics"]["fid"]
+    assert len(set(fid["values"])) == 3 and fid["real"]["mean"] is not None
+    printed = capsys.readouterr().out
+    assert "protocol a2m: Action2Motion's: a fresh set of motions per repeat" in printed
+    with pytest.raises(CommandError, match="pass --checkpoint and no --motions"):
+        call_command("evaluate", "--dataset", "demo", "--protocol", "a2m", "--json", str(out))
+    with pytest.raises(CommandError, match=r"pass --motions F.npz \(or --protocol a2m"):
+        call_command("evaluate", "--dataset", "demo", "--json", str(out))
 
 
 def test_evaluate_without_classifier_skips_feature_metrics(real_motions, workdir, capsys):

@@ -256,6 +256,42 @@ def test_protocol_mode_homogeneity_is_of_each_draw_of_real_test_clips():
     assert again["metrics"]["mode_homogeneity"]["values"] == row["values"]
 
 
+def test_a2m_protocol_uses_a_fresh_set_per_repeat_whole_and_real_resamples_the_test_clips():
+    test, train = motion_set(16, 1), motion_set(20, 2)
+    sets = [motion_set(12, 10 + r, shift=0.5) for r in range(3)]
+    names = ["fid", "accuracy", "mmd_seq", "apd"]
+    made = []
+
+    def fresh(r):
+        made.append(r)
+        return sets[r]
+
+    result = protocol.run(fresh, test, train, names, repeats=3, seed=1, real_reference="test")
+    assert made == [0, 1, 2]  # one set at a time, in order
+    assert result["protocol"]["generated"] == "a fresh set per repeat"
+    assert "held-out clips against another draw of the held-out clips" == result["protocol"]["real"]
+    assert protocol.run(sets, test, train, names, repeats=3, seed=1, real_reference="test") == result
+    for r, one in enumerate(sets):
+        draw = protocol._draw(one, test, test, np.random.default_rng([1, r]), resample=False)
+        assert sorted(draw["gen"]) == list(range(12))  # the whole set, once
+        row = result["metrics"]
+        assert row["fid"]["values"][r] == pytest.approx(M.fid(one.features, test.features[draw["ref"]]))
+        assert row["mmd_seq"]["values"][r] == pytest.approx(
+            M.mmd_seq(test.joints, one.joints, test.labels, one.labels), abs=1e-6)
+        assert row["apd"]["values"][r] == pytest.approx(
+            np.mean([M.apd(one.joints[one.labels == c]) for c in (0, 1)]), rel=1e-9)
+        # Real: a draw of test clips against another draw of the same test clips.
+        assert row["fid"]["real"]["values"][r] == pytest.approx(
+            M.fid(test.features[draw["real"]], test.features[draw["real_ref"]]))
+    default = protocol.run(sets[0], test, train, names, repeats=3, seed=1)
+    assert default["protocol"]["generated"] == "resampled with replacement per repeat"
+    assert default["protocol"]["real"] == "held-out clips against training clips"
+    with pytest.raises(M.MetricError, match="one MotionSet per repeat: 3 repeats, got 2"):
+        protocol.run(sets[:2], test, train, names, repeats=3)
+    with pytest.raises(M.MetricError, match="real_reference must be 'train' or 'test'"):
+        protocol.run(sets[0], test, train, names, real_reference="both")
+
+
 def test_protocol_skips_metrics_lacking_inputs_and_rejects_unknown_ones():
     generated, test, train = motion_set(10, 0), motion_set(10, 1), motion_set(10, 2)
     generated.features = generated.predictions = None
