@@ -213,11 +213,11 @@ class Method:
             )
         return torch.tensor([index[a] for a in actions], dtype=torch.long)
 
-    def _check_clips(self, clips: Sequence[Motion]) -> list[Motion]:
+    def _check_clips(self, clips: Sequence[Motion], kind: str = "training clip") -> list[Motion]:
         if not clips:
-            raise MethodError(f"{self.name} needs at least one training clip; got none")
+            raise MethodError(f"{self.name} needs at least one {kind}; got none")
         for i, clip in enumerate(clips):
-            where = f"training clip {i} ({clip.action!r}, {clip.meta or 'no provenance'})"
+            where = f"{kind} {i} ({clip.action!r}, {clip.meta or 'no provenance'})"
             if clip.skeleton != self.skeleton:
                 raise MethodError(
                     f"{where} has skeleton {clip.skeleton!r}, but this {self.name} model is "

@@ -305,10 +305,7 @@ class ODMO(Method):
         These group real clips for mode homogeneity (Sec. 4.3.1: "the set of real motion
         sequences belonging to mode k inside category c").
         """
-        clips = list(clips)
-        if not clips:
-            raise MethodError("clip_modes needs at least one clip")
-        clips = self._check_clips(clips)
+        clips = self._check_clips(list(clips), kind="real clip to find the mode of")
         data = self.encode(clips)
         encoder = self.networks["encoder"].eval()
         codes = torch.cat([encoder(data["lmp"][i:i + _ENCODE_CHUNK])[0]

@@ -228,3 +228,6 @@ def test_real_clips_get_the_mode_of_their_code(odmo, clips):
     counts = {a: len(found) for a, found in odmo.modes().items()}
     assert modes.shape == (len(clips),) and modes.dtype.kind == "i"
     assert all(0 <= k < counts[clip.action] for k, clip in zip(modes, clips))
+    short = get_dataset("demo").clips(frames=FRAMES - 2, max_per_take=1, actions=["walk"])[:1]
+    with pytest.raises(MethodError, match="real clip to find the mode of 0 .* fewer than the model's 12"):
+        odmo.clip_modes(short)
