@@ -30,12 +30,12 @@ from tqdm import tqdm
 
 from generation.datasets import get_dataset
 from generation.datasets.base import DATASETS
-from motion_metrics.evaluate import EvaluationError, evaluate
 from generation.formats import npz
 from generation.methods import Method, MethodError, get_method, list_methods
 from generation.motion import MotionError
 from generation.recognition import ActionClassifier, ClassifierError, one_thread, train_classifier
 from generation.skeletons import get_skeleton
+from motion_metrics.evaluate import EvaluationError, evaluate
 
 H36M_TRAIN = ("S1", "S5", "S6", "S7", "S8")
 H36M_TEST = ("S9",)  # the papers test on S11, which our copy of Human3.6M lacks

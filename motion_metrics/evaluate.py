@@ -22,12 +22,12 @@ from typing import Sequence
 
 import numpy as np
 
-from motion_metrics import protocol
-from motion_metrics.metrics import BANDWIDTHS, MetricError
 from generation.datasets import Dataset, get_dataset
 from generation.motion import Motion
 from generation.recognition import ActionClassifier, ClassifierError, make_split
 from generation.skeletons import get_skeleton
+from motion_metrics import protocol
+from motion_metrics.metrics import BANDWIDTHS, MetricError
 
 METRICS = protocol.METRICS
 LOWER_IS_BETTER = protocol.LOWER_IS_BETTER

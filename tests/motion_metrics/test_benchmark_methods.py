@@ -6,10 +6,10 @@ import numpy as np
 import torch
 from django.core.management import call_command
 
-from motion_metrics.benchmark import Recipe, train_within_budget
 from generation.datasets import get_dataset
 from generation.formats import npz
 from generation.methods import get_method
+from motion_metrics.benchmark import Recipe, train_within_budget
 from motion_metrics.paper_numbers import A2M_TABLE_1, SA_GCN_TABLE_2
 from tests.conftest import make_motion
 

@@ -9,11 +9,11 @@ import torch
 from django.core.management import CommandError, call_command
 
 from generation.datasets import get_dataset
-from motion_metrics.evaluate import METRICS
 from generation.formats import npz
 from generation.methods import get_method
 from generation.recognition import ActionClassifier
 from generation.sampling import sample_real
+from motion_metrics.evaluate import METRICS
 from tests.conftest import make_motion
 
 torch.set_num_threads(1)
