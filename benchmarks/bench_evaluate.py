@@ -3,7 +3,8 @@
     .venv/bin/python benchmarks/bench_evaluate.py [--dataset demo] [--data-root DIR]
 
 The motions are real clips of 60 frames drawn with replacement (375 per action for the
-8 demo actions), with random modes and end targets so that all ten metrics run. The
+8 demo actions), with random end targets and random modes of the real test clips so
+that all ten metrics run. The
 classifier is A2M's size (paper preset), trained for a few iterations: its accuracy
 does not matter here, only the cost of its forward pass.
 """
@@ -19,9 +20,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from generation.datasets import get_dataset  # noqa: E402
-from generation.evaluation import METRICS, evaluate  # noqa: E402
 from generation.recognition import train_classifier  # noqa: E402
 from generation.sampling import sample_real  # noqa: E402
+from motion_metrics.evaluate import METRICS, evaluate  # noqa: E402
 
 
 def main():
@@ -41,17 +42,20 @@ def main():
     per_action = args.motions // len(dataset.actions())
     motions = sample_real(dataset, None, per_action, frames=60, seed=1)
     rng = np.random.default_rng(0)
-    modes = rng.integers(0, 3, size=len(motions))
+
+    def modes(clips):  # stands in for a model's clip_modes
+        return np.random.default_rng(1).integers(0, 3, size=len(clips))
+
     targets = rng.normal(size=(len(motions), 3))
 
     start = time.perf_counter()
     result = evaluate(dataset, motions, classifier, METRICS, repeats=args.repeats, seed=0,
-                      modes=modes, end_targets=targets)
+                      real_modes=modes, end_targets=targets)
     total = time.perf_counter() - start
     for metric in METRICS:
         cost = time.perf_counter()
         evaluate(dataset, motions, classifier, [metric], repeats=args.repeats, seed=0,
-                 modes=modes, end_targets=targets)
+                 real_modes=modes, end_targets=targets)
         print(f"  {metric:<18}{time.perf_counter() - cost:6.1f} s (alone, including set-up)")
     print(f"{len(motions)} motions of {args.dataset}, 60 frames, all {len(result['metrics'])} metrics, "
           f"{args.repeats} repeats: {total:.1f} s")

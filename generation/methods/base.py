@@ -104,6 +104,11 @@ class Method:
     Config: ClassVar[type[MethodConfig]] = MethodConfig
     # Motions generated per forward pass; bounds sampling memory.
     sample_chunk: ClassVar[int] = 1024
+    # The version of a method's networks, saved in its checkpoints: raise it when a change
+    # makes old weights mean something else, and say what changed in ``version_change``.
+    # Checkpoints saved before versions were recorded are version 1.
+    version: ClassVar[int] = 1
+    version_change: ClassVar[str] = ""
 
     def __init__(self, config: MethodConfig | None, skeleton: str, actions: Sequence[str],
                  fps: float, frames: int):
@@ -208,11 +213,11 @@ class Method:
             )
         return torch.tensor([index[a] for a in actions], dtype=torch.long)
 
-    def _check_clips(self, clips: Sequence[Motion]) -> list[Motion]:
+    def _check_clips(self, clips: Sequence[Motion], kind: str = "training clip") -> list[Motion]:
         if not clips:
-            raise MethodError(f"{self.name} needs at least one training clip; got none")
+            raise MethodError(f"{self.name} needs at least one {kind}; got none")
         for i, clip in enumerate(clips):
-            where = f"training clip {i} ({clip.action!r}, {clip.meta or 'no provenance'})"
+            where = f"{kind} {i} ({clip.action!r}, {clip.meta or 'no provenance'})"
             if clip.skeleton != self.skeleton:
                 raise MethodError(
                     f"{where} has skeleton {clip.skeleton!r}, but this {self.name} model is "
@@ -338,6 +343,7 @@ class Method:
         return {
             "format": CHECKPOINT_FORMAT,
             "method": self.name,
+            "method_version": self.version,
             "config": self.config.to_dict(),
             "skeleton": self.skeleton,
             "actions": list(self.actions),
@@ -380,6 +386,9 @@ class Method:
                 f"{path} holds a checkpoint of {method!r}, not of {cls.name!r}; load it with "
                 f"get_method({method!r}).load or load_checkpoint"
             )
+        saved_version = checkpoint.get("method_version", 1)
+        if saved_version != cls.version:
+            checkpoint = cls.upgrade_checkpoint(dict(checkpoint), saved_version, path)
         if skeleton is not None and checkpoint["skeleton"] != skeleton:
             raise CheckpointError(
                 f"{path} was trained on skeleton {checkpoint['skeleton']!r}, not {skeleton!r}; "
@@ -412,6 +421,20 @@ class Method:
         model.losses = dict(checkpoint.get("losses") or {})
         model.extras = to_arrays(checkpoint["extras"])
         return model
+
+    @classmethod
+    def upgrade_checkpoint(cls, checkpoint: dict, version, path: Path) -> dict:
+        """Return a checkpoint of an older ``version`` made readable, or raise :class:`CheckpointError`.
+
+        The default reads none: a method whose change kept old weights meaningful
+        overrides this (e.g. to fill in the config values the old version had).
+        """
+        raise CheckpointError(
+            f"{path} holds a {cls.name} checkpoint of version {version!r}, but this "
+            f"{cls.name} is version {cls.version}"
+            + (f" ({cls.version_change})" if cls.version_change else "")
+            + f"; its weights do not fit: train it again with manage.py train {cls.name}"
+        )
 
 
 def read_checkpoint(path: str | Path) -> dict:

@@ -23,9 +23,12 @@ Choices where paper and code leave room, documented here:
   code draws uniform(-1, 1)); shifts are not clipped (the code clips them to [-1, 1]);
 - the frozen decoder runs in evaluation mode, so its batch normalisation uses the
   statistics of pretraining, and a motion does not depend on its batch;
-- ``real_label="classifier"`` (default, Eq. 5): D's real pair is ``(x, softmax C(x))``
-  and C is also trained adversarially to make it look fake; ``"data"`` (Algorithm 1
-  and [code]): D sees real clips with their labels;
+- ``real_label="data"`` (default; Algorithm 1 and [code]): D sees real clips with their
+  data labels and generated clips with the labels they were generated from, both
+  one-hot; ``"classifier"`` (an option, Eq. 5): D's real pair is ``(x, softmax C(x))``
+  and C is also trained adversarially to make it look fake. Under ``"classifier"`` the
+  real pairs carry soft rows and the fake pairs one-hot rows, so D can tell them apart
+  by the label's format alone;
 - GAN terms are non-saturating binary cross-entropy; one D update, then one G/C update;
 - D and C read ``(x_t, x_{t+1} - x_t)`` per step (D also ``y``), as in the code; their
   head reads the last forward and first backward LSTM states (the code concatenates
@@ -87,7 +90,7 @@ class CSkeletonGANConfig(MethodConfig):
     sigma_latent: float = 0.05  # σ1
     sigma_pose: float = 5e-5  # σ2
     gamma: float = 0.1  # weight of the classification (cycle-consistency) terms
-    real_label: str = "classifier"  # "classifier": Eq. 5; "data": Algorithm 1 and code
+    real_label: str = "data"  # "data": Algorithm 1 and code; "classifier": Eq. 5
 
     def validate(self) -> None:
         super().validate()

@@ -31,11 +31,23 @@ from it and ``r_e`` is the end of the real clip whose code is nearest. Options:
   than the skeleton's up axis, in order; the height is the nearest real clip's). One
   point, or one row per motion. :meth:`ODMO.end_distance` gives ``dist_e``.
 
-Two additions make customisation work without the paper's long training (with the
-paper's architecture alone, a few hundred iterations learn to ignore ``r_e``): ``Gr``
-spreads its miss ``r_e - Σ v̂`` evenly over its velocities, so ``r̂`` ends exactly at
-``r_e`` (``L_r`` compares these velocities), and the decoder predicts each pose about
-``r̂_t`` (a skip connection), so ``dist_e`` measures how far the root strays from it.
+Two additions, not in the paper, make customisation work without the paper's long
+training (with the paper's architecture alone, a few hundred iterations learn to ignore
+``r_e``); both are options, off in the ``paper`` preset and on in ``demo`` and ``tiny``:
+
+- ``exact_end``: ``Gr`` spreads its miss ``r_e - Σ v̂`` evenly over its velocities, so
+  ``r̂`` ends exactly at ``r_e`` (``L_r`` compares these velocities);
+- ``pose_about_path``: the decoder predicts each pose about ``r̂_t`` (a skip
+  connection), so the root follows the path unless the decoder learns otherwise.
+
+With both on, trajectory customisation and a small ``dist_e`` hold by construction
+rather than by learning; results of such a model say nothing about the paper's
+``dist_e``. Checkpoints saved before the options existed had both on and load so.
+
+Mode homogeneity (Sec. 4.3.1) is a property of the latent space measured on real clips:
+:meth:`ODMO.clip_modes` puts each real clip in the mode of its action whose Gaussian
+explains its code ``μ`` best, and the evaluation compares the APD of the real clips of an
+action with their APD within those modes.
 
 Where paper and code leave room: the up axis weighs ``up_weight = 5`` in ``L_mre`` and
 ``L_r`` ([code], HumanAct12); teacher forcing is drawn per clip and frame at a rate
@@ -74,9 +86,11 @@ class ODMOConfig(MethodConfig):
     PRESETS: ClassVar[dict[str, dict]] = {
         "paper": {},
         "demo": {"batch_size": 32, "hidden": 64, "feature": 128, "encoder_hidden": 32,
-                 "teacher_forcing_iters": 1000, "min_mode_size": 5},
+                 "teacher_forcing_iters": 1000, "min_mode_size": 5, "exact_end": True,
+                 "pose_about_path": True},
         "tiny": {"batch_size": 8, "hidden": 16, "feature": 16, "encoder_hidden": 8, "latent": 4,
-                 "teacher_forcing_iters": 10, "min_mode_size": 2, "gmm_restarts": 1},
+                 "teacher_forcing_iters": 10, "min_mode_size": 2, "gmm_restarts": 1,
+                 "exact_end": True, "pose_about_path": True},
     }
 
     batch_size: int = 512  # [code], HumanAct12; each clip anchors one pair
@@ -100,6 +114,8 @@ class ODMOConfig(MethodConfig):
     min_mode_size: int = 10
     gmm_restarts: int = 5  # [code]
     gmm_reg: float = 1e-6  # added to covariance diagonals
+    exact_end: bool = False  # not in the paper: the path is made to end exactly at r_e
+    pose_about_path: bool = False  # not in the paper: poses are predicted about r̂_t
 
     def validate(self) -> None:
         super().validate()
@@ -114,6 +130,9 @@ class ODMOConfig(MethodConfig):
                 raise ValueError(f"{name}.{field} must be in [0, 1]; got {getattr(self, field)}")
         if self.prior_variance <= 0:
             raise ValueError(f"{name}.prior_variance must be positive")
+        for field in ("exact_end", "pose_about_path"):
+            if not isinstance(getattr(self, field), bool):
+                raise ValueError(f"{name}.{field} must be true or false; got {getattr(self, field)!r}")
         if not 2 <= self.k_min <= self.k_max:
             raise ValueError(f"{name} needs 2 <= k_min <= k_max; got {self.k_min}, {self.k_max}")
 
@@ -123,6 +142,8 @@ class ODMO(Method):
     """ODMO: contrastive LMP codes, trajectory then motion; mode-aware sampling (GMM per action)."""
 
     Config = ODMOConfig
+    # Version 2 made exact_end and pose_about_path options; version 1 always had both.
+    version = 2
     # One call sees every motion of a request, as interpolation spreads codes over them.
     sample_chunk: ClassVar[int] = 1 << 20
     # odmo_conv: one Gaussian per action instead of the discovered modes.
@@ -142,9 +163,21 @@ class ODMO(Method):
         return {
             "encoder": LMPEncoder(self.pose_width - skeleton.dims, cfg.encoder_hidden, cfg.feature,
                                   cfg.latent),
-            "trajectory": TrajectoryGenerator(condition, skeleton.dims, cfg.hidden, cfg.layers),
-            "motion": MotionGenerator(self.pose_width, condition, skeleton.dims, cfg.hidden, cfg.layers),
+            "trajectory": TrajectoryGenerator(condition, skeleton.dims, cfg.hidden, cfg.layers,
+                                              exact_end=cfg.exact_end),
+            "motion": MotionGenerator(self.pose_width, condition, skeleton.dims, cfg.hidden, cfg.layers,
+                                      about_path=cfg.pose_about_path),
         }
+
+    @classmethod
+    def upgrade_checkpoint(cls, checkpoint, version, path):
+        """Read version 1 checkpoints: the same networks, with both additions always on."""
+        if version != 1:
+            return super().upgrade_checkpoint(checkpoint, version, path)
+        config = dict(checkpoint["config"])
+        config.setdefault("exact_end", True)
+        config.setdefault("pose_about_path", True)
+        return {**checkpoint, "config": config}
 
     def build_optimizers(self):
         params = [p for net in self.networks.values() for p in net.parameters()]
@@ -264,6 +297,25 @@ class ODMO(Method):
                     codes[mine], rng, cfg.k_min, cfg.k_max, cfg.silhouette_ratio,
                     cfg.min_mode_size, cfg.gmm_restarts, cfg.gmm_reg)
         return out
+
+    @torch.no_grad()
+    def clip_modes(self, clips: Sequence[Motion]) -> np.ndarray:
+        """Return the mode ``(N,)`` of each real clip: of its action, the likeliest for its code ``μ``.
+
+        These group real clips for mode homogeneity (Sec. 4.3.1: "the set of real motion
+        sequences belonging to mode k inside category c").
+        """
+        clips = self._check_clips(list(clips), kind="real clip to find the mode of")
+        data = self.encode(clips)
+        encoder = self.networks["encoder"].eval()
+        codes = torch.cat([encoder(data["lmp"][i:i + _ENCODE_CHUNK])[0]
+                           for i in range(0, len(clips), _ENCODE_CHUNK)]).double().numpy()
+        fitted = self._fitted_modes()
+        missing = sorted({self.actions[i] for i in data["label"].unique().tolist()} - set(fitted))
+        if missing:
+            raise MethodError(f"{self.name} has no modes of action {', '.join(missing)}: its "
+                              f"training clips had none")
+        return self._likeliest_modes(data["label"], codes)
 
     def modes(self) -> dict[str, list[dict]]:
         """Return each action's modes: ``{"mode": k, "size": clips, "weight": share}``, largest first."""

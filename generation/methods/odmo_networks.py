@@ -1,9 +1,10 @@
 """ODMO's networks (seed 001, Table S2): LMP encoder, trajectory generator, motion generator.
 
-Two choices make trajectory customisation hold at any training budget (see
-:mod:`generation.methods.odmo`): the trajectory generator's last step spreads the miss
-``r_e - Σ v̂`` evenly over its velocities, so the path ends exactly at ``r_e``; the
-motion decoder predicts each pose about the guide point ``r̂_t`` (a skip connection).
+Two options, not in the paper, make trajectory customisation hold at any training budget
+(see :mod:`generation.methods.odmo`): with ``exact_end`` the trajectory generator's last
+step spreads the miss ``r_e - Σ v̂`` evenly over its velocities, so the path ends exactly
+at ``r_e``; with ``about_path`` the motion decoder predicts each pose about the guide
+point ``r̂_t`` (a skip connection).
 """
 
 from __future__ import annotations
@@ -37,8 +38,9 @@ def time_counter(batch: int, frames: int) -> torch.Tensor:
 class TrajectoryGenerator(nn.Module):
     """``Gr(c, z, r_e)``: root velocities ``(B, T, D)`` of a condition and an end location."""
 
-    def __init__(self, condition: int, dims: int, hidden: int, layers: int):
+    def __init__(self, condition: int, dims: int, hidden: int, layers: int, exact_end: bool = False):
         super().__init__()
+        self.exact_end = exact_end
         self.embed = nn.Sequential(nn.Linear(condition + dims + 1, hidden), nn.PReLU(),
                                    nn.Linear(hidden, hidden))
         self.lstm = nn.LSTM(hidden, hidden, layers, batch_first=True)
@@ -52,6 +54,8 @@ class TrajectoryGenerator(nn.Module):
         steps = torch.cat([static, time_counter(len(condition), frames)], dim=-1)
         out, _ = self.lstm(self.embed(steps))
         velocity = self.head(out)
+        if not self.exact_end:
+            return velocity
         # Spread the miss evenly over the steps, so the path ends exactly at ``end``.
         return velocity + (end - velocity.sum(dim=1))[:, None] / frames
 
@@ -59,8 +63,10 @@ class TrajectoryGenerator(nn.Module):
 class MotionGenerator(nn.Module):
     """Trajectory encoder whose state starts an autoregressive pose decoder."""
 
-    def __init__(self, pose: int, condition: int, dims: int, hidden: int, layers: int):
+    def __init__(self, pose: int, condition: int, dims: int, hidden: int, layers: int,
+                 about_path: bool = False):
         super().__init__()
+        self.about_path = about_path
         self.trajectory_embed = nn.Sequential(nn.Linear(dims, hidden), nn.PReLU())
         self.trajectory_lstm = nn.LSTM(hidden, hidden, layers, batch_first=True)
         self.embed = nn.Sequential(nn.Linear(pose + condition + 1, hidden), nn.PReLU())
@@ -79,8 +85,9 @@ class MotionGenerator(nn.Module):
         for t in range(frames):
             step = self.embed(torch.cat([previous, condition, counter[:, t]], dim=-1))
             hidden, state = self.lstm(step[:, None], state)
-            # Poses are predicted about the guide path (a skip connection): r̂_t + offsets.
-            pose = self.out(hidden[:, 0]) + trajectory[:, t].repeat(1, joints)
+            pose = self.out(hidden[:, 0])
+            if self.about_path:  # poses about the guide path (a skip connection): r̂_t + offsets
+                pose = pose + trajectory[:, t].repeat(1, joints)
             outputs.append(pose)
             previous = pose if teacher is None else torch.where(teacher[:, t, None], target[:, t], pose)
         return torch.stack(outputs, dim=1)

@@ -11,7 +11,7 @@ Generator (Sec. 3.1-3.2), per motion of T frames:
    the top 5 of the row, its own frame included); the sequence graph is
    ``Ã_s = S_mask ⊙ Ã``: frame t's skeleton ``Ā = A + I`` weighted ``s_tt``, and joint j
    of frame t linked to joint j of each kept past frame t' with weight ``s_tt'`` (Eq. 6);
-4. five graph convolutions ``H' = D⁻¹ Ã_s H W`` (Eq. 7), widths 32, 64, 64, 128, 128,
+4. five graph convolutions ``H' = D⁻¹ (Ã_s + I) H W`` (Eq. 7, with a self-loop added), widths 32, 64, 64, 128, 128,
    residual connections 1 -> 3 and 3 -> 5, then a linear output per joint.
 
 The graph is never built as the dense ``NT × NT`` matrix: ``Ã_s = diag(s_tt) ⊗ Ā +
@@ -34,8 +34,12 @@ Choices where the paper is silent, documented here ([code]: the authors' code):
   ReLU between (the code feeds the class row beside ``c_t``); ReLU after each graph
   convolution (the code: none); residual branches are linear projections; Eq. 7 as
   written (the code adds a learned dense ``NT × NT`` map after each convolution);
-- one attention head with ``Q, K, V = W H`` of width F and no residual (Eq. 3-4; the code
-  uses 3 heads and a gated residual);
+- one attention head with ``Q, K, V = W H`` of width F (Eq. 3-4; the code uses 3 heads
+  and a gated residual); queries and keys see ``LayerNorm(H)`` and the output is the gated
+  residual ``H + γ S V`` (``γ`` learned, starting at 0), and every node of the sequence
+  graph keeps a self-loop of weight 1 beside Eq. 6's ``s_tt Ā`` (see
+  :class:`CausalSelfAttention` and :class:`SequenceGraph`: without them the attention
+  saturated on one frame and the generator collapsed; version 2 of the method);
 - the discriminators follow the code: per frame ``F -> 1024 -> 1024``, the label
   joined, ``-> 1024 -> 128`` (LeakyReLU 0.2); D_V then a temporal convolution (width 3)
   to one score per frame and a linear layer over the T frames; D_F a score per frame
@@ -132,28 +136,48 @@ def temporal_neighbours(scores: torch.Tensor, k: int) -> tuple[torch.Tensor, tor
 
 
 class CausalSelfAttention(nn.Module):
-    """Scaled dot-product attention over frames, each frame seeing itself and its past."""
+    """Scaled dot-product attention over frames, each frame seeing itself and its past.
+
+    Eq. 3-4 as written (``Q, K, V = W H``, ``H_in = S V``) collapsed in training: ``H`` is
+    built from the cumulative sum ``c_t``, whose size grows with ``t``, so the logits grew
+    with time (their spread went from about 47 to 531 over training) and every row put
+    nearly all its weight on one frame; with ``H_in = S V`` and nothing else, every frame
+    then carried that frame's features and all samples of a class looked alike. Two
+    changes (not in the paper):
+
+    - queries and keys are computed from ``LayerNorm(H)``, so the logits do not scale
+      with the size of ``c_t``; values are ``W_v H`` as in Eq. 3;
+    - a gated residual ``H_in = H + γ S V`` with a learned scalar ``γ`` starting at 0
+      (as in SAGAN-style attention), so each frame keeps its own features and the
+      attention's contribution is learned.
+    """
 
     def __init__(self, features: int):
         super().__init__()
+        self.norm = nn.LayerNorm(features)
         self.query = nn.Linear(features, features)
         self.key = nn.Linear(features, features)
         self.value = nn.Linear(features, features)
+        self.gate = nn.Parameter(torch.zeros(()))  # γ
 
     def forward(self, frames: torch.Tensor):
-        """Return ``S_mask`` ``(B, T, T)`` and ``H_in = S V`` ``(B, T, F)`` of frames ``(B, T, F)``."""
+        """Return ``S_mask`` ``(B, T, T)`` and ``H_in = H + γ S V`` ``(B, T, F)`` of ``H`` ``(B, T, F)``."""
         length, width = frames.shape[1:]
-        logits = self.query(frames) @ self.key(frames).transpose(1, 2) / width ** 0.5
+        normed = self.norm(frames)
+        logits = self.query(normed) @ self.key(normed).transpose(1, 2) / width ** 0.5
         future = torch.ones(length, length, dtype=torch.bool).triu(1)
         scores = logits.masked_fill(future, float("-inf")).softmax(dim=-1)
-        return scores, scores @ self.value(frames)
+        return scores, frames + self.gate * (scores @ self.value(frames))
 
 
 class SequenceGraph:
-    """The normalised sequence graph ``D⁻¹ Ã_s`` of a batch, in Kronecker-factored form.
+    """The normalised sequence graph ``D⁻¹ (Ã_s + I)`` of a batch, in Kronecker-factored form.
 
-    ``Ã_s = diag(s_tt) ⊗ Ā + P ⊗ I``, where ``P`` ``(B, T, T)`` holds each frame's kept
-    past scores (at most ``k`` per row); the ``NT × NT`` matrix is never formed.
+    ``Ã_s = diag(s_tt) ⊗ Ā + P ⊗ I`` (Eq. 6), where ``P`` ``(B, T, T)`` holds each
+    frame's kept past scores (at most ``k`` per row); the ``NT × NT`` matrix is never
+    formed. In Eq. 6 a node's only self-loop is the one in ``s_tt Ā``, so a frame whose
+    own score ``s_tt`` goes to 0 loses its own joints and copies its past; here every
+    node also keeps a self-loop of weight 1 (``+ I``, not in the paper).
     """
 
     def __init__(self, scores: torch.Tensor, adjacency: torch.Tensor, k: int):
@@ -162,16 +186,16 @@ class SequenceGraph:
         # Padding entries point at frame 0 with weight 0; adding keeps real links intact.
         self.past = torch.zeros_like(scores).scatter_add(-1, index, weight)
         own = scores.diagonal(dim1=1, dim2=2)[..., None]  # s_tt, (B, T, 1)
-        degree = own * adjacency.sum(-1) + weight.sum(-1, keepdim=True)  # (B, T, J)
-        degree = degree.clamp_min(1e-12)  # an underflowed row keeps a zero, not a NaN
+        # Degrees of Ã_s + I: the own frame's Ā row, the kept past frames, the self-loop.
+        degree = own * adjacency.sum(-1) + weight.sum(-1, keepdim=True) + 1.0  # (B, T, J)
         self.own = (own / degree)[..., None]  # (B, T, J, 1)
         self.inverse_degree = (1 / degree)[..., None]
 
     def aggregate(self, nodes: torch.Tensor) -> torch.Tensor:
-        """Return ``D⁻¹ Ã_s H`` for node features ``H`` ``(B, T, J, F)``."""
+        """Return ``D⁻¹ (Ã_s + I) H`` for node features ``H`` ``(B, T, J, F)``."""
         spatial = self.adjacency @ nodes
         temporal = (self.past @ nodes.flatten(2)).view_as(nodes)
-        return self.own * spatial + self.inverse_degree * temporal
+        return self.own * spatial + self.inverse_degree * (temporal + nodes)
 
 
 class SAGCNGenerator(nn.Module):
@@ -214,7 +238,7 @@ class SAGCNGenerator(nn.Module):
         hidden = nodes.unflatten(-1, (self.joints, self.dims))
         outputs = []
         for i, layer in enumerate(self.convolutions):
-            # Rows of D⁻¹Ã_s sum to 1, so aggregation commutes with W and its bias:
+            # Rows of D⁻¹(Ã_s + I) sum to 1, so aggregation commutes with W and its bias:
             # aggregate the narrower side.
             if layer.in_features < layer.out_features:
                 hidden = torch.relu(layer(graph.aggregate(hidden)))
@@ -275,6 +299,9 @@ class SAGCN(SoftLabelSampling, PoseVectors, Method):
     """SA-GCN: GRU of residuals, causal attention sparsifying a skeleton-sequence graph, GCN."""
 
     Config = SAGCNConfig
+    version = 2
+    version_change = ("version 2 normalises the attention's queries and keys, adds a gated "
+                      "residual and a self-loop per node")
     # Node features are (B, T, J, 128): small chunks stay in cache (measured: 1,000
     # motions of 60 frames take 14 s in one chunk of 1,024 and 3.5 s in chunks of 32).
     sample_chunk = 32

@@ -176,3 +176,58 @@ def test_sample_command_lists_and_uses_modes(tmp_path, capsys):
         call_command("sample", "a2m", "--checkpoint", str(a2m), "--action", "walk", "--list-modes")
     with pytest.raises(CommandError, match="--out"):
         call_command("sample", "odmo", "--checkpoint", str(checkpoint), "--action", "walk")
+
+
+def test_paper_preset_has_neither_addition_and_demo_has_both():
+    cls = get_method("odmo")
+    paper, demo = cls.Config.preset("paper"), cls.Config.preset("demo")
+    assert (paper.exact_end, paper.pose_about_path) == (False, False)
+    assert (demo.exact_end, demo.pose_about_path) == (True, True)
+    with pytest.raises(ValueError, match="exact_end must be true or false"):
+        cls.Config(exact_end="yes")
+
+
+@pytest.mark.parametrize("exact_end", [False, True])
+@pytest.mark.parametrize("pose_about_path", [False, True])
+def test_end_and_path_options(clips, exact_end, pose_about_path):
+    """Only with exact_end does the guide path end at r_e whatever the training."""
+    model = build("odmo", exact_end=exact_end, pose_about_path=pose_about_path)
+    model.fit(clips, iters=2, seed=0, progress=False)
+    labels = torch.tensor([0, 1, 2])
+    condition = model.condition(labels, torch.randn(3, model.config.latent))
+    end = torch.tensor([[0.7, -0.4, 0.1]] * 3)
+    motion = model.networks["motion"]
+    with torch.no_grad():
+        path = model.networks["trajectory"](condition, end, FRAMES).cumsum(dim=1)
+        poses = motion(path, condition)
+        motion.about_path = not pose_about_path  # the same weights, the other choice
+        other = motion(path, condition)
+        motion.about_path = pose_about_path
+    assert torch.allclose(path[:, -1], end, atol=1e-5) == exact_end
+    # pose_about_path adds r̂_t to every joint of the first decoded pose (later poses differ
+    # through the fed-back previous pose too).
+    about, plain = (poses, other) if pose_about_path else (other, poses)
+    assert torch.allclose(about[:, 0] - plain[:, 0], path[:, 0].repeat(1, about.shape[-1] // 3), atol=1e-5)
+    steered = model.sample(["walk", "wave"], seed=1, end=[0.7, -0.4])
+    assert np.isfinite(joints_of(steered)).all()
+
+
+def test_checkpoints_before_the_options_load_with_both_on(odmo, tmp_path):
+    checkpoint = odmo.to_checkpoint()
+    del checkpoint["method_version"]
+    for key in ("exact_end", "pose_about_path"):
+        del checkpoint["config"][key]
+    torch.save(checkpoint, tmp_path / "old.pt")
+    old = get_method("odmo").load(tmp_path / "old.pt")
+    assert old.config.exact_end and old.config.pose_about_path
+    assert np.array_equal(joints_of(old.sample(["walk"], seed=3)), joints_of(odmo.sample(["walk"], seed=3)))
+
+
+def test_real_clips_get_the_mode_of_their_code(odmo, clips):
+    modes = odmo.clip_modes(clips)
+    counts = {a: len(found) for a, found in odmo.modes().items()}
+    assert modes.shape == (len(clips),) and modes.dtype.kind == "i"
+    assert all(0 <= k < counts[clip.action] for k, clip in zip(modes, clips))
+    short = get_dataset("demo").clips(frames=FRAMES - 2, max_per_take=1, actions=["walk"])[:1]
+    with pytest.raises(MethodError, match="real clip to find the mode of 0 .* fewer than the model's 12"):
+        odmo.clip_modes(short)

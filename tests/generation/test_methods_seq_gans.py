@@ -8,6 +8,7 @@ from django.core.management import call_command
 from generation.datasets import get_dataset
 from generation.formats import npz
 from generation.methods import MethodError, get_method
+from generation.methods.base import CheckpointError
 from generation.methods.sa_gcn import (
     CausalSelfAttention,
     SequenceGraph,
@@ -67,7 +68,7 @@ def test_sa_gcn_attention_is_causal_and_keeps_the_top_5_past_frames():
 
 
 def test_sa_gcn_sparse_graph_equals_the_dense_sequence_graph():
-    """D⁻¹ Ã_s H computed sparsely equals Eq. 6-7 with the full NT x NT matrix."""
+    """D⁻¹ (Ã_s + I) H computed sparsely equals Eq. 6-7 (plus self-loops) with the NT x NT matrix."""
     torch.manual_seed(1)
     skeleton = get_skeleton("h36m15_2d")
     adjacency = skeleton_adjacency(skeleton)
@@ -83,10 +84,60 @@ def test_sa_gcn_sparse_graph_equals_the_dense_sequence_graph():
             mask[t].index_put_((index[b, t],), weight[b, t], accumulate=True)
         # Ã_s = S_mask ⊙ Ã: Ā on the diagonal blocks, I off the diagonal.
         dense = torch.kron(torch.diag(mask.diagonal()), adjacency) + torch.kron(
-            mask - torch.diag(mask.diagonal()), torch.eye(joints))
+            mask - torch.diag(mask.diagonal()), torch.eye(joints)) + torch.eye(frames * joints)
         normalised = dense / dense.sum(-1, keepdim=True)
         expected = (normalised @ nodes[b].reshape(frames * joints, -1)).reshape(frames, joints, -1)
         assert torch.allclose(sparse[b], expected, atol=1e-5)
+
+
+def test_sa_gcn_attention_starts_as_the_identity_and_nodes_keep_their_own_frame():
+    torch.manual_seed(2)
+    attention = CausalSelfAttention(6)
+    frames = torch.randn(2, 7, 6) * torch.arange(1, 8)[:, None]  # growing, like c_t
+    scores, nodes = attention(frames)
+    assert torch.equal(nodes, frames)  # γ = 0: H_in = H + γ S V starts as H
+    # A frame whose own score is 0 still keeps its joints through the self-loop.
+    skeleton = get_skeleton("h36m15_2d")
+    joints = skeleton.n_joints
+    scores = torch.zeros(1, 4, 4)
+    scores[0, :, 0] = 1.0  # every frame attends only to frame 0
+    hidden = torch.randn(1, 4, joints, 3)
+    out = SequenceGraph(scores, skeleton_adjacency(skeleton), 3).aggregate(hidden)
+    assert torch.allclose(out[0, 3], (hidden[0, 3] + hidden[0, 0]) / 2, atol=1e-6)
+
+
+def test_sa_gcn_attention_does_not_saturate_in_training(clips):
+    """The collapse of the unnormalised layer: its rows put ~all weight on one frame."""
+    frames = 24
+    long_clips = get_dataset("demo").clips(frames=frames, max_per_take=1, actions=ACTIONS)
+    model = build("sa_gcn", frames=frames)
+    model.fit(long_clips, iters=120, seed=0, progress=False)  # the old layer: row max 0.999
+    generator = model.networks["generator"]
+    classes = torch.zeros(16, len(ACTIONS))
+    classes[:, 0] = 1.0
+    noise = torch.randn(16, frames, model.config.noise, generator=torch.Generator().manual_seed(1))
+    with torch.no_grad():
+        scores, _ = generator.attention(generator.frames(classes, noise))
+    late = scores[:, frames // 2:]  # rows with at least 12 frames to choose from
+    assert late.max(-1).values.mean() < 0.5
+    assert late[..., 0].max() < 0.5  # no row gives (nearly) all its weight to frame 0
+    walks = joints(model.sample(["walk"] * 8, frames=frames, seed=3))
+    # Samples of one class differ (early in training a GAN's spread is small either way;
+    # the collapse shows as the saturated attention above).
+    assert walks.std(axis=0).mean() > 1e-4
+    assert not any(np.allclose(walks[0], other, atol=1e-5) for other in walks[1:])
+
+
+def test_sa_gcn_checkpoints_of_the_old_layer_are_a_clear_error(clips, tmp_path):
+    model = build("sa_gcn")
+    model.fit(clips, iters=1, progress=False)
+    checkpoint = model.to_checkpoint()
+    del checkpoint["method_version"]  # saved before versions were recorded: version 1
+    torch.save(checkpoint, tmp_path / "old.pt")
+    with pytest.raises(CheckpointError, match="sa_gcn checkpoint of version 1.*is version 2.*"
+                                              "train it again"):
+        get_method("sa_gcn").load(tmp_path / "old.pt")
+    assert get_method("sa_gcn").load(model.save(tmp_path / "new.pt")).iteration == 1
 
 
 def test_sa_gcn_adjacency_follows_the_bones():
@@ -160,10 +211,24 @@ def test_frame_decoder_is_pretrained_then_frozen(name, clips):
     assert all(torch.equal(pretrained[k], v) for k, v in state().items())
 
 
-def test_c_skeleton_gan_trains_with_data_labels_too(clips):
-    model = build("c_skeleton_gan", real_label="data")
-    losses = model.fit(clips, iters=3, seed=0, progress=False)
-    assert set(losses) == {"d", "g", "omega", "ce"}
+@pytest.mark.parametrize("real_label", [None, "data", "classifier"])
+def test_c_skeleton_gan_discriminator_labels(clips, real_label):
+    """Algorithm 1 (the default): D sees one-hot data labels on real and generated pairs."""
+    changes = {} if real_label is None else {"real_label": real_label}
+    model = build("c_skeleton_gan", **changes)
+    assert model.config.real_label == (real_label or "data")
+    model.fit(clips, iters=model.config.pretrain_iters, seed=0, progress=False)
+    rows = []
+    hook = model.networks["discriminator"].register_forward_hook(
+        lambda module, inputs, output: rows.append(inputs[1].detach().clone()))
+    losses = model.fit(clips, iters=2, seed=0, progress=False)
+    hook.remove()
+    assert set(losses) == {"d", "g", "omega", "ce"} and rows
+    one_hot_rows = [bool(torch.all((r == 0) | (r == 1)) and torch.all(r.sum(-1) == 1)) for r in rows]
+    if model.config.real_label == "data":
+        assert all(one_hot_rows)
+    else:  # the real pair of each D update carries softmax C(x), not one-hot rows
+        assert not all(one_hot_rows)
 
 
 @pytest.mark.parametrize("name", METHODS)

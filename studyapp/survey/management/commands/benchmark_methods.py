@@ -4,12 +4,12 @@ from pathlib import Path
 from django.conf import settings
 from django.core.management.base import BaseCommand, CommandError
 
-from generation.benchmark import BenchmarkError, run_benchmark
-from generation.benchmark_report import render
 from generation.datasets import DatasetError
 from generation.methods import CheckpointError, MethodError, list_methods
 from generation.recognition import ClassifierError
 from generation.sampling import SamplingError, split_names
+from motion_metrics.benchmark import BenchmarkError, run_benchmark
+from motion_metrics.benchmark_report import render
 
 
 class Command(BaseCommand):

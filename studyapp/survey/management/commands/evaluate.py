@@ -5,11 +5,14 @@ from pathlib import Path
 from django.core.management.base import BaseCommand, CommandError
 
 from generation.datasets import DatasetError, get_dataset
-from generation.evaluation import LOWER_IS_BETTER, METRICS, EvaluationError, evaluate, read_extras
 from generation.formats import npz
+from generation.methods import CheckpointError, load_checkpoint
 from generation.motion import MotionError
 from generation.recognition import ActionClassifier, ClassifierError
 from generation.sampling import split_names
+from motion_metrics.evaluate import (
+    LOWER_IS_BETTER, METRICS, PROTOCOLS, EvaluationError, evaluate, evaluate_model, read_extras,
+)
 
 
 class Command(BaseCommand):
@@ -22,9 +25,21 @@ class Command(BaseCommand):
     def add_arguments(self, parser):
         parser.add_argument("--dataset", required=True, help="Dataset the motions imitate.")
         parser.add_argument("--data-root", help="Folder of the dataset (default: its usual place).")
-        parser.add_argument("--motions", required=True,
-                            help="Interchange .npz (from `sample`); optional arrays 'modes' (N,) "
-                                 "and 'end_targets' (N, D) enable mode_homogeneity and dist_e.")
+        parser.add_argument("--motions",
+                            help="Interchange .npz (from `sample`; required by the bootstrap "
+                                 "protocol); an optional array 'end_targets' (N, D) enables dist_e.")
+        parser.add_argument("--checkpoint",
+                            help="Checkpoint of the model that made the motions. With modes (odmo), "
+                                 "mode_homogeneity groups the real test clips by the modes of their "
+                                 "codes (seed 001, Sec. 4.3.1; without it, it is skipped); the a2m "
+                                 "protocol samples from it.")
+        parser.add_argument("--protocol", choices=sorted(PROTOCOLS), default="bootstrap",
+                            help="bootstrap (default): the --motions file resampled per repeat, Real "
+                                 "= held-out vs training clips. a2m (Action2Motion's): --n fresh "
+                                 "motions sampled from --checkpoint per repeat, Real = two draws of "
+                                 "the held-out clips.")
+        parser.add_argument("--n", type=int, default=3000,
+                            help="a2m: motions sampled per repeat, spread over the actions (A2M: 3,000).")
         parser.add_argument("--classifier",
                             help="Classifier checkpoint (from `train_classifier`); without it fid, "
                                  "accuracy, diversity and multimodality are skipped.")
@@ -40,20 +55,39 @@ class Command(BaseCommand):
             dataset = get_dataset(options["dataset"], options["data_root"])
         except KeyError as exc:
             raise CommandError(exc.args[0]) from None
+        a2m = options["protocol"] == "a2m"
+        if a2m and (not options["checkpoint"] or options["motions"]):
+            raise CommandError("--protocol a2m samples fresh motions from --checkpoint CKPT in every "
+                               "repeat: pass --checkpoint and no --motions")
+        if not a2m and not options["motions"]:
+            raise CommandError("pass --motions F.npz (or --protocol a2m --checkpoint CKPT)")
+        if a2m and options["n"] < 1:
+            raise CommandError(f"--n must be at least 1; got {options['n']}")
+        source = options["checkpoint"] if a2m else options["motions"]
         try:
-            motions = npz.load(options["motions"])
-            extras = read_extras(options["motions"])
             classifier = ActionClassifier.load(options["classifier"]) if options["classifier"] else None
-            result = evaluate(
-                dataset, motions, classifier, split_names(options["metrics"]) or None,
-                options["repeats"], options["seed"], modes=extras.get("modes"),
-                end_targets=extras.get("end_targets"),
-            )
-        except npz.FormatError as exc:
+            metrics = split_names(options["metrics"]) or None
+            if a2m:
+                model = load_checkpoint(options["checkpoint"], skeleton=dataset.skeleton)
+                result = evaluate_model(
+                    dataset, model, classifier, metrics, options["repeats"], options["seed"],
+                    n=options["n"], frames=classifier.frames if classifier else None,
+                    real_modes=getattr(model, "clip_modes", None),
+                )
+            else:
+                motions = npz.load(options["motions"])
+                extras = read_extras(options["motions"])
+                result = evaluate(
+                    dataset, motions, classifier, metrics, options["repeats"], options["seed"],
+                    real_modes=self._real_modes(options["checkpoint"], dataset),
+                    end_targets=extras.get("end_targets"),
+                )
+        except (npz.FormatError, CheckpointError) as exc:
             raise CommandError(str(exc)) from None
         except (EvaluationError, ClassifierError, DatasetError, MotionError) as exc:
-            raise CommandError(f"cannot evaluate {options['motions']}: {exc}") from None
-        result["motions"] = str(options["motions"])
+            raise CommandError(f"cannot evaluate {source}: {exc}") from None
+        result["motions"] = None if a2m else str(options["motions"])
+        result["checkpoint"] = options["checkpoint"]
         result["classifier_path"] = options["classifier"]
         out = Path(options["json"])
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -61,18 +95,32 @@ class Command(BaseCommand):
         self.stdout.write(self._table(result))
         self.stdout.write(f"wrote {out}")
 
+    @staticmethod
+    def _real_modes(path, dataset):
+        """Return the model's ``clip_modes`` (real clips -> modes), or ``None`` without a checkpoint."""
+        if not path:
+            return None
+        model = load_checkpoint(path, skeleton=dataset.skeleton)
+        if not hasattr(model, "clip_modes"):
+            raise CommandError(f"--checkpoint {path} is a {model.name} model, which has no modes; "
+                               f"pass an odmo checkpoint or leave --checkpoint out")
+        return model.clip_modes
+
     def _table(self, result) -> str:
         lines = [
-            f"{result['n_motions']} {result['source']} motions vs {result['dataset']} "
+            f"{result['n_motions']} {result['source']} motions"
+            f"{' per repeat' if result['protocol']['name'] == 'a2m' else ''} vs {result['dataset']} "
             f"({result['real']['split']}: {result['real']['n_test']} test, "
             f"{result['real']['n_train']} train clips); {result['repeats']} repeats, 95 % CI",
+            f"protocol {result['protocol']['name']}: {result['protocol']['description']}",
             f"{'metric':<18}{'motions':>24}{'real':>24}",
         ]
         for name, row in result["metrics"].items():
             arrow = " (lower is better)" if name in LOWER_IS_BETTER else ""
             lines.append(f"{name:<18}{_cell(row):>24}{_cell(row['real']):>24}{arrow}")
         for name, reason in result["skipped"].items():
-            hint = ": pass --classifier" if "classifier" in reason else ""
+            hint = (": pass --classifier" if "classifier" in reason
+                    else ": pass --checkpoint" if "mode of each real" in reason else "")
             lines.append(f"skipped {name}: {reason}{hint}")
         return "\n".join(lines)
 

@@ -1,15 +1,19 @@
 """Repeated evaluation of a motion set against real data: mean and 95 % CI of each metric.
 
 The protocol follows Action2Motion (seed 000: 20 repeats, 95 % interval) and reports
-"Real" beside each metric, as the seeds' tables do. Each repeat ``r`` draws, with a
-generator seeded by ``(seed, r)``:
+"Real" beside each metric, as the seeds' tables do. Two variants (:func:`run`; results
+say which under ``protocol``): by default, one set of generated motions is resampled in
+each repeat and Real compares held-out with training clips; Action2Motion's own (the
+``a2m`` protocol of :mod:`motion_metrics.evaluate`) takes a fresh set of generated
+motions per repeat (3,000 motions, 20 repeats) and its Real row compares two draws of
+the held-out clips. Each repeat ``r`` draws, with a generator seeded by ``(seed, r)``:
 
 - the generated motions, resampled with replacement within each action (a bootstrap that
-  keeps the number per action; A2M generated a fresh set per repeat);
+  keeps the number per action); under A2M's protocol, the repeat's fresh set, whole;
 - as many real test clips per action, with replacement (A2M: "real motions obtained by
   sampling with replacement from the test set") — FID's reference;
 - for the Real column, a draw of test clips in the same way, compared with a draw of real
-  training clips;
+  training clips (under A2M's protocol: with another draw of test clips);
 - the random pairs of diversity and multimodality.
 
 MMD, APD, n-APD and mode homogeneity use the distinct motions of a draw (duplicates
@@ -17,6 +21,11 @@ would bias these pairwise estimates) and compare them with every real clip of th
 action (seed 003: "real test sequences of action class j"). Per-action values are
 averaged over the actions drawn; an action with fewer than 2 distinct motions in a
 draw is left out of that repeat's average.
+
+Mode homogeneity (seed 001, Sec. 4.3.1) is measured on *real* clips grouped by the
+modes a model finds in its latent space: it reads the ``modes`` of the real test clips
+(one per clip, from the model that generated the motions), on each repeat's draw of
+test clips, and has no Real column.
 """
 
 from __future__ import annotations
@@ -25,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis import metrics as M
+from motion_metrics import metrics as M
 
 METRICS = (
     "fid", "accuracy", "diversity", "multimodality", "mmd_avg", "mmd_seq", "apd", "n_apd",
@@ -37,11 +46,15 @@ NEEDS = {
     "accuracy": ("predictions", "an action classifier"),
     "diversity": ("features", "an action classifier"),
     "multimodality": ("features", "an action classifier"),
-    "mode_homogeneity": ("modes", "a mode index per motion (array 'modes' in the motions file)"),
+    "mode_homogeneity": ("modes", "the code mode of each real test clip (from the model that "
+                                  "made the motions, e.g. an odmo checkpoint)"),
     "dist_e": ("end_targets", "target end points (array 'end_targets' in the motions file)"),
 }
-# Metrics with no meaning for real data (real clips have no modes or targets).
+# Metrics with no Real column: targets belong to generated motions only, and mode
+# homogeneity is itself measured on real clips (by the modes of a model's latent space).
 GENERATED_ONLY = ("mode_homogeneity", "dist_e")
+# Metrics of the real test clips, with what the model says of them (their modes).
+OF_REAL_CLIPS = ("mode_homogeneity",)
 LOWER_IS_BETTER = ("fid", "mmd_avg", "mmd_seq", "dist_e")
 
 
@@ -51,8 +64,9 @@ class MotionSet:
 
     ``joints`` ``(N, T, J, D)``; ``labels`` ``(N,)`` action indices; optional
     ``features`` ``(N, F)`` and ``predictions`` ``(N,)`` of the action classifier,
-    ``modes`` ``(N,)``, ``end_targets`` and ``end_points`` ``(N, D)`` (reached end of the
-    root, relative to its start).
+    ``modes`` ``(N,)`` (of real clips: the mode of each clip's code in a model's latent
+    space), ``end_targets`` and ``end_points`` ``(N, D)`` (reached end of the root,
+    relative to its start).
     """
 
     joints: np.ndarray
@@ -96,20 +110,105 @@ def check_metrics(metrics) -> list[str]:
     return list(dict.fromkeys(metrics))
 
 
-def run(generated: MotionSet, test: MotionSet, train: MotionSet, metrics=None, repeats: int = 20,
+def run(generated, test: MotionSet, train: MotionSet, metrics=None, repeats: int = 20,
         seed: int = 0, diversity_pairs: int = 200, multimodality_pairs: int = 20,
-        bandwidths=M.BANDWIDTHS) -> dict:
-    """Evaluate ``generated`` against real ``test`` clips, and ``test`` against ``train`` (Real).
+        bandwidths=M.BANDWIDTHS, real_reference: str = "train") -> dict:
+    """Evaluate ``generated`` against real ``test`` clips, and ``test`` against a reference (Real).
+
+    ``generated`` is one :class:`MotionSet`, resampled with replacement in each repeat
+    (the default protocol), or one fresh set per repeat used whole (Action2Motion's
+    protocol: a new draw of motions from the model each time): a sequence of ``repeats``
+    sets, or a function ``r -> MotionSet`` called once per repeat, in order, so that only
+    one set is held at a time.
+    ``real_reference`` is what the Real column compares a draw of test clips with:
+    ``"train"`` (a draw of training clips) or ``"test"`` (another draw of the same test
+    clips, as Action2Motion's "Real motions" row).
 
     Returns ``{"metrics": {name: {"mean", "ci", "std", "values", "real"}}, "skipped":
-    {name: reason}}`` where ``real`` is the same summary for real test clips against
-    real training clips (``None`` for metrics of generated sets only).
+    {name: reason}, "protocol": {...}}`` where ``real`` is the same summary for the Real
+    column (``None`` for metrics of generated sets only) and ``protocol`` says how the
+    generated motions and the Real column were drawn.
     """
     metrics = check_metrics(metrics)
     if int(repeats) != repeats or repeats < 1:
         raise M.MetricError(f"repeats must be a positive integer; got {repeats!r}")
-    skipped = {name: f"needs {generated.missing(name)}" for name in metrics if generated.missing(name)}
+    if real_reference not in ("train", "test"):
+        raise M.MetricError(f"real_reference must be 'train' or 'test'; got {real_reference!r}")
+    fresh = not isinstance(generated, MotionSet)
+    if fresh:
+        if callable(generated):
+            fresh_set = generated
+        else:
+            listed = list(generated)
+            if len(listed) != repeats:
+                raise M.MetricError(f"fresh generated motions need one MotionSet per repeat: "
+                                    f"{repeats} repeats, got {len(listed)}")
+            fresh_set = listed.__getitem__
+    reference = test if real_reference == "test" else train
+    first = fresh_set(0) if fresh else generated
+    if not isinstance(first, MotionSet):
+        raise M.MetricError(f"generated motions must be a MotionSet; got {type(first).__name__}")
+
+    def lacking(name):
+        return (test if name in OF_REAL_CLIPS else first).missing(name)
+
+    skipped = {name: f"needs {lacking(name)}" for name in metrics if lacking(name)}
     metrics = [name for name in metrics if name not in skipped]
+    _check_real(first, test, train, metrics)
+
+    values = {name: np.empty(repeats) for name in metrics}
+    real_values = {name: np.empty(repeats) for name in metrics if name not in GENERATED_ONLY}
+    pairwise = [name for name in metrics if name not in _POINTWISE and name not in OF_REAL_CLIPS]
+    draws = []
+    for r in range(repeats):
+        # A fresh set is made, measured and dropped one repeat at a time (A2M: 3,000 motions each).
+        candidate = generated if not fresh else first if r == 0 else fresh_set(r)
+        if fresh and r:
+            if not isinstance(candidate, MotionSet):
+                raise M.MetricError(f"fresh set {r} is a {type(candidate).__name__}, not a MotionSet")
+            _check_real(candidate, test, train, metrics)
+        draw = _draw(candidate, test, reference, np.random.default_rng([seed, r]), resample=not fresh)
+        draws.append(draw)
+        rng = np.random.default_rng([seed, r, 1])
+        for name in metrics:
+            if name in _POINTWISE:
+                values[name][r] = _POINTWISE[name](candidate, draw["gen"], test, draw["ref"], rng,
+                                                   diversity_pairs, multimodality_pairs)
+                if name in real_values:
+                    real_values[name][r] = _POINTWISE[name](
+                        test, draw["real"], reference, draw["real_ref"], rng, diversity_pairs,
+                        multimodality_pairs,
+                    )
+        if fresh and pairwise:  # the repeat's own set, all of it
+            for name, row in _pairwise(candidate, test, [draw["gen"]], pairwise, bandwidths).items():
+                values[name][r] = row[0]
+    of_real = [name for name in metrics if name in OF_REAL_CLIPS]
+    if of_real:
+        values.update(_pairwise(test, train, [draw["ref"] for draw in draws], of_real, bandwidths))
+    if pairwise:
+        if not fresh:
+            values.update(_pairwise(generated, test, [draw["gen"] for draw in draws], pairwise,
+                                    bandwidths))
+        real_names = [name for name in pairwise if name in real_values]
+        real_values.update(_pairwise(test, reference, [draw["real"] for draw in draws], real_names,
+                                     bandwidths))
+    return {
+        "metrics": {
+            name: {**_summary(values[name]),
+                   "real": _summary(real_values[name]) if name in real_values else None}
+            for name in metrics
+        },
+        "skipped": skipped,
+        "protocol": {
+            "generated": "a fresh set per repeat" if fresh else "resampled with replacement per repeat",
+            "real": ("held-out clips against another draw of the held-out clips" if real_reference == "test"
+                     else "held-out clips against training clips"),
+        },
+    }
+
+
+def _check_real(generated: MotionSet, test: MotionSet, train: MotionSet, metrics) -> None:
+    """Raise unless the real test and training clips have every action and input the metrics need."""
     actions = np.unique(generated.labels)
     for name, real_set in (("test", test), ("train", train)):
         absent = [str(a) for a in actions if not np.any(real_set.labels == a)]
@@ -121,36 +220,6 @@ def run(generated: MotionSet, test: MotionSet, train: MotionSet, metrics=None, r
         for metric in metrics:
             if metric not in GENERATED_ONLY and real_set.missing(metric):
                 raise M.MetricError(f"real {name} clips lack what {metric} needs: {real_set.missing(metric)}")
-
-    draws = [_draw(generated, test, train, np.random.default_rng([seed, r])) for r in range(repeats)]
-    values = {name: np.empty(repeats) for name in metrics}
-    real_values = {name: np.empty(repeats) for name in metrics if name not in GENERATED_ONLY}
-    for r, draw in enumerate(draws):
-        rng = np.random.default_rng([seed, r, 1])
-        for name in metrics:
-            if name in _POINTWISE:
-                values[name][r] = _POINTWISE[name](generated, draw["gen"], test, draw["ref"], rng,
-                                                   diversity_pairs, multimodality_pairs)
-                if name in real_values:
-                    real_values[name][r] = _POINTWISE[name](
-                        test, draw["real"], train, draw["real_ref"], rng, diversity_pairs,
-                        multimodality_pairs,
-                    )
-    pairwise = [name for name in metrics if name not in _POINTWISE]
-    if pairwise:
-        gen_draws = [draw["gen"] for draw in draws]
-        real_draws = [draw["real"] for draw in draws]
-        values.update(_pairwise(generated, test, gen_draws, pairwise, bandwidths))
-        real_names = [name for name in pairwise if name in real_values]
-        real_values.update(_pairwise(test, train, real_draws, real_names, bandwidths))
-    return {
-        "metrics": {
-            name: {**_summary(values[name]),
-                   "real": _summary(real_values[name]) if name in real_values else None}
-            for name in metrics
-        },
-        "skipped": skipped,
-    }
 
 
 def _summary(values: np.ndarray) -> dict:
@@ -170,15 +239,20 @@ def _stratified(rng, pool_labels, counts: dict) -> np.ndarray:
     ])
 
 
-def _draw(generated, test, train, rng) -> dict:
-    """Return one repeat's indices: generated, its real reference, Real candidate and reference."""
+def _draw(generated, test, reference, rng, resample: bool = True) -> dict:
+    """Return one repeat's indices: generated, its real reference, Real candidate and reference.
+
+    Without ``resample``, the generated motions are all taken once, in order.
+    """
     actions, sizes = np.unique(generated.labels, return_counts=True)
     counts = dict(zip(actions, sizes))
+    gen = (_stratified(rng, generated.labels, counts) if resample
+           else np.concatenate([np.flatnonzero(generated.labels == action) for action in actions]))
     return {
-        "gen": _stratified(rng, generated.labels, counts),
+        "gen": gen,
         "ref": _stratified(rng, test.labels, counts),
         "real": _stratified(rng, test.labels, counts),
-        "real_ref": _stratified(rng, train.labels, counts),
+        "real_ref": _stratified(rng, reference.labels, counts),
     }
 
 

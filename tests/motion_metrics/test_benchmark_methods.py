@@ -6,11 +6,11 @@ import numpy as np
 import torch
 from django.core.management import call_command
 
-from generation.benchmark import Recipe, train_within_budget
 from generation.datasets import get_dataset
 from generation.formats import npz
 from generation.methods import get_method
-from generation.paper_numbers import A2M_TABLE_1, SA_GCN_TABLE_2
+from motion_metrics.benchmark import Recipe, train_within_budget
+from motion_metrics.paper_numbers import A2M_TABLE_1, SA_GCN_TABLE_2
 from tests.conftest import make_motion
 
 torch.set_num_threads(1)
@@ -73,6 +73,20 @@ def test_training_resumes_to_a_larger_budget(tmp_path):
     assert model.iteration == second["iterations"] > done and second["seconds"] >= 0.6
 
 
+def test_training_restarts_when_the_config_or_version_changed(tmp_path):
+    """A record of another version or config (e.g. a changed default) is not resumed."""
+    clips = get_dataset("demo").clips(frames=12, max_per_take=1, actions=["walk", "run"])
+    recipe = Recipe("tiny")
+    model, first = train_within_budget("cond_gru", clips, ["walk", "run"], 0.2, tmp_path, recipe)
+    record_path = tmp_path / "cond_gru.json"
+    record = json.loads(record_path.read_text())
+    assert record["signature"]["version"] == 1 and "config" in record["signature"]
+    for stale in ({"version": 0}, {"config": {**record["signature"]["config"], "hidden": 1}}):
+        record_path.write_text(json.dumps({**record, "signature": {**record["signature"], **stale}}))
+        _, again = train_within_budget("cond_gru", clips, ["walk", "run"], 0.2, tmp_path, recipe)
+        assert not again["reused"] and again["signature"] == record["signature"]
+
+
 def test_npz_round_trips_modes_and_end_targets(tmp_path):
     motions = [make_motion(frames=6, seed=i) for i in range(3)]
     for i, motion in enumerate(motions):
@@ -101,8 +115,9 @@ def test_evaluate_measures_modes_and_end_targets_of_an_odmo_file(tmp_path):
     with np.load(motions_path) as data:
         modes, targets = data["modes"], data["end_targets"]
     assert modes.shape == (8,) and targets.shape == (8, 3) and np.allclose(targets[:, :2], [0.5, 0.2])
-    call_command("evaluate", "--dataset", "demo", "--motions", str(motions_path), "--metrics",
-                 "mode_homogeneity,dist_e", "--repeats", "2", "--json", str(result_path), verbosity=0)
+    call_command("evaluate", "--dataset", "demo", "--motions", str(motions_path), "--checkpoint",
+                 str(checkpoint), "--metrics", "mode_homogeneity,dist_e", "--repeats", "2",
+                 "--json", str(result_path), verbosity=0)
     result = json.loads(result_path.read_text())
     assert not result["skipped"]
     assert result["metrics"]["dist_e"]["mean"] >= 0

@@ -1,4 +1,4 @@
-"""Turn the results of :func:`generation.benchmark.run_benchmark` into ``docs/RESULTS.md``.
+"""Turn the results of :func:`motion_metrics.benchmark.run_benchmark` into ``docs/RESULTS.md``.
 
 Per data setting: how the data was split and the classifier trained, the methods'
 training within the budget, our numbers (mean ± 95 % CI) with the Real values beside
@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from datetime import datetime
 
-from generation.paper_numbers import TABLES, PaperTable
+from motion_metrics.paper_numbers import TABLES, PaperTable
 
 NAMES = {"mmd_avg": "MMD_avg ↓", "mmd_seq": "MMD_seq ↓", "accuracy": "accuracy ↑",
          "fid": "FID ↓", "diversity": "diversity →", "multimodality": "multimodality →"}
@@ -71,7 +71,7 @@ def _provenance(result: dict, command: str) -> list[str]:
     }
     summed = ", ".join(f"{name} {seconds / 60:.1f} min" for name, seconds in work.items() if seconds)
     return [
-        f"Written by `benchmark_methods` (`generation/benchmark.py`) on {when}, in "
+        f"Written by `benchmark_methods` (`motion_metrics/benchmark.py`) on {when}, in "
         f"{result['wall_seconds'] / 60:.1f} minutes of wall time{earlier}:",
         "",
         "```",
@@ -87,7 +87,7 @@ def _provenance(result: dict, command: str) -> list[str]:
         f"their CPU seconds show how much of a core each method got on the shared machine.",
         f"- Each method draws {result['n']} motions per action (seed {result['seed']}; seed 003 "
         f"drew 100 per class); metrics are the mean ± 95 % CI over {result['repeats']} repeats "
-        f"(A2M's protocol, `generation/evaluation.py`: motions and real clips drawn with "
+        f"(A2M's protocol, `motion_metrics/protocol.py`: motions and real clips drawn with "
         f"replacement per repeat). **Real** compares held-out clips with training clips, as "
         f"the papers' \"Real motions\" rows do.",
         "",
@@ -264,9 +264,9 @@ def _shortfalls(result: dict) -> list[str]:
         "resampled from 25 fps rather than taken every 3rd frame of 50 Hz; and the accuracy and "
         "feature metrics use our classifier (A2M's GRU), not the papers' (seed 004's is its "
         "video discriminator), whose accuracy on held-out real clips bounds what generated "
-        "motions can reach. MMD depends on the coordinates' scale and the number of motions "
-        "drawn, so only values measured the same way compare: the Real row gives ours the "
-        "scale the papers' tables lack. In 3D the reference numbers are of HumanAct12, another "
+        "motions can reach. MMD depends on how it is measured (which motions and real clips are "
+        "drawn, how many, and against what), so only values measured the same way compare: the "
+        "Real row, measured as ours are, gives them the reference the papers' tables lack. In 3D the reference numbers are of HumanAct12, another "
         "dataset, skeleton and classifier; only the distance of each method from Real and the "
         "order of the methods carry over."
     )
@@ -302,8 +302,9 @@ def _setting_facts(setting: dict) -> list[str]:
         if real_avg is not None and real_avg > floor:
             facts.append(
                 f"Real held-out clips themselves score above the paper's best method ({real_avg:.3f} "
-                f"against {floor:g}), so absolute values do not carry over: the held-out subject, "
-                f"our units (pixels of camera 55011271) and the number of clips set another floor."
+                f"against {floor:g}), so absolute values do not carry over: our MMD protocol "
+                f"(which motions and real clips each repeat draws and compares) is not the "
+                f"papers'."
             )
         facts.append(_order_sentence(methods, table, "mmd_avg"))
     if "000_table_1" in setting["tables"]:
@@ -328,8 +329,7 @@ def _setting_facts(setting: dict) -> list[str]:
             f"On {dataset} " + ", ".join(f"`{name}` ({_mean(methods[name], 'diversity'):.2f})"
                                           for name in collapsed)
             + f" {'has' if len(collapsed) == 1 else 'have'} less than half the diversity of real "
-            f"clips ({real_diversity:.2f}): {'its' if len(collapsed) == 1 else 'their'} generator "
-            f"has collapsed to a few motions in the budget."
+            f"clips ({real_diversity:.2f})."
         )
     accuracy = {name: _mean(entry, "accuracy") for name, entry in methods.items()
                 if _mean(entry, "accuracy") is not None}

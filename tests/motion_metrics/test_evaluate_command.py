@@ -9,10 +9,11 @@ import torch
 from django.core.management import CommandError, call_command
 
 from generation.datasets import get_dataset
-from generation.evaluation import METRICS
 from generation.formats import npz
+from generation.methods import get_method
 from generation.recognition import ActionClassifier
 from generation.sampling import sample_real
+from motion_metrics.evaluate import METRICS
 from tests.conftest import make_motion
 
 torch.set_num_threads(1)
@@ -53,8 +54,17 @@ def write_motions(path, motions, **extras):
 def real_motions(workdir):
     motions = sample_real(get_dataset("demo"), None, 3, frames=FRAMES, seed=1)
     rng = np.random.default_rng(0)
-    return write_motions(workdir / "real.npz", motions, modes=np.arange(len(motions)) % 2,
-                         end_targets=rng.normal(size=(len(motions), 3)))
+    return write_motions(workdir / "real.npz", motions, end_targets=rng.normal(size=(len(motions), 3)))
+
+
+@pytest.fixture(scope="module")
+def odmo_checkpoint(workdir):
+    """Return a tiny ODMO checkpoint of every demo action, whose modes group real clips."""
+    data = get_dataset("demo")
+    cls = get_method("odmo")
+    model = cls(cls.Config.preset("tiny"), data.skeleton, data.actions(), 25.0, FRAMES)
+    model.fit(data.clips(frames=FRAMES, max_per_take=2), 5, progress=False)
+    return model.save(workdir / "odmo.pt")
 
 
 def test_train_classifier_reports_and_stores_held_out_accuracy(trained):
@@ -65,10 +75,12 @@ def test_train_classifier_reports_and_stores_held_out_accuracy(trained):
     assert f"test accuracy {model.test_accuracy:.3f} on {model.n_test} held-out clips" in printed
 
 
-def test_evaluate_writes_every_metric_with_mean_and_ci(classifier, real_motions, workdir, capsys):
+def test_evaluate_writes_every_metric_with_mean_and_ci(classifier, real_motions, odmo_checkpoint,
+                                                       workdir, capsys):
     out = workdir / "result.json"
     call_command("evaluate", "--dataset", "demo", "--motions", str(real_motions), "--classifier",
-                 str(classifier), "--repeats", "3", "--json", str(out))
+                 str(classifier), "--checkpoint", str(odmo_checkpoint), "--repeats", "3",
+                 "--json", str(out))
     result = json.loads(out.read_text())
     assert set(result["metrics"]) == set(METRICS) and not result["skipped"]
     for name, row in result["metrics"].items():
@@ -76,8 +88,62 @@ def test_evaluate_writes_every_metric_with_mean_and_ci(classifier, real_motions,
         if name not in ("mode_homogeneity", "dist_e"):
             assert isinstance(row["real"]["mean"], float) and row["real"]["ci"] >= 0, name
     assert result["n_motions"] == 24 and result["repeats"] == 3
+    assert result["protocol"]["name"] == "bootstrap"
     printed = capsys.readouterr().out
     assert "mmd_avg" in printed and "±" in printed and str(out) in printed
+
+
+def test_mode_homogeneity_groups_the_real_test_clips_by_the_models_modes(real_motions, odmo_checkpoint,
+                                                                         workdir, capsys):
+    """Seed 001, Sec. 4.3.1: the metric is of real clips; the generated motions do not enter it."""
+    results = []
+    for name, motions in (("a", real_motions), ("b", write_motions(
+            workdir / "other.npz", sample_real(get_dataset("demo"), None, 3, frames=FRAMES, seed=7)))):
+        out = workdir / f"modes_{name}.json"
+        call_command("evaluate", "--dataset", "demo", "--motions", str(motions), "--checkpoint",
+                     str(odmo_checkpoint), "--metrics", "mode_homogeneity", "--repeats", "2",
+                     "--json", str(out), verbosity=0)
+        results.append(json.loads(out.read_text())["metrics"]["mode_homogeneity"])
+    assert results[0]["values"] == results[1]["values"] and results[0]["real"] is None
+    assert np.isfinite(results[0]["mean"])
+    out = workdir / "modes_none.json"
+    call_command("evaluate", "--dataset", "demo", "--motions", str(real_motions), "--metrics",
+                 "mode_homogeneity", "--repeats", "2", "--json", str(out))
+    assert "mode of each real test clip" in json.loads(out.read_text())["skipped"]["mode_homogeneity"]
+    assert "pass --checkpoint" in capsys.readouterr().out
+
+
+def test_evaluate_rejects_a_checkpoint_without_modes(classifier, real_motions, workdir, tmp_path):
+    cls = get_method("skeleton_vae")
+    model = cls(cls.Config.preset("tiny"), "h36m17", ["walk"], 25.0, FRAMES)
+    path = model.save(tmp_path / "vae.pt")
+    with pytest.raises(CommandError, match="skeleton_vae model, which has no modes"):
+        call_command("evaluate", "--dataset", "demo", "--motions", str(real_motions), "--checkpoint",
+                     str(path), "--json", str(workdir / "x.json"))
+
+
+def test_evaluate_by_a2ms_protocol_samples_fresh_motions_per_repeat(classifier, workdir, capsys):
+    data = get_dataset("demo")
+    cls = get_method("cond_gru")
+    model = cls(cls.Config.preset("tiny"), data.skeleton, ["walk", "run"], 25.0, FRAMES)
+    model.fit(data.clips(frames=FRAMES, max_per_take=1, actions=["walk", "run"]), 2, progress=False)
+    checkpoint = model.save(workdir / "cond_gru.pt")
+    out = workdir / "a2m.json"
+    call_command("evaluate", "--dataset", "demo", "--protocol", "a2m", "--checkpoint", str(checkpoint),
+                 "--n", "10", "--classifier", str(classifier), "--metrics", "fid,accuracy,apd",
+                 "--repeats", "3", "--json", str(out))
+    result = json.loads(out.read_text())
+    assert result["protocol"]["name"] == "a2m" and result["n_motions"] == 10
+    assert result["actions"] == {"run": 5, "walk": 5}
+    assert result["protocol"]["real"] == "held-out clips against another draw of the held-out clips"
+    fid = result["metrics"]["fid"]
+    assert len(set(fid["values"])) == 3 and fid["real"]["mean"] is not None
+    printed = capsys.readouterr().out
+    assert "protocol a2m: Action2Motion's: a fresh set of motions per repeat" in printed
+    with pytest.raises(CommandError, match="pass --checkpoint and no --motions"):
+        call_command("evaluate", "--dataset", "demo", "--protocol", "a2m", "--json", str(out))
+    with pytest.raises(CommandError, match=r"pass --motions F.npz \(or --protocol a2m"):
+        call_command("evaluate", "--dataset", "demo", "--json", str(out))
 
 
 def test_evaluate_without_classifier_skips_feature_metrics(real_motions, workdir, capsys):

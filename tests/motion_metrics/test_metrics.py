@@ -5,8 +5,8 @@ import itertools
 import numpy as np
 import pytest
 
-from analysis import evaluation
-from analysis import metrics as M
+from motion_metrics import protocol
+from motion_metrics import metrics as M
 
 
 def gaussian_features(n=400, dims=4, seed=0, shift=0.0):
@@ -203,7 +203,7 @@ def motion_set(n, seed, shift=0.0, classes=2):
     rng = np.random.default_rng(seed)
     labels = np.arange(n) % classes
     feats = np.tanh(rng.normal(size=(n, 30)) + labels[:, None] + shift)
-    return evaluation.MotionSet(
+    return protocol.MotionSet(
         joints=sequences(n, seed=seed, shift=shift), labels=labels, features=feats,
         predictions=labels.copy(), end_targets=rng.normal(size=(n, 3)), end_points=rng.normal(size=(n, 3)),
     )
@@ -211,22 +211,22 @@ def motion_set(n, seed, shift=0.0, classes=2):
 
 def test_protocol_reports_every_metric_with_mean_ci_and_real():
     generated, test, train = motion_set(24, 0, shift=0.5), motion_set(16, 1), motion_set(20, 2)
-    generated.modes = np.arange(24) % 3
+    test.modes = np.arange(16) % 3  # mode homogeneity groups the real test clips
     test.end_targets = train.end_targets = None
-    result = evaluation.run(generated, test, train, repeats=3, seed=0)
-    assert set(result["metrics"]) == set(evaluation.METRICS) and not result["skipped"]
+    result = protocol.run(generated, test, train, repeats=3, seed=0)
+    assert set(result["metrics"]) == set(protocol.METRICS) and not result["skipped"]
     for name, row in result["metrics"].items():
         assert np.isfinite(row["mean"]) and row["ci"] >= 0 and len(row["values"]) == 3, name
-        assert (row["real"] is None) == (name in evaluation.GENERATED_ONLY)
+        assert (row["real"] is None) == (name in protocol.GENERATED_ONLY)
     assert result["metrics"]["accuracy"]["mean"] == 1.0
     assert result["metrics"]["n_apd"]["real"]["mean"] > 0
 
 
 def test_protocol_pairwise_values_equal_the_metrics_on_each_draw():
     generated, test, train = motion_set(20, 0, shift=0.3), motion_set(12, 1), motion_set(12, 2)
-    result = evaluation.run(generated, test, train, ["mmd_seq", "mmd_avg", "apd", "fid"], repeats=2, seed=4)
+    result = protocol.run(generated, test, train, ["mmd_seq", "mmd_avg", "apd", "fid"], repeats=2, seed=4)
     for r in range(2):
-        draw = evaluation._draw(generated, test, train, np.random.default_rng([4, r]))
+        draw = protocol._draw(generated, test, train, np.random.default_rng([4, r]))
         distinct = np.unique(draw["gen"])
         joints, labels = generated.joints[distinct], generated.labels[distinct]
         assert result["metrics"]["mmd_seq"]["values"][r] == pytest.approx(
@@ -239,17 +239,74 @@ def test_protocol_pairwise_values_equal_the_metrics_on_each_draw():
             M.fid(generated.features[draw["gen"]], test.features[draw["ref"]]), rel=1e-9)
 
 
+def test_protocol_mode_homogeneity_is_of_each_draw_of_real_test_clips():
+    """Seed 001, Sec. 4.3.1: real clips grouped by their code modes; no Real column."""
+    generated, test, train = motion_set(20, 0, shift=0.3), motion_set(18, 1), motion_set(12, 2)
+    test.modes = np.arange(18) % 3
+    result = protocol.run(generated, test, train, ["mode_homogeneity"], repeats=3, seed=2)
+    row = result["metrics"]["mode_homogeneity"]
+    assert row["real"] is None
+    for r in range(3):
+        draw = protocol._draw(generated, test, train, np.random.default_rng([2, r]))
+        distinct = np.unique(draw["ref"])
+        expected = M.mode_homogeneity(test.joints[distinct], test.labels[distinct], test.modes[distinct])
+        assert row["values"][r] == pytest.approx(expected, rel=1e-9)
+    shuffled = motion_set(20, 5, shift=2.0)  # other generated motions: the same value
+    again = protocol.run(shuffled, test, train, ["mode_homogeneity"], repeats=3, seed=2)
+    assert again["metrics"]["mode_homogeneity"]["values"] == row["values"]
+
+
+def test_a2m_protocol_uses_a_fresh_set_per_repeat_whole_and_real_resamples_the_test_clips():
+    test, train = motion_set(16, 1), motion_set(20, 2)
+    sets = [motion_set(12, 10 + r, shift=0.5) for r in range(3)]
+    names = ["fid", "accuracy", "mmd_seq", "apd"]
+    made = []
+
+    def fresh(r):
+        made.append(r)
+        return sets[r]
+
+    result = protocol.run(fresh, test, train, names, repeats=3, seed=1, real_reference="test")
+    assert made == [0, 1, 2]  # one set at a time, in order
+    assert result["protocol"]["generated"] == "a fresh set per repeat"
+    assert "held-out clips against another draw of the held-out clips" == result["protocol"]["real"]
+    assert protocol.run(sets, test, train, names, repeats=3, seed=1, real_reference="test") == result
+    for r, one in enumerate(sets):
+        draw = protocol._draw(one, test, test, np.random.default_rng([1, r]), resample=False)
+        assert sorted(draw["gen"]) == list(range(12))  # the whole set, once
+        row = result["metrics"]
+        assert row["fid"]["values"][r] == pytest.approx(M.fid(one.features, test.features[draw["ref"]]))
+        assert row["mmd_seq"]["values"][r] == pytest.approx(
+            M.mmd_seq(test.joints, one.joints, test.labels, one.labels), abs=1e-6)
+        assert row["apd"]["values"][r] == pytest.approx(
+            np.mean([M.apd(one.joints[one.labels == c]) for c in (0, 1)]), rel=1e-9)
+        # Real: a draw of test clips against another draw of the same test clips.
+        assert row["fid"]["real"]["values"][r] == pytest.approx(
+            M.fid(test.features[draw["real"]], test.features[draw["real_ref"]]))
+    default = protocol.run(sets[0], test, train, names, repeats=3, seed=1)
+    assert default["protocol"]["generated"] == "resampled with replacement per repeat"
+    assert default["protocol"]["real"] == "held-out clips against training clips"
+    with pytest.raises(M.MetricError, match="one MotionSet per repeat: 3 repeats, got 2"):
+        protocol.run(sets[:2], test, train, names, repeats=3)
+    with pytest.raises(M.MetricError, match="real_reference must be 'train' or 'test'"):
+        protocol.run(sets[0], test, train, names, real_reference="both")
+
+
 def test_protocol_skips_metrics_lacking_inputs_and_rejects_unknown_ones():
     generated, test, train = motion_set(10, 0), motion_set(10, 1), motion_set(10, 2)
     generated.features = generated.predictions = None
-    result = evaluation.run(generated, test, train, ["fid", "mmd_seq", "mode_homogeneity"], repeats=2)
+    result = protocol.run(generated, test, train, ["fid", "mmd_seq", "mode_homogeneity"], repeats=2)
     assert set(result["metrics"]) == {"mmd_seq"}
-    assert "classifier" in result["skipped"]["fid"] and "modes" in result["skipped"]["mode_homogeneity"]
+    assert "classifier" in result["skipped"]["fid"]
+    assert "mode of each real test clip" in result["skipped"]["mode_homogeneity"]
+    generated.modes = np.arange(10) % 2  # modes of generated motions do not stand in
+    assert "mode_homogeneity" in protocol.run(generated, test, train, ["mode_homogeneity"],
+                                                repeats=1)["skipped"]
     with pytest.raises(M.MetricError, match="unknown metric 'fidd'"):
-        evaluation.run(generated, test, train, ["fidd"])
+        protocol.run(generated, test, train, ["fidd"])
 
 
 def test_protocol_needs_real_clips_of_every_action():
     generated, test, train = motion_set(10, 0, classes=3), motion_set(10, 1), motion_set(10, 2)
     with pytest.raises(M.MetricError, match="no motions of action 2"):
-        evaluation.run(generated, test, train, ["mmd_seq"], repeats=1)
+        protocol.run(generated, test, train, ["mmd_seq"], repeats=1)

@@ -3,8 +3,8 @@
 What ``manage.py benchmark_methods`` runs. For each data setting (:data:`SETTINGS`) the
 action classifier is trained on the training subjects and measured on the held-out
 ones; then each method trains for ``budget`` seconds of wall time, draws ``n`` motions
-per action and is evaluated (:func:`generation.evaluation.evaluate`) with the metrics of
-the papers whose tables the setting compares with (:mod:`generation.paper_numbers`).
+per action and is evaluated (:func:`motion_metrics.evaluate.evaluate`) with the metrics of
+the papers whose tables the setting compares with (:mod:`motion_metrics.paper_numbers`).
 
 Everything lands in ``work``: per setting the classifier, and per method its checkpoint,
 its samples (``.npz``) and a record (``.json``) of the seconds spent, iterations and
@@ -30,12 +30,12 @@ from tqdm import tqdm
 
 from generation.datasets import get_dataset
 from generation.datasets.base import DATASETS
-from generation.evaluation import EvaluationError, evaluate
 from generation.formats import npz
 from generation.methods import Method, MethodError, get_method, list_methods
 from generation.motion import MotionError
 from generation.recognition import ActionClassifier, ClassifierError, one_thread, train_classifier
 from generation.skeletons import get_skeleton
+from motion_metrics.evaluate import EvaluationError, evaluate
 
 H36M_TRAIN = ("S1", "S5", "S6", "S7", "S8")
 H36M_TEST = ("S9",)  # the papers test on S11, which our copy of Human3.6M lacks
@@ -57,7 +57,7 @@ class Setting:
     train_subjects: tuple[str, ...] | None
     test_subjects: tuple[str, ...] | None
     metrics: tuple[str, ...]
-    tables: tuple[str, ...]  # keys of generation.paper_numbers.TABLES
+    tables: tuple[str, ...]  # keys of motion_metrics.paper_numbers.TABLES
 
 
 SETTINGS = {
@@ -188,14 +188,16 @@ def train_within_budget(method: str, clips, actions: Sequence[str], budget: floa
 
     The checkpoint ``folder/<method>.pt`` and the record ``folder/<method>.json`` (seconds,
     CPU seconds, iterations) resume an interrupted run; a model whose record says the
-    budget is spent is loaded and returned as it is. Another recipe, seed or data starts
-    afresh. Methods with their own ``fit`` (ODMO fits its modes there) get one call of it
+    budget is spent is loaded and returned as it is. Another recipe, config (a changed
+    default included), method version, seed or data starts afresh. Methods with their own ``fit`` (ODMO fits its modes there) get one call of it
     with no iterations at the end, timed apart as ``finish_seconds``.
     """
     cls = get_method(method)
     checkpoint, record_path = folder / f"{method}.pt", folder / f"{method}.json"
     first = clips[0]
-    signature = {"method": method, "preset": recipe.preset, "changes": recipe.changes, "seed": seed,
+    # The full config and the method's version: a changed default or network retrains.
+    signature = {"method": method, "version": cls.version, "preset": recipe.preset,
+                 "changes": recipe.changes, "config": recipe.config(cls).to_dict(), "seed": seed,
                  "skeleton": first.skeleton, "frames": first.frames, "fps": first.fps,
                  "actions": list(actions), "clips": len(clips)}
     record = read_json(record_path)
@@ -306,7 +308,7 @@ def run_benchmark(datasets: Sequence[str], budget: float, work: str | Path, *,
                   progress: bool = True, log: Callable[[str], None] | None = None) -> dict:
     """Benchmark ``methods`` (default: all) on each dataset; return the results (JSON-ready).
 
-    Also written to ``work/results.json``; :func:`generation.benchmark_report.render`
+    Also written to ``work/results.json``; :func:`motion_metrics.benchmark_report.render`
     turns them into Markdown.
     """
     methods = list(methods or list_methods())

@@ -313,7 +313,8 @@ def n_apd(motions, labels, real, real_labels) -> float:
 def mode_homogeneity(motions, labels, modes) -> float:
     """Return ODMO's mode homogeneity (Sec. 4.3.1): the drop in APD when motions are grouped by mode.
 
-    Per action c with motions G_c split into modes G_(c,k): ``mode-APD = sum_k |G_(c,k)|
+    The paper measures it on real clips, grouped by the modes a model finds for their
+    codes. Per action c with motions G_c split into modes G_(c,k): ``mode-APD = sum_k |G_(c,k)|
     APD(G_(c,k)) / |G_c|`` (a mode of one motion has APD 0); the result is
     ``100 * mean_c (APD(G_c) - mode-APD) / APD(G_c)``. Higher: purer modes.
     """

@@ -2,7 +2,10 @@
 
 This module checks that the motions fit the dataset and the classifier, turns motions
 into arrays (classifier features and predictions included) and hands them to the
-repeat/CI protocol of :mod:`analysis.evaluation`, which works on numpy arrays only.
+repeat/CI protocol of :mod:`motion_metrics.protocol`, which works on numpy arrays only.
+:func:`evaluate` takes one set of motions (the ``bootstrap`` protocol);
+:func:`evaluate_model` samples a fresh set from a model per repeat (``a2m``, Action2Motion's
+protocol). Results name theirs under ``protocol``.
 
 Real clips are the dataset's clips of the motions' length and frame rate, divided as the
 classifier was trained (held-out subjects or takes; without a classifier, the default
@@ -19,18 +22,19 @@ from typing import Sequence
 
 import numpy as np
 
-from analysis import evaluation as protocol
-from analysis.metrics import BANDWIDTHS, MetricError
 from generation.datasets import Dataset, get_dataset
 from generation.motion import Motion
 from generation.recognition import ActionClassifier, ClassifierError, make_split
 from generation.skeletons import get_skeleton
+from motion_metrics import protocol
+from motion_metrics.metrics import BANDWIDTHS, MetricError
 
 METRICS = protocol.METRICS
 LOWER_IS_BETTER = protocol.LOWER_IS_BETTER
 
 
-# Optional arrays of an interchange file that some metrics need, one entry per motion.
+# Optional arrays of an interchange file that some metrics need, one entry per motion
+# (``modes`` are read back for the record; mode homogeneity groups real clips instead).
 EXTRAS = ("modes", "end_targets")
 
 
@@ -44,23 +48,83 @@ def read_extras(path: str | Path) -> dict[str, np.ndarray]:
         return {key: data[key] for key in EXTRAS if key in data.files}
 
 
+# How the generated motions and the Real column are drawn in each repeat.
+PROTOCOLS = {
+    "bootstrap": "one set of motions resampled per repeat; Real: held-out vs training clips",
+    "a2m": "Action2Motion's: a fresh set of motions per repeat (3,000, 20 repeats); "
+           "Real: two draws of the held-out clips",
+}
+
+
 def evaluate(dataset: Dataset | str, motions: Sequence[Motion], classifier: ActionClassifier | None = None,
              metrics: Sequence[str] | None = None, repeats: int = 20, seed: int = 0, *,
-             modes=None, end_targets=None, data_root=None, diversity_pairs: int = 200,
+             real_modes=None, end_targets=None, data_root=None, diversity_pairs: int = 200,
              multimodality_pairs: int = 20, bandwidths=BANDWIDTHS) -> dict:
     """Return every metric's mean, 95 % CI and per-repeat values, with the Real values beside.
 
-    ``motions`` share one skeleton (the dataset's), length and frame rate. ``modes``
-    ``(N,)`` and ``end_targets`` ``(N, D)`` (reached end point: the root's last position
-    minus its first) enable mode homogeneity and dist_e. Metrics needing what is
-    absent (a classifier, modes, targets) are listed under ``skipped`` with the reason.
+    The ``bootstrap`` protocol: ``motions`` are resampled in each repeat, and Real compares
+    held-out with training clips. ``motions`` share one skeleton (the dataset's), length
+    and frame rate. ``real_modes`` maps a list of real clips to their modes ``(N,)`` in
+    the latent space of the model that made the motions (e.g. ``ODMO.clip_modes``): with
+    it, mode homogeneity is measured on the real test clips grouped by those modes (seed
+    001, Sec. 4.3.1). ``end_targets`` ``(N, D)`` (the root end point each motion was asked
+    to reach, relative to its start) enable dist_e. Metrics needing what is absent (a
+    classifier, modes, targets) are listed under ``skipped`` with the reason.
     """
+    return _evaluate(dataset, list(motions), classifier, metrics, repeats, seed, "bootstrap",
+                     real_modes=real_modes, end_targets=end_targets, data_root=data_root,
+                     diversity_pairs=diversity_pairs, multimodality_pairs=multimodality_pairs,
+                     bandwidths=bandwidths)
+
+
+def evaluate_model(dataset: Dataset | str, model, classifier: ActionClassifier | None = None,
+                   metrics: Sequence[str] | None = None, repeats: int = 20, seed: int = 0, *,
+                   n: int = 3000, frames: int | None = None, actions: Sequence[str] | None = None,
+                   real_modes=None, data_root=None, diversity_pairs: int = 200,
+                   multimodality_pairs: int = 20, bandwidths=BANDWIDTHS) -> dict:
+    """Evaluate a model by Action2Motion's protocol (``a2m``): ``n`` fresh motions per repeat.
+
+    Each repeat ``r`` samples ``n`` motions from ``model`` (spread evenly over
+    ``actions``, default: the model's actions the dataset has; seed ``(seed, r)``) and
+    uses them whole; the Real column compares two draws of the held-out clips (A2M: 3,000
+    motions, 20 repeats). Otherwise as :func:`evaluate`.
+    """
+    data = get_dataset(dataset, data_root) if isinstance(dataset, str) else dataset
+    if int(n) != n or n < 1:
+        raise EvaluationError(f"n must be a positive number of motions per repeat; got {n!r}")
+    known = set(data.actions())
+    actions = [a for a in model.actions if a in known] if actions is None else list(actions)
+    if not actions:
+        raise EvaluationError(f"the model's actions ({', '.join(model.actions)}) are not actions of "
+                              f"dataset {data.name!r}; evaluate it against the dataset it imitates")
+    if n < len(actions):
+        raise EvaluationError(f"n = {n} motions per repeat cannot cover {len(actions)} actions; "
+                              f"give at least {len(actions)}")
+    labels = [actions[i * len(actions) // n] for i in range(n)]  # n // C or n // C + 1 each
+
+    def sample(r):
+        try:
+            return model.sample(labels, frames, seed=int(seed) * 1_000_003 + r)
+        except ValueError as exc:  # MethodError: actions or options the model cannot take
+            raise EvaluationError(f"cannot sample from the model: {exc}") from None
+
+    result = _evaluate(data, sample(0), classifier, metrics, repeats, seed, "a2m", more=sample,
+                       real_modes=real_modes, end_targets=None, data_root=data_root,
+                       diversity_pairs=diversity_pairs, multimodality_pairs=multimodality_pairs,
+                       bandwidths=bandwidths)
+    result["method"] = getattr(model, "name", None)
+    return result
+
+
+def _evaluate(dataset, motions: list[Motion], classifier, metrics, repeats, seed, protocol_name,
+              *, more=None, real_modes, end_targets, data_root, diversity_pairs, multimodality_pairs,
+              bandwidths) -> dict:
+    """Evaluate one set of motions (``bootstrap``), or ``motions`` then ``more(r)`` per repeat ``r``."""
     data = get_dataset(dataset, data_root) if isinstance(dataset, str) else dataset
     try:
         metrics = protocol.check_metrics(metrics)
     except MetricError as exc:
         raise EvaluationError(str(exc)) from None
-    motions = list(motions)
     frames, fps = _check_motions(data, motions)
     actions = sorted({m.action for m in motions})
     if classifier is not None:
@@ -80,13 +144,31 @@ def evaluate(dataset: Dataset | str, motions: Sequence[Motion], classifier: Acti
                 f"for {', '.join(actions)} ({split.describe()}); check --data-root and the motions' length"
             )
         sets[key] = _motion_set(group, index, classifier, key)
-    sets["generated"].modes = _optional(modes, len(motions), "modes")
     sets["generated"].end_targets = _optional(end_targets, len(motions), "end_targets")
+    if real_modes is not None and "mode_homogeneity" in metrics:
+        try:
+            found = real_modes(test)
+        except ValueError as exc:  # MethodError: clips the model cannot encode
+            raise EvaluationError(f"cannot find the modes of the real test clips: {exc}") from None
+        sets["test"].modes = _optional(found, len(test), "modes of the real test clips")
+    generated = sets["generated"]
+    if more is not None:
+        def fresh(r):
+            if r == 0:
+                return sets["generated"]
+            group = more(r)
+            if _check_motions(data, group) != (frames, fps):
+                raise EvaluationError(f"repeat {r}'s motions differ in length or frame rate from the first")
+            return _motion_set(group, index, classifier, "generated")
+        generated = fresh
     try:
-        result = protocol.run(sets["generated"], sets["test"], sets["train"], metrics, repeats, seed,
-                              diversity_pairs, multimodality_pairs, bandwidths)
+        result = protocol.run(generated, sets["test"], sets["train"], metrics, repeats, seed,
+                              diversity_pairs, multimodality_pairs, bandwidths,
+                              real_reference="test" if more is not None else "train")
     except MetricError as exc:
         raise EvaluationError(str(exc)) from None
+    result["protocol"] = {"name": protocol_name, "description": PROTOCOLS[protocol_name],
+                          **result["protocol"]}
     return {
         "dataset": data.name,
         "skeleton": data.skeleton,

@@ -1,0 +1,18 @@
+"""Objective metrics of generated motion, and the protocols that measure methods with them.
+
+Plain Python (numpy, torch); never imports Django, nor :mod:`analysis` (the statistics of
+study responses). Modules, from the arrays up:
+
+- :mod:`motion_metrics.metrics`: FID, accuracy, diversity, multimodality, MMD_avg,
+  MMD_seq, APD, n-APD, mode homogeneity, dist_e, on numpy arrays;
+- :mod:`motion_metrics.protocol`: the repeats and 95 % intervals (Action2Motion's
+  protocol), with the Real column, on numpy arrays;
+- :mod:`motion_metrics.evaluate`: motions against a dataset's real clips and an action
+  classifier (what ``manage.py evaluate`` runs);
+- :mod:`motion_metrics.benchmark`, :mod:`motion_metrics.benchmark_report`,
+  :mod:`motion_metrics.paper_numbers`: every method trained within a budget, evaluated,
+  and written up beside the seeds' published numbers (``manage.py benchmark_methods``).
+
+It builds on :mod:`generation` (datasets, methods, the classifier); :mod:`generation`
+does not import it.
+"""
