@@ -168,3 +168,34 @@ def test_bots_grade_by_their_strengths_and_say_both_bad_only_when_offered():
     assert len(set(answers)) >= 4  # graded, not only the extremes
     plain = TrialPage({}, ["a", "b"], values, sources={"a": "gen", "b": "gen"})
     assert "both_bad" not in {KIND.bot_answer(plain, policy)["choice"] for _ in range(400)}
+
+
+# From the pages to the report
+
+
+def test_stored_answers_are_analysed_by_the_analyze_command(study_of, make_bot, tmp_path):
+    """Participants who always grade the real clip better, by three steps over cond_gru and
+    one over a2m: the report orders the sources so and notes the few participants."""
+    import json
+
+    from django.core.management import call_command
+
+    study = study_of()
+    strength = {"real": 3, "a2m": 2, "cond_gru": 0}
+    for _ in range(3):
+        bot = join(make_bot, study)
+        while (trial := bot.participant().current_trial()) is not None:
+            left, right = (item.stimulus.source for item in
+                           trial.items.judged().select_related("stimulus").order_by("position"))
+            gap = max(-3, min(3, strength[left] - strength[right]))
+            choice = next(value for value, _, g in SCALE if g == gap)
+            bot.trial_page()
+            assert bot.answer(bot.answer_data(trial, choice=choice)).status_code == 302
+    out = tmp_path / "report"
+    call_command("analyze", study=study.slug, out=str(out), bootstrap=50, no_audit=True,
+                 min_time_factor=0.0)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["study_type"] == "pairwise_graded"
+    assert summary["order"] == ["real", "a2m", "cond_gru"]
+    assert any("fewer than 10 participants" in note for note in summary["notes"])
+    assert (out / "position_bias.csv").is_file() and (out / "pairs.csv").is_file()
