@@ -7,6 +7,9 @@ strength plus a small clip effect. Attentive raters answer from the quality with
 - pairwise: left wins with probability sigmoid((q_left - q_right + position_bias) / noise),
   with ``tie_rate`` of comparisons called both good (mean quality above the middle) or
   both bad;
+- pairwise_graded: the left clip's grade cuts ``q_left - q_right + position_bias + noise *
+  logistic`` at +-0.5, +-1.5, +-2.5 into the 7-point scale (a cumulative-logit draw);
+  ``tie_rate`` of comparisons whose mean quality is below the middle are called both bad;
 - fake_or_real: judged real with probability sigmoid((q - middle) / noise + rater bias);
 - ratings: quality + rater bias + logistic noise, cut into 1..5 at thresholds spread
   evenly over the strengths.
@@ -23,9 +26,14 @@ import pandas as pd
 
 from analysis.tables import RESPONSE_COLUMNS, AnalysisError
 
+# The answers of a graded pairwise trial, best for the left clip first (see
+# analysis.pairwise_graded).
+GRADED_CHOICES = ("left_much", "left", "left_slightly", "no_preference", "right_slightly",
+                  "right", "right_much", "both_bad")
 STRENGTHS = {"real": 4.0, "a2m": 3.0, "cond_gru": 1.0}
 ACTIONS = ("walk", "eat", "jump", "sit")
-STUDY_TYPES = ("ranking", "fake_or_real", "rating_standards", "rating_reference", "pairwise")
+STUDY_TYPES = ("ranking", "fake_or_real", "rating_standards", "rating_reference", "pairwise",
+               "pairwise_graded")
 
 
 def simulate(study_type: str, strengths: dict | None = None, participants: int = 200,
@@ -106,6 +114,10 @@ def simulate(study_type: str, strengths: dict | None = None, participants: int =
         cuts = np.linspace(strength.min() - 0.5, strength.max() + 0.5, 6)[1:-1]
         ratings = np.where(random, rng.integers(1, 6, n_rows), 1 + np.searchsorted(cuts, latent))
         table["rating"] = pd.array(ratings, dtype="Int64")
+    elif study_type == "pairwise_graded":
+        table["choice"] = pd.Categorical(
+            _graded_choices(rng, quality, position, random, m, noise, position_bias, tie_rate,
+                            middle), categories=GRADED_CHOICES)
     else:
         table["choice"] = pd.Categorical(_choices(rng, quality, position, random, m, noise,
                                                   position_bias, tie_rate, middle))
@@ -181,6 +193,23 @@ def _choices(rng, quality, position, random, m, noise, position_bias, tie_rate, 
     tie = (rng.random(len(q)) < tie_rate) & ~careless
     picks[tie] = np.where((q_left + q_right)[tie] / 2 > middle, "both_good", "both_bad")
     return np.repeat(picks, m)
+
+
+def _graded_choices(rng, quality, position, random, m, noise, position_bias, tie_rate, middle):
+    """Return each row's trial answer on the graded scale (grade of the left clip, cut from
+    a logistic draw), or both_bad."""
+    q = quality.reshape(-1, m)
+    left = position.reshape(-1, m) == 0
+    q_left = np.where(left[:, 0], q[:, 0], q[:, 1])
+    q_right = np.where(left[:, 0], q[:, 1], q[:, 0])
+    latent = q_left - q_right + position_bias + noise * rng.logistic(size=len(q))
+    # Index into GRADED_CHOICES: 0 is "left much better" (grade +3), 6 "right much better".
+    index = 6 - np.searchsorted(np.array([-2.5, -1.5, -0.5, 0.5, 1.5, 2.5]), latent)
+    careless = random.reshape(-1, m)[:, 0]
+    index = np.where(careless, rng.integers(0, 7, len(q)), index)
+    bad = (rng.random(len(q)) < tie_rate) & ~careless & ((q_left + q_right) / 2 < middle)
+    index[bad] = 7
+    return np.repeat(np.asarray(GRADED_CHOICES, dtype=object)[index], m)
 
 
 def _missing(n: int, dtype):

@@ -6,7 +6,9 @@ A judgement is one clip of one trial with its answer, in the column of the study
 - ``rating`` (rating_standards, rating_reference): 1..5, higher = more realistic;
 - ``judged_real`` (fake_or_real): whether the participant called the clip real;
 - ``choice`` (pairwise): the trial's answer, ``left``, ``right``, ``both_good`` or
-  ``both_bad``, on the rows of both clips; ``position`` 0 is the left clip, 1 the right.
+  ``both_bad``, on the rows of both clips; ``position`` 0 is the left clip, 1 the right;
+  for pairwise_graded the point of its 7-point scale (``left_much`` .. ``right_much``,
+  ``no_preference``; left is clip A) or ``both_bad``.
 
 ``trial_kind`` is ``main``, ``catch`` or ``repeat`` (practice trials are not exported);
 ``is_catch`` marks a catch clip and ``catch_passed`` whether its check was passed;

@@ -29,12 +29,13 @@ def test_simulated_table_has_the_response_columns_and_valid_answers(study_type):
     assert kinds == {"main": 24, "catch": 6, "repeat": 12}
     assert table.loc[table["trial_kind"] == "catch", "is_catch"].sum() == 6
     main = table.loc[table["trial_kind"] == "main"]
-    answers = {"ranking": "rank", "fake_or_real": "judged_real", "pairwise": "choice"}
+    answers = {"ranking": "rank", "fake_or_real": "judged_real", "pairwise": "choice",
+               "pairwise_graded": "choice"}
     answer = answers.get(study_type, "rating")
     assert main[answer].notna().all()
     if study_type == "ranking":
         assert set(main.groupby("trial_id")["rank"].apply(lambda r: tuple(sorted(r)))) == {(1, 2, 3)}
-    if study_type == "pairwise":
+    if study_type.startswith("pairwise"):
         assert set(main.groupby("trial_id")["position"].apply(lambda p: tuple(sorted(p)))) == {(0, 1)}
 
 

@@ -249,12 +249,12 @@ class Bot:
         """Return a valid POST for ``trial`` of any of the seed papers' study types.
 
         ``ranks``, ``ratings`` and ``verdicts`` map positions to answers (defaults: the
-        screen order, 3, "real"); ``choice`` answers a pairwise trial.
+        screen order, 3, "real"); ``choice`` answers a pairwise trial (graded too: "left" is "A better").
         """
         items = list(trial.items.select_related("stimulus").order_by("position"))
         kind = self.study.study_type
         data = {"trial": str(trial.pk)}
-        if kind == "pairwise":
+        if kind in ("pairwise", "pairwise_graded"):
             data["choice"] = choice
         for item in items:
             token = item.token

@@ -21,6 +21,7 @@ ANSWER = {
     "rating_standards": "rating",
     "rating_reference": "rating",
     "pairwise": "choice",
+    "pairwise_graded": "choice",
 }
 
 

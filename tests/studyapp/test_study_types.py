@@ -30,6 +30,8 @@ CATCH_ANSWERS = {
     "rating_reference": lambda catch: ({"ratings": {catch: 1}}, {"ratings": {catch: 3}}),
     "pairwise": lambda catch: ({"choice": "right" if catch == 0 else "left"},
                                {"choice": "left" if catch == 0 else "right"}),
+    "pairwise_graded": lambda catch: ({"choice": "right_slightly" if catch == 0 else "left_much"},
+                                      {"choice": "no_preference"}),
 }
 
 
@@ -69,6 +71,7 @@ def join(make_bot, study, **params):
         ("rating_standards", {"ratings": {0: 5, 1: 1, 2: 4}}, {"items": [5, 1, 4]}),
         ("rating_reference", {"ratings": {0: 2, 1: 3, 2: 2}}, {"items": [2, 3, 2]}),
         ("pairwise", {"choice": "right"}, {"trial": "right"}),
+        ("pairwise_graded", {"choice": "right_slightly"}, {"trial": "right_slightly"}),
     ],
 )
 def test_an_answer_is_stored_under_the_first_criterion(
@@ -99,6 +102,7 @@ def test_an_answer_is_stored_under_the_first_criterion(
         ("rating_reference", lambda d: d | {next(k for k in d if k.startswith("rating_")): "0"}),
         ("pairwise", lambda d: d | {"choice": "both_good"}),  # ties not offered
         ("pairwise", lambda d: {k: v for k, v in d.items() if k != "choice"}),
+        ("pairwise_graded", lambda d: d | {"choice": "both_good"}),  # not on its scale
     ],
 )
 def test_a_tampered_answer_of_any_type_is_refused(study_of, make_bot, study_type, tampering):
@@ -223,6 +227,7 @@ def test_catch_clips_never_enter_main_trials(study_of, make_bot):
         ("fake_or_real", {"verdicts": {0: "real"}}, {"verdicts": {0: "generated"}}),
         ("rating_reference", {"ratings": {0: 4, 1: 2, 2: 3}}, {"ratings": {0: 1, 1: 2, 2: 3}}),
         ("pairwise", {"choice": "left"}, {"choice": "right"}),
+        ("pairwise_graded", {"choice": "left"}, {"choice": "right"}),
     ],
 )
 def test_a_repeated_trial_shows_the_same_clips_later_and_records_consistency(
@@ -500,4 +505,6 @@ def preview_answer(html: str, study_type: str) -> dict:
             data[f"rating_{token}"] = "2"
     if study_type == "pairwise":
         data["choice"] = "left"
+    if study_type == "pairwise_graded":
+        data["choice"] = "left_slightly"
     return data

@@ -1,0 +1,535 @@
+"""Graded pairwise preference: two clips, answered on a 7-point scale, or "Both bad".
+
+The answer (column ``choice``) is side-based: ``left_much``, ``left``, ``left_slightly``
+(clip A, the left clip, much better / better / slightly better), ``no_preference``,
+``right_slightly``, ``right``, ``right_much`` and ``both_bad``. Its grade for clip A runs
+from +3 (``left_much``) to -3 (``right_much``).
+
+Reported, every interval from one bootstrap over participants (a replicate redraws the
+participants with replacement and keeps all their judgements):
+
+- an ordinal model of the grades (cumulative logit): ``P(grade of A <= k) =
+  logistic(c_k - (theta_A - theta_B + beta))`` with a source effect ``theta`` (the
+  headline score, logit scale, centred on 0), a left/right shift ``beta`` (> 0: the left
+  clip is favoured) and six ordered cut points ``c_k``, symmetric about 0 as the scale is
+  (so that ``beta`` is a shift of the answers, not of the cuts);
+- Davidson's model of the direction (A better, B better, no preference as a tie), with
+  Davidson and Beaver's order effect: ``P(A) : P(B) : P(tie) = g w_A : w_B : nu
+  sqrt(w_A w_B)``, ``log w`` per source, ``log g`` the left advantage, ``nu`` the
+  propensity to tie;
+- the position bias of both models and the raw share of directional answers that favour
+  the left clip;
+- per pair of sources the directional win rate (Wilson intervals, binomial tests against
+  50 % with Holm's correction) and the mean grade;
+- Elo ratings, descriptive only: no model, no interval, averaged over random orders of
+  the comparisons because Elo depends on the order it reads them in;
+- the share of each source's comparisons answered "Both bad" (those answers carry no
+  direction and are left out of both models and of Elo).
+
+Both models are fitted by Fisher scoring on counts per (left source, right source,
+answer) cell, batched over bootstrap replicates; a weak normal prior (sd 3) on every
+source effect and position term (and on Davidson's log nu) keeps the fit finite when a
+source always wins, the left clip always wins or every answer is a tie; the cut points
+get half a pseudo-answer of each grade instead.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pandas as pd
+
+from analysis import stats, worth
+from analysis.counts import ranked_sources, source_counts
+from analysis.formatting import bootstrap_text, number, p_text
+from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
+from analysis.tables import AnalysisError
+
+SCALE = ("left_much", "left", "left_slightly", "no_preference", "right_slightly", "right",
+         "right_much")
+BOTH_BAD = "both_bad"
+CHOICES = SCALE + (BOTH_BAD,)
+GRADE = dict(zip(SCALE, (3, 2, 1, 0, -1, -2, -3)))
+N_GRADES = len(SCALE)
+# Fewer participants than this: the bootstrap has too few to redraw from.
+MIN_PARTICIPANTS = 10
+PRIOR_SD = 3.0
+# Pseudo-counts per grade on a cell without sources or side: they keep the cut points
+# finite and ordered when a grade was never used, and vanish beside real data.
+CUT_PSEUDO = 0.5
+ELO_K = 16.0
+ELO_START = 1500.0
+ELO_ORDERS = 20
+CHUNK_ELEMENTS = 4_000_000
+
+
+@register_analysis("pairwise_graded")
+class PairwiseGraded(StudyAnalysis):
+    """Each trial shows clips A (left) and B (right), answered from "A much better" to
+    "B much better", or "Both bad"."""
+
+    answer = "choice"
+    agreement_level = "ordinal"
+    required = ("position",)
+    design = ("each trial showed two clips of one action side by side (A left, B right) and "
+              "participants answered on a symmetric 7-point scale from 'A much better' through "
+              "'No preference' to 'B much better', or 'Both bad'")
+
+    def answered(self, rows):
+        notes = []
+        choice = rows["choice"].astype("string").str.strip().str.lower()
+        unknown = sorted(set(choice.dropna().unique()) - set(CHOICES))
+        if unknown:
+            raise AnalysisError(f"unknown choice(s) {', '.join(unknown)} in a graded pairwise "
+                                f"table; expected {', '.join(CHOICES)}")
+        if choice.isna().any():
+            notes.append(f"{int(choice.isna().sum())} clip(s) of unanswered comparisons were left out")
+        rows = rows.loc[choice.notna().to_numpy()].copy()
+        rows["choice"] = pd.Categorical(choice.dropna(), categories=CHOICES)
+        rows["position"] = pd.to_numeric(rows["position"], errors="coerce")
+        rows = rows.sort_values(["trial_key", "position"], kind="stable")
+        shape = rows.groupby("trial_key")["position"].agg(["size", "min", "max"])
+        good = shape.index[(shape["size"] == 2) & (shape["min"] == 0) & (shape["max"] == 1)]
+        if len(good) < len(shape):
+            notes.append(f"{len(shape) - len(good)} comparison(s) without exactly one left (position 0) "
+                         f"and one right (position 1) clip were left out")
+            rows = rows.loc[rows["trial_key"].isin(good)]
+        return rows, notes
+
+    def judgement_values(self, rows):
+        """Return one value per graded comparison: its pair of clips (in a fixed order)
+        and the grade of the first clip of that order (-3..3); "Both bad" has no grade."""
+        trials = comparisons(rows, sorted(rows["source"].unique()))
+        trials = trials.loc[trials["graded"]]
+        left, right = trials["left_stimulus"], trials["right_stimulus"]
+        if pd.api.types.is_integer_dtype(left) and pd.api.types.is_integer_dtype(right):
+            left, right = left.to_numpy(np.int64), right.to_numpy(np.int64)
+            unit = np.minimum(left, right) * (1 << 32) + np.maximum(left, right)
+        else:
+            left, right = left.astype(str).to_numpy(object), right.astype(str).to_numpy(object)
+            unit = np.where(left <= right, left + "|" + right, right + "|" + left)
+        grade = trials["grade"].to_numpy(np.int64)
+        value = np.where(left <= right, grade, -grade)
+        return pd.DataFrame({"participant": trials["pcode"].to_numpy(), "unit": unit, "value": value})
+
+    def analyse(self, rows, config):
+        names = sorted(rows["source"].unique())
+        k = len(names)
+        trials = comparisons(rows, names)
+        n_participants = int(rows["pcode"].max()) + 1
+        resampled = worth.resample_participants(n_participants, config.bootstrap, config.seed)
+        cells = Cells.of(trials, k, n_participants)
+        ordinal = fit_bootstrap(OrdinalModel(cells, k), cells, resampled, config.confidence)
+        davidson = fit_bootstrap(DavidsonModel(cells, k), cells, resampled, config.confidence)
+
+        sources = source_counts(rows)
+        sources["score"] = _centred(ordinal, slice(0, k), "theta")
+        sources["ci_low"], sources["ci_high"] = _centred(ordinal, slice(0, k), "low"), _centred(
+            ordinal, slice(0, k), "high")
+        sources["davidson"] = _centred(davidson, slice(0, k), "theta")
+        sources["davidson_low"] = _centred(davidson, slice(0, k), "low")
+        sources["davidson_high"] = _centred(davidson, slice(0, k), "high")
+        sources["elo"] = elo(trials, k, config.seed)
+        both_bad, shown = both_bad_counts(trials, k)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            sources["both_bad_share"] = both_bad / shown
+        sources["both_bad"] = both_bad
+        sources = ranked_sources(sources)[[
+            "score", "ci_low", "ci_high", "davidson", "davidson_low", "davidson_high", "elo",
+            "both_bad_share", "both_bad", "n_participants", "n_judgements"]]
+
+        bias = position_bias(trials, ordinal, davidson, k, config.confidence)
+        pairs, matrix = pair_table(trials, names, config.confidence)
+        cuts = thresholds(ordinal, k, config.confidence)
+        n_graded = int(trials["graded"].sum())
+        n_both_bad = int((~trials["graded"]).sum())
+        n_ties = int((trials["graded"] & (trials["grade"] == 0)).sum())
+        n_people = int(trials["pcode"].nunique())
+        ci = f"{config.confidence:.0%}"
+        tables = [
+            Table("sources", f"Source effect of the ordinal (cumulative-logit) model of the grades "
+                  f"(logit scale, 0 = average source) with {ci} bootstrap intervals over "
+                  f"participants; Davidson log-worth of the direction (ties = no preference) "
+                  f"with its intervals; Elo rating (descriptive, no interval); share of the "
+                  f"source's comparisons answered 'Both bad'", sources),
+            Table("position_bias", "Left/right position bias: a positive shift, or a share above 0.5, "
+                  "means the left clip (A) is favoured", bias),
+            Table("pairs", f"Per pair of sources: answers, mean grade of a over b, and the win "
+                  f"rate of a among directional answers ({ci} Wilson intervals, binomial test "
+                  f"against 50 %, Holm)", pairs),
+            Table("thresholds", "Cut points of the ordinal model (grade of A at most the "
+                  "category)", cuts),
+        ]
+        methods = [
+            f"the grades (from +3, 'A much better', to -3, 'B much better', for the left clip A) "
+            f"were modelled with a cumulative-logit model: P(grade of A <= k) = "
+            f"logistic(c_k - (theta_A - theta_B + beta)), with a source effect theta, a left/right "
+            f"shift beta and six ordered cut points symmetric about 0 (as the scale is), fitted by maximum likelihood (normal prior "
+            f"with SD {PRIOR_SD:g} on each source effect and on the shift) to {n_graded} graded comparisons; "
+            f"source effects are centred on 0, {bootstrap_text(config)}",
+            f"the direction of the answers (A better, B better, or no preference as a tie; "
+            f"{n_ties} tie(s)) was fitted with Davidson's Bradley-Terry model with ties and "
+            f"Davidson and Beaver's order effect for the left clip",
+            f"position bias: the ordinal model's shift of the left clip was "
+            f"{_interval_text(bias, 'ordinal shift beta (logit)')}; Davidson's log order effect "
+            f"{_interval_text(bias, 'Davidson log order effect')}; the left clip was favoured in "
+            f"{_interval_text(bias, 'share of directional answers favouring the left clip')} "
+            f"of directional answers (binomial test against 0.5: {p_text(_bias_row(bias, 'share of directional answers favouring the left clip')['p'])})",
+            f"per pair of sources, the win rate among directional answers has Wilson intervals "
+            f"and an exact binomial test against 50 % with Holm's correction",
+            f"Elo ratings (K = {ELO_K:g}, start {ELO_START:g}, averaged over {ELO_ORDERS} random "
+            f"orders of the comparisons) are given for comparison only; they are descriptive, "
+            f"with no model behind them and no interval",
+            f"{n_both_bad} comparison(s) answered 'Both bad' carry no direction: they are left out "
+            f"of both models and Elo and reported as each source's share of its comparisons",
+        ]
+        notes = []
+        if n_people < MIN_PARTICIPANTS:
+            notes.append(f"only {n_people} participant(s) were analysed: bootstrap intervals over "
+                         f"fewer than {MIN_PARTICIPANTS} participants mean little; collect more "
+                         f"before reading them")
+        plots = [
+            Plot("effects", "Source effect of the ordinal model", _interval_plot(sources)),
+            Plot("win_matrix", "Share of directional answers won by each source (row) against "
+                 "each other (column)", _matrix_plot(matrix.loc[sources.index, sources.index])),
+        ]
+        tests = {"position_bias": bias, "n_graded": n_graded, "n_ties": n_ties,
+                 "n_both_bad": n_both_bad, "ordinal_converged": ordinal["converged"],
+                 "davidson_converged": davidson["converged"]}
+        return Analysis(measure="ordinal source effect (logit scale)", sources=sources,
+                        tables=tables, plots=plots, methods=methods, notes=notes, tests=tests)
+
+
+def comparisons(rows: pd.DataFrame, names) -> pd.DataFrame:
+    """Return one row per trial: ``left``/``right`` source codes (index into ``names``),
+    ``left_stimulus``/``right_stimulus``, ``choice`` (index into :data:`CHOICES`),
+    ``graded`` (not "Both bad"), ``grade`` of the left clip (0 where not graded), ``pcode``
+    and ``action``. ``rows`` are sorted by trial and position, two per trial."""
+    sources = pd.Categorical(rows["source"], categories=names).codes.astype(np.int64)
+    choice = pd.Categorical(rows["choice"], categories=CHOICES).codes[0::2].astype(np.int64)
+    grades = np.array([GRADE[c] for c in SCALE] + [0], dtype=np.int64)
+    frame = pd.DataFrame({
+        "trial_key": rows["trial_key"].to_numpy()[0::2],
+        "pcode": rows["pcode"].to_numpy()[0::2].astype(np.int64),
+        "left": sources[0::2],
+        "right": sources[1::2],
+        "left_stimulus": rows["stimulus"].iloc[0::2].to_numpy(),
+        "right_stimulus": rows["stimulus"].iloc[1::2].to_numpy(),
+        "choice": choice,
+        "graded": choice < N_GRADES,
+        "grade": grades[choice],
+    })
+    if "action" in rows.columns:
+        frame["action"] = rows["action"].to_numpy()[0::2]
+    return frame
+
+
+class Cells:
+    """Graded comparisons as counts: ``pairs`` ``(C, 2)`` the (left, right) sources of each
+    cell and ``by_participant`` ``(P, C * 7)`` how often each participant gave each grade
+    (category ``grade + 3``) in each cell."""
+
+    def __init__(self, pairs, by_participant):
+        self.pairs = pairs
+        self.by_participant = by_participant
+
+    @classmethod
+    def of(cls, trials, k, n_participants):
+        graded = trials.loc[trials["graded"]]
+        key = graded["left"].to_numpy() * k + graded["right"].to_numpy()
+        present, cell = np.unique(key, return_inverse=True)
+        pairs = np.stack([present // k, present % k], axis=1)
+        column = cell * N_GRADES + (graded["grade"].to_numpy() + 3)
+        counts = np.zeros((n_participants, len(present) * N_GRADES))
+        np.add.at(counts, (graded["pcode"].to_numpy(), column), 1.0)
+        return cls(pairs, counts)
+
+    def totals(self):
+        return self.by_participant.sum(axis=0)
+
+
+class OrdinalModel:
+    """Cumulative logit; parameters: ``theta`` (K), ``beta`` and three log distances ``u``
+    that place the cut points symmetrically about the scale's middle: ``t1 = e^u1``,
+    ``t2 = t1 + e^u2``, ``t3 = t2 + e^u3``, cuts ``-t3, -t2, -t1, t1, t2, t3``. The scale is
+    symmetric, so a shift of all answers towards the left clip is ``beta`` (with free cut
+    points it could not be told from a shift of the cuts). One extra cell (no sources, no
+    side) holds the cut points' pseudo-counts."""
+
+    def __init__(self, cells: Cells, k: int):
+        self.k = k
+        n_cells = len(cells.pairs)
+        self.n_params = k + 1 + 3
+        eta = np.zeros((n_cells + 1, self.n_params))  # d eta / d params
+        rows = np.arange(n_cells)
+        eta[rows, cells.pairs[:, 0]] += 1.0
+        eta[rows, cells.pairs[:, 1]] -= 1.0
+        eta[rows, k] = 1.0
+        self.deta = eta
+        self.n_categories = N_GRADES
+        self.prior = np.zeros(self.n_params)
+        self.prior[:k + 1] = 1.0 / PRIOR_SD**2  # source effects and the left shift
+        self.start = np.concatenate([np.zeros(k + 1), np.log([0.5, 1.0, 1.0])])
+
+    def counts(self, cell_counts):
+        """Append the cut points' pseudo-cell to ``(B, C, 7)`` counts."""
+        pseudo = np.full(cell_counts.shape[:1] + (1, N_GRADES), CUT_PSEUDO)
+        return np.concatenate([cell_counts, pseudo], axis=1)
+
+    def probabilities(self, phi):
+        """Return ``p`` ``(B, C, 7)`` and ``dp/dphi`` ``(B, C, 7, n_params)``."""
+        k = self.k
+        cuts, dcuts = symmetric_cuts(phi, k)
+        eta = phi @ self.deta.T  # (B, C)
+        cdf = _sigmoid(cuts[:, None, :] - eta[:, :, None])  # (B, C, 6)
+        density = cdf * (1 - cdf)
+        dcdf = density[..., None] * (dcuts[:, None] - self.deta[None, :, None, :])  # (B, C, 6, P)
+        batch_cells = eta.shape
+        ones = np.ones(batch_cells + (1,))
+        zeros = np.zeros(batch_cells + (1,))
+        upper = np.concatenate([cdf, ones], axis=2)
+        lower = np.concatenate([zeros, cdf], axis=2)
+        p = upper - lower
+        zero = np.zeros(batch_cells + (1, self.n_params))
+        dp = np.concatenate([dcdf, zero], axis=2) - np.concatenate([zero, dcdf], axis=2)
+        return p, dp
+
+
+def symmetric_cuts(phi, k):
+    """Return the six cut points ``(B, 6)`` of parameters ``phi`` ``(B, k + 4)`` and their
+    derivatives ``(B, 6, k + 4)``."""
+    batch = len(phi)
+    steps = np.exp(phi[:, k + 1:k + 4])  # (B, 3)
+    t = np.cumsum(steps, axis=1)  # t1, t2, t3
+    cuts = np.concatenate([-t[:, ::-1], t], axis=1)
+    dt = np.zeros((batch, 3, phi.shape[1]))
+    for j in range(3):
+        for i in range(j + 1):
+            dt[:, j, k + 1 + i] = steps[:, i]
+    return cuts, np.concatenate([-dt[:, ::-1], dt], axis=1)
+
+
+class DavidsonModel:
+    """Davidson's ties with an order effect; parameters: log-worth ``theta`` (K), ``log g``
+    (the left advantage) and ``log nu`` (ties). Categories: B better, tie, A better."""
+
+    def __init__(self, cells: Cells, k: int):
+        self.k = k
+        n_cells = len(cells.pairs)
+        self.n_params = k + 2
+        design = np.zeros((n_cells, 3, self.n_params))  # d s_m / d params
+        rows = np.arange(n_cells)
+        left, right = cells.pairs[:, 0], cells.pairs[:, 1]
+        design[rows, 0, right] = 1.0
+        design[rows, 1, left] += 0.5
+        design[rows, 1, right] += 0.5
+        design[rows, 1, k + 1] = 1.0
+        design[rows, 2, left] = 1.0
+        design[rows, 2, k] = 1.0
+        self.design = design
+        self.n_categories = 3
+        self.prior = np.full(self.n_params, 1.0 / PRIOR_SD**2)  # every parameter
+        self.start = np.zeros(self.n_params)
+
+    def counts(self, cell_counts):
+        """Collapse ``(B, C, 7)`` grade counts into B better, tie, A better."""
+        return np.stack([cell_counts[..., :3].sum(-1), cell_counts[..., 3],
+                         cell_counts[..., 4:].sum(-1)], axis=-1)
+
+    def probabilities(self, phi):
+        s = np.einsum("cmp,bp->bcm", self.design, phi)
+        s -= s.max(axis=2, keepdims=True)
+        p = np.exp(s)
+        p /= p.sum(axis=2, keepdims=True)
+        mean = np.einsum("bcm,cmp->bcp", p, self.design)
+        dp = p[..., None] * (self.design[None] - mean[:, :, None, :])
+        return p, dp
+
+
+def fisher_scoring(model, counts, start, iterations=60, tolerance=1e-8):
+    """Return ``(phi (B, n_params), converged)`` maximising the penalised likelihood of
+    ``counts`` ``(B, C, M)`` (already in the model's categories) for every row at once."""
+    phi = start.copy()
+    totals = counts.sum(axis=2)
+    converged = False
+    for _ in range(iterations):
+        p, dp = model.probabilities(phi)
+        p = np.maximum(p, 1e-12)
+        score = np.einsum("bcm,bcmp->bp", counts / p, dp) - model.prior * phi
+        info = np.einsum("bc,bcmp,bcmq->bpq", totals, dp / p[..., None], dp)
+        info += np.diag(model.prior)[None] + 1e-9 * np.eye(model.n_params)[None]
+        step = np.linalg.solve(info, score[:, :, None])[:, :, 0]
+        largest = np.abs(step).max(axis=1, keepdims=True)
+        phi += step * np.minimum(1.0, 2.0 / np.maximum(largest, 1e-300))
+        if largest.max() < tolerance:
+            converged = True
+            break
+    return phi, converged
+
+
+def fit_bootstrap(model, cells: Cells, resampled, confidence):
+    """Return the fit on all participants (``theta``) and percentile intervals (``low``,
+    ``high``; NaN without replicates or with fewer than 2 participants) of every
+    parameter, from the participants' redraws ``resampled`` ``(R, P)``."""
+    n_cells = len(cells.pairs)
+    full = model.counts(cells.totals().reshape(1, n_cells, N_GRADES))
+    theta, converged = fisher_scoring(model, full, model.start[None])
+    theta = theta[0]
+    nan = np.full(model.n_params, np.nan)
+    active = np.count_nonzero(cells.by_participant.sum(axis=1))
+    out = {"theta": theta, "low": nan, "high": nan, "samples": None, "converged": converged}
+    if len(resampled) == 0 or active < 2:
+        return out
+    per = max(1, CHUNK_ELEMENTS // ((n_cells + 1) * N_GRADES * model.n_params ** 2))
+    samples = np.empty((len(resampled), model.n_params))
+    for first in range(0, len(resampled), per):
+        weights = resampled[first:first + per].astype(float)
+        counts = (weights @ cells.by_participant).reshape(len(weights), n_cells, N_GRADES)
+        start = np.tile(theta, (len(weights), 1))
+        samples[first:first + per], _ = fisher_scoring(model, model.counts(counts), start)
+    out["samples"] = samples
+    out["low"], out["high"] = _centred_interval(samples, model, confidence)
+    return out
+
+
+def _centred_interval(samples, model, confidence):
+    """Percentile intervals; source effects are centred per replicate first."""
+    shown = samples.copy()
+    shown[:, :model.k] -= shown[:, :model.k].mean(axis=1, keepdims=True)
+    return stats.percentile_interval(shown, confidence)
+
+
+def _centred(fitted, which, key):
+    values = np.asarray(fitted[key], dtype=float)[which]
+    if key == "theta":
+        return values - values.mean()
+    return values  # intervals are of centred replicates already
+
+
+def thresholds(fitted, k, confidence=0.95) -> pd.DataFrame:
+    """Return the ordinal model's six cut points (symmetric about 0) with their intervals."""
+    point = symmetric_cuts(np.atleast_2d(fitted["theta"]), k)[0][0]
+    low = high = np.full(6, np.nan)
+    if fitted["samples"] is not None:
+        low, high = stats.percentile_interval(symmetric_cuts(fitted["samples"], k)[0], confidence)
+    labels = [f"A's grade <= {g}" for g in range(-3, 3)]
+    return pd.DataFrame({"cut": labels, "estimate": point, "ci_low": low, "ci_high": high})
+
+
+def position_bias(trials, ordinal, davidson, k, confidence) -> pd.DataFrame:
+    """Return the position bias three ways: the ordinal shift, Davidson's log order effect,
+    and the raw share of directional answers that favour the left clip."""
+    directional = trials.loc[trials["graded"] & (trials["grade"] != 0)]
+    left = int((directional["grade"] > 0).sum())
+    n = len(directional)
+    low, high = stats.wilson_interval(left, n, confidence)
+    n_people = int(trials.loc[trials["graded"], "pcode"].nunique())
+    records = [
+        {"measure": "ordinal shift beta (logit)", "estimate": float(ordinal["theta"][k]),
+         "ci_low": float(ordinal["low"][k]), "ci_high": float(ordinal["high"][k]),
+         "n": int(trials["graded"].sum()), "p": np.nan},
+        {"measure": "Davidson log order effect", "estimate": float(davidson["theta"][k]),
+         "ci_low": float(davidson["low"][k]), "ci_high": float(davidson["high"][k]),
+         "n": int(trials["graded"].sum()), "p": np.nan},
+        {"measure": "share of directional answers favouring the left clip",
+         "estimate": left / n if n else np.nan, "ci_low": float(low), "ci_high": float(high),
+         "n": n, "p": stats.binomial_p(left, n, 0.5)},
+    ]
+    frame = pd.DataFrame(records)
+    frame["n_participants"] = n_people
+    return frame
+
+
+def pair_table(trials, names, confidence):
+    """Return the per-pair table and the ``(K, K)`` matrix of directional win rates."""
+    k = len(names)
+    a = np.minimum(trials["left"], trials["right"]).to_numpy()
+    b = np.maximum(trials["left"], trials["right"]).to_numpy()
+    # The grade of the pair's first source (a), whichever side it was shown on.
+    grade_a = np.where(trials["left"].to_numpy() == a, 1, -1) * trials["grade"].to_numpy()
+    graded = trials["graded"].to_numpy()
+    wins = np.zeros((k, k))
+    records = []
+    for i, j in itertools.combinations(range(k), 2):
+        here = (a == i) & (b == j)
+        g = grade_a[here & graded]
+        won_a, won_b = int((g > 0).sum()), int((g < 0).sum())
+        wins[i, j], wins[j, i] = won_a, won_b
+        n = won_a + won_b
+        low, high = stats.wilson_interval(won_a, n, confidence)
+        records.append({
+            "a": names[i], "b": names[j], "n": int(here.sum()), "a_better": won_a,
+            "no_preference": int((g == 0).sum()), "b_better": won_b,
+            "both_bad": int((here & ~graded).sum()),
+            "mean_grade_a": float(g.mean()) if len(g) else np.nan,
+            "win_rate_a": won_a / n if n else np.nan, "ci_low": float(low), "ci_high": float(high),
+            "p": stats.binomial_p(won_a, n, 0.5),
+        })
+    table = pd.DataFrame(records)
+    if len(table):
+        table["p_holm"] = stats.holm(table["p"])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        matrix = pd.DataFrame(wins / (wins + wins.T), index=names, columns=names)
+    return table, matrix
+
+
+def both_bad_counts(trials, k):
+    """Return per source how many of its comparisons were answered "Both bad", and how many
+    comparisons showed it."""
+    bad = ~trials["graded"].to_numpy()
+    left, right = trials["left"].to_numpy(), trials["right"].to_numpy()
+    shown = np.bincount(left, minlength=k) + np.bincount(right, minlength=k)
+    both = np.bincount(left[bad], minlength=k) + np.bincount(right[bad], minlength=k)
+    return both, shown
+
+
+def elo(trials, k, seed=0) -> np.ndarray:
+    """Return each source's Elo rating from the directional answers (a tie scores 0.5),
+    averaged over :data:`ELO_ORDERS` random orders of the comparisons. Descriptive only."""
+    graded = trials.loc[trials["graded"]]
+    left, right = graded["left"].to_numpy(), graded["right"].to_numpy()
+    score = 0.5 + 0.5 * np.sign(graded["grade"].to_numpy())
+    rng = np.random.default_rng(seed)
+    orders = np.stack([rng.permutation(len(graded)) for _ in range(ELO_ORDERS)])  # (R, T)
+    rating = np.full((ELO_ORDERS, k), ELO_START)
+    rows = np.arange(ELO_ORDERS)
+    for step in range(len(graded)):
+        t = orders[:, step]
+        i, j = left[t], right[t]
+        expected = 1.0 / (1.0 + 10 ** ((rating[rows, j] - rating[rows, i]) / 400))
+        change = ELO_K * (score[t] - expected)
+        rating[rows, i] += change
+        rating[rows, j] -= change
+    return rating.mean(axis=0)
+
+
+def _bias_row(bias, measure):
+    return bias.set_index("measure").loc[measure]
+
+
+def _interval_text(bias, measure):
+    row = _bias_row(bias, measure)
+    return f"{number(row['estimate'], 3)} [{number(row['ci_low'], 3)}, {number(row['ci_high'], 3)}]"
+
+
+def _sigmoid(x):
+    return 0.5 * (1.0 + np.tanh(0.5 * x))
+
+
+def _interval_plot(sources):
+    def draw():
+        from analysis.figures import interval_figure
+
+        return interval_figure(sources, "ordinal source effect (logit)", reference=0.0)
+
+    return draw
+
+
+def _matrix_plot(matrix):
+    def draw():
+        from analysis.figures import win_matrix_figure
+
+        return win_matrix_figure(matrix)
+
+    return draw
