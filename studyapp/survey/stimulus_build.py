@@ -35,9 +35,11 @@ new set under a new slug, or put the source back).
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import json
 import shutil
+from collections import defaultdict
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -53,7 +55,7 @@ from rendering import VERSION as RENDERING_VERSION
 from rendering import Framing, get_style, render_set
 from studyapp.survey.models import ScoringStandard, Stimulus, Study
 from studyapp.survey.stimuli import Clip, file_hash, register_clips
-from studyapp.survey.stimulus_config import ConfigError, StudyConfig
+from studyapp.survey.stimulus_config import ConfigError, StudyConfig, normalise_prompt, prompt_key
 
 Role = Stimulus.Role
 # Real clips drawn per action beyond the judged ones: a reference, the base of the
@@ -122,8 +124,11 @@ class Build:
 
     def data_fields(self) -> dict:
         c = self.config
-        return {"dataset": c.dataset, "subjects": c.subjects, "actions": c.actions,
-                "frames": c.frames, "fps": c.fps, "n": c.clips_per_source}
+        fields = {"dataset": c.dataset, "subjects": c.subjects, "actions": c.actions,
+                  "frames": c.frames, "fps": c.fps, "n": c.clips_per_source}
+        if c.prompts is not None:
+            fields["prompts"] = c.prompts
+        return fields
 
     def actions(self) -> list[str]:
         try:
@@ -161,9 +166,13 @@ class Build:
                     result.sampled.append(source.name)
                 groups.append((source, motions, meta))
                 self.step(f"sampled {source.name}")
-            base, framing = self.real_base()
+            if c.prompts is None:
+                base, framing = self.real_base()
+                extras = self.extras(base)
+            else:
+                framing = self.pooled_framing([m for _, motions, _ in groups for m in motions])
+                extras = self.prompt_extras(groups)
             self.step("framing")
-            extras = self.extras(base)
             judged = [(m, meta) for _, motions, meta in groups for m in motions]
             self.bar.total += len(judged) + len(extras)
             self.bar.refresh()
@@ -244,6 +253,9 @@ class Build:
 
     def sample(self, source) -> list:
         c = self.config
+        if c.prompts is not None:
+            motions = self.prompt_motions(source)
+            return [m.with_joints(m.joints, source=source.name, meta=dict(m.meta)) for m in motions]
         n = c.clips_per_source
         frames = c.frames or self.dataset.clip_frames
         if source.kind == "real":
@@ -273,6 +285,53 @@ class Build:
                                   f"{', '.join(self.actions())}; set the actions, or the file's "
                                   f"'action' option")
         return [m.with_joints(m.joints, source=source.name, meta=dict(m.meta)) for m in motions]
+
+    def prompt_motions(self, source) -> list:
+        """Return ``clips_per_source`` motions of ``source`` for each prompt, in prompt order:
+        a file's motions whose text is the prompt, or real takes whose caption is."""
+        c = self.config
+        where = f"sources.{c.sources.index(source)} ({source.name})"
+        frames = c.frames or self.dataset.clip_frames
+        fps = c.fps or self.dataset.clip_fps
+        if source.kind == "real":
+            takes_for = getattr(self.dataset, "takes_for", None)
+            if takes_for is None:
+                raise ConfigError(
+                    f"{where}: real clips for prompts come from a dataset with captions in "
+                    f"HumanML3D's layout (humanml3d, kit_ml); dataset {c.dataset!r} has none. Set "
+                    f"dataset (and data_root), or give real clips as a file source (import_motions "
+                    f"HumanML3D/ --format humanml3d --source real --out real.npz)")
+            takes = [ops.resample(take, fps) for prompt in c.prompts for take in takes_for(prompt)]
+            known = self.dataset.prompts()
+            rng = np.random.default_rng(source.seed)
+        else:
+            options = {k: (str(c.path(v)) if k == "classes_path" else v)
+                       for k, v in source.options.items()}
+            takes = list(load_motions(c.path(source.file), source.format, fps=fps, **options))
+            known = [m.text for m in takes if m.text]
+            rng = None  # a file's motions are taken in its order
+        return motions_for_prompts(c.prompts, takes, c.clips_per_source, frames, where, known,
+                                   rng)
+
+    def pooled_framing(self, motions) -> Framing:
+        """Return one framing fitted to every judged clip of a prompts study (which may have
+        no real data), in the renderer's frame as render_set draws them."""
+        style = get_style(self.config.style)
+        return Framing.from_motions([ops.canonical(m, style.dims) for m in motions],
+                                    pad=style.pad)
+
+    def prompt_extras(self, groups) -> list[tuple]:
+        """Return the catch clips of a prompts study: per prompt, a broken version of one of
+        its judged clips (of any source, chosen by the seed)."""
+        if not self.roles().get(Role.CATCH):
+            return []
+        rng = np.random.default_rng(self.config.seed + 1)
+        by_prompt = defaultdict(list)
+        for _, motions, _ in groups:
+            for motion in motions:
+                by_prompt[motion.action].append(motion)
+        return [(perturb.catch_clip(mine[int(rng.integers(len(mine)))], rng), Role.CATCH, None)
+                for mine in by_prompt.values()]
 
     def real_base(self):
         """Return real clips (n + EXTRA_REAL per action) and the framing fitted to them, cached."""
@@ -376,11 +435,12 @@ class Build:
                 motion=payload,
             )
             clips.append(clip)
-            entry = {**spec, "action": clip.action, "motion_hash": clip.motion_hash,
-                     "video_hash": clip.video_hash}
+            entry = {**spec, "action": clip.action, "prompt": clip.prompt or None,
+                     "motion_hash": clip.motion_hash, "video_hash": clip.video_hash}
             entries.append({k: entry[k] for k in ("source", "checkpoint", "file", "seed",
-                                                  "action", "role", "score", "motion_hash",
-                                                  "video_hash") if entry.get(k) is not None})
+                                                  "action", "prompt", "role", "score",
+                                                  "motion_hash", "video_hash")
+                            if entry.get(k) is not None})
         return clips, entries, len(missing)
 
     def payloads(self, motions, framing, folder) -> list:
@@ -457,6 +517,57 @@ class Build:
         manifest = {"slug": c.slug, "study_type": c.study_type, "dataset": c.dataset,
                     "style": c.style, "size": c.size, "clips": entries}
         _write_if_changed(self.folder / "manifest.json", json.dumps(manifest, indent=1) + "\n")
+
+
+def motions_for_prompts(prompts, motions, n: int, frames: int, where: str, known=(),
+                        rng=None) -> list:
+    """Return ``n`` motions per prompt, prompt by prompt, cut to ``frames`` frames.
+
+    A motion is a prompt's when its ``text`` is the prompt (ignoring case, spacing and a
+    final full stop); motions shorter than ``frames`` are not used. ``rng`` draws the
+    motions (default: the first ``n`` in order). Each returned motion's ``action`` is the
+    prompt's key (:func:`prompt_key`), its ``text`` the prompt as the config gives it
+    (one text per trial, whichever source a clip comes from) and ``meta["caption"]`` its
+    own text. Raise :class:`ConfigError` naming the prompt, the source (``where``) and
+    the closest of the ``known`` texts when a prompt has too few motions.
+    """
+    by_text = defaultdict(list)
+    for motion in motions:
+        if motion.text:
+            by_text[normalise_prompt(motion.text)].append(motion)
+    texts = list(dict.fromkeys(t for t in known if t)) or [m.text for m in motions if m.text]
+    out = []
+    for prompt in prompts:
+        found = by_text.get(normalise_prompt(prompt), [])
+        if not found:
+            spelled = {normalise_prompt(t): t for t in reversed(texts)}
+            close = difflib.get_close_matches(normalise_prompt(prompt), list(spelled), n=3,
+                                              cutoff=0.6)
+            if close:
+                hint = "close matches: " + "; ".join(repr(spelled[t]) for t in close)
+            elif texts:
+                hint = f"it has {len(texts)} other prompts, e.g. {texts[0]!r}"
+            else:
+                hint = "it has no prompts at all (import its motions with their texts)"
+            raise ConfigError(f"prompts: {where} has no motion for prompt {prompt!r}; {hint}. Fix "
+                              f"the prompt (or drop it), or give that source motions of it")
+        usable = [m for m in found if m.frames >= frames]
+        if len(usable) < n:
+            longest = max(m.frames for m in found)
+            fix = (f"set frames to {longest} or less" if not usable else
+                   "lower clips_per_source (or frames)")
+            raise ConfigError(f"prompts: {where} has {len(usable)} motion(s) of at least {frames} "
+                              f"frames for prompt {prompt!r} (clips_per_source is {n}; its "
+                              f"longest has {longest}); {fix}")
+        if rng is None:
+            chosen = usable[:n]
+        else:
+            chosen = [usable[i] for i in sorted(rng.choice(len(usable), n, replace=False))]
+        for motion in chosen:
+            cut = ops.trim(motion, 0, frames)
+            out.append(cut.with_joints(cut.joints, action=prompt_key(prompt), text=prompt,
+                                       meta={**cut.meta, "caption": motion.text}))
+    return out
 
 
 def _framing_fields(raw: dict) -> dict:

@@ -1,0 +1,157 @@
+"""Text prompts as conditions: config checks, matching motions to prompts, the build."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from generation.formats import npz
+from generation.motion import Motion
+from studyapp.survey.stimulus_build import build_stimuli, motions_for_prompts
+from studyapp.survey.stimulus_config import ConfigError, load_config, parse, prompt_key
+from tests.studyapp.mdm_results import moving_body, write_mdm_results
+
+ROOT = Path(__file__).resolve().parents[2]
+PROMPTS = ["a person walks forward", "a person jumps up", "someone waves", "a man sits down"]
+
+
+def config(**changes) -> dict:
+    raw = {
+        "slug": "prompt-pairs", "title": "Which fits the text better?", "seed": 0,
+        "dataset": "humanml3d", "prompts": list(PROMPTS), "frames": 20, "clips_per_source": 1,
+        "sources": [{"name": "model_a", "file": "a/results.npy", "format": "mdm"},
+                    {"name": "model_b", "file": "b/results.npy", "format": "mdm"}],
+        "render": {"style": "stick", "size": 64},
+        "study": {"type": "pairwise", "practice": False, "catch_trials": 1},
+    }
+    raw.update(changes)
+    return raw
+
+
+@pytest.mark.parametrize("changes, words", [
+    ({"actions": ["walk"]}, ["actions and prompts", "drop actions"]),
+    ({"prompts_from": "p.txt"}, ["prompts and prompts_from", "give one of them"]),
+    ({"prompts": []}, ["prompts", "non-empty list"]),
+    ({"prompts": ["a person jumps", 3]}, ["prompts", "prompt 2", "non-empty text"]),
+    ({"prompts": ["a person jumps.", "A  person  jumps"]}, ["prompts", "'A person jumps'",
+                                                            "same prompt as", "once"]),
+    ({"prompts": ["x" * 501]}, ["prompts", "501 characters", "at most 500"]),
+    ({"prompts_from": "missing.txt", "prompts": None}, ["prompts_from", "'missing.txt'",
+                                                        "fix the path"]),
+    ({"sources": [{"file": "a/results.npy", "format": "mdm"}, "a2m"]},
+     ["sources.1", "'a2m'", "action-conditioned", "format: mdm"]),
+    ({"study": {"type": "pairwise", "practice": True}}, ["study.practice", "practice: false"]),
+    ({"study": {"type": "rating_reference"}}, ["study.type", "rating_reference", "reference",
+                                               "pairwise"]),
+])
+def test_bad_prompt_configs_name_the_key_and_the_fix(tmp_path, changes, words):
+    with pytest.raises(ConfigError) as error:
+        parse(config(**changes), tmp_path)
+    for word in words:
+        assert word in str(error.value)
+
+
+def test_prompts_from_a_text_file_or_an_interchange_npz(tmp_path):
+    (tmp_path / "prompts.txt").write_text(
+        "# a comment\n\na person walks forward#a/DET person/NOUN#0.0#0.0\nsomeone waves\n"
+        "Someone waves.\n")
+    raw = config(prompts=None, prompts_from="prompts.txt")
+    assert parse(raw, tmp_path).prompts == ["a person walks forward", "someone waves"]
+    motions = [Motion(moving_body(10, i), "smpl22", 20.0, "unknown", "mdm", text=text)
+               for i, text in enumerate(["a man sits down", "", "a man sits down", "someone waves"])]
+    npz.save(tmp_path / "mine.npz", motions)
+    raw = config(prompts=None, prompts_from="mine.npz")
+    assert parse(raw, tmp_path).prompts == ["a man sits down", "someone waves"]
+    np.save(tmp_path / "results.npy", {"motion": np.zeros((1, 22, 3, 4))})
+    with pytest.raises(ConfigError, match="prompts_from: 'results.npy' is not a text file.*"
+                                          "import_motions results.npy"):
+        parse(config(prompts=None, prompts_from="results.npy"), tmp_path)
+    (tmp_path / "empty.txt").write_text("# nothing\n")
+    with pytest.raises(ConfigError, match="prompts_from: 'empty.txt' holds no prompt"):
+        parse(config(prompts=None, prompts_from="empty.txt"), tmp_path)
+
+
+def motion(text, frames=30, seed=0):
+    return Motion(moving_body(frames, seed), "smpl22", 20.0, "unknown", "mdm", text=text)
+
+
+def test_motions_match_prompts_by_text_ignoring_case_spacing_and_full_stop():
+    motions = [motion("A person  walks forward.", seed=1), motion("someone waves", seed=2),
+               motion("a person walks forward", seed=3)]
+    out = motions_for_prompts(["a person walks forward", "Someone waves"], motions, 2 - 1, 20,
+                              "sources.0 (model_a)")
+    assert [m.text for m in out] == ["a person walks forward", "Someone waves"]
+    assert [m.meta["caption"] for m in out] == ["A person  walks forward.", "someone waves"]
+    assert [m.action for m in out] == ["a person walks forward", "Someone waves"]
+    assert all(m.frames == 20 for m in out)
+    two = motions_for_prompts(["a person walks forward"], motions, 2, 20, "sources.0 (model_a)")
+    assert len(two) == 2
+
+
+def test_a_prompt_a_source_lacks_is_named_with_the_source_and_close_matches():
+    motions = [motion("a person walks forward"), motion("a person walks backward"),
+               motion("a man sits down")]
+    with pytest.raises(ConfigError) as error:
+        motions_for_prompts(["a person walks forwards slowly"], motions, 1, 20,
+                            "sources.1 (model_b)")
+    message = str(error.value)
+    for word in ("prompts:", "sources.1 (model_b)", "'a person walks forwards slowly'",
+                 "close matches", "'a person walks forward'", "'a person walks backward'",
+                 "Fix the prompt"):
+        assert word in message
+    assert "a man sits down" not in message
+    with pytest.raises(ConfigError, match="no motion for prompt 'xyzzy'; it has 3 other prompts"):
+        motions_for_prompts(["xyzzy"], motions, 1, 20, "sources.1 (model_b)")
+
+
+def test_too_few_or_too_short_motions_say_what_to_change():
+    motions = [motion("a man sits down", frames=12)]
+    with pytest.raises(ConfigError, match=r"0 motion\(s\) of at least 20 frames for prompt "
+                                          r"'a man sits down'.*set frames to 12 or less"):
+        motions_for_prompts(["a man sits down"], motions, 1, 20, "sources.0 (model_a)")
+    with pytest.raises(ConfigError, match="lower clips_per_source"):
+        motions_for_prompts(["a man sits down"], motions, 2, 10, "sources.0 (model_a)")
+
+
+def test_a_long_prompt_keys_its_clips_by_its_start_and_a_hash():
+    long = "a person " + "walks and then " * 20 + "stops"
+    key = prompt_key(long)
+    assert len(key) <= 100 and key.startswith("a person walks") and key != prompt_key(long + "!")
+    assert prompt_key("  a  person jumps ") == "a person jumps"
+
+
+@pytest.mark.django_db
+def test_a_prompt_study_builds_one_condition_per_prompt(tmp_path, media_root):
+    write_mdm_results(tmp_path / "a" / "results.npy", PROMPTS, repetitions=2, seed=1)
+    variants = [p.capitalize() + "." for p in PROMPTS][::-1]  # other order, case and stop
+    write_mdm_results(tmp_path / "b" / "results.npy", variants, repetitions=1, seed=2)
+    result = build_stimuli(parse(config(), tmp_path), tmp_path / "build")
+    study = result.study
+    judged = study.stimuli.judged()
+    assert judged.count() == 2 * len(PROMPTS)
+    assert sorted(set(judged.values_list("prompt", flat=True))) == sorted(PROMPTS)
+    for stimulus in judged:
+        assert stimulus.action == stimulus.prompt  # the trial's condition is its prompt
+    catch = study.stimuli.filter(role="catch")
+    assert sorted(catch.values_list("prompt", flat=True)) == sorted(PROMPTS)
+    manifest = json.loads(result.manifest.read_text())
+    assert {e["prompt"] for e in manifest["clips"]} == set(PROMPTS)
+
+    # A prompt only one source has: the error names it, the other source and close matches.
+    raw = config(prompts=[*PROMPTS, "a person jumps up high"], slug="other")
+    write_mdm_results(tmp_path / "a" / "results.npy", [*PROMPTS, "a person jumps up high"],
+                      repetitions=1, seed=1)
+    with pytest.raises(ConfigError) as error:
+        build_stimuli(parse(raw, tmp_path), tmp_path / "build2")
+    assert "sources.1 (model_b) has no motion for prompt 'a person jumps up high'" in str(error.value)
+    assert "'A person jumps up.'" in str(error.value)
+
+
+def test_the_mdm_pairwise_preset_reads(tmp_path):
+    config = load_config(ROOT / "studies" / "mdm_pairwise.yaml")
+    assert config.study_type == "pairwise" and len(config.prompts) == 4
+    assert [s.format for s in config.sources] == ["mdm", "mdm"]
+    assert yaml.safe_load((ROOT / "studies" / "mdm_pairwise.yaml").read_text())["study"][
+        "practice"] is False
