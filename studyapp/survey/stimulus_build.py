@@ -301,8 +301,16 @@ class Build:
                     f"HumanML3D's layout (humanml3d, kit_ml); dataset {c.dataset!r} has none. Set "
                     f"dataset (and data_root), or give real clips as a file source (import_motions "
                     f"HumanML3D/ --format humanml3d --source real --out real.npz)")
-            takes = [ops.resample(take, fps) for prompt in c.prompts for take in takes_for(prompt)]
-            known = self.dataset.prompts()
+            # As takes_for(prompt) does, for every prompt at once (the dataset is read once):
+            # a take per caption, its text the caption.
+            wanted = {normalise_prompt(p) for p in c.prompts}
+            takes, known = [], []
+            for take in self.dataset.load_takes().motions:
+                for caption in take.meta.get("captions", []):
+                    known.append(caption)
+                    if normalise_prompt(caption) in wanted:
+                        takes.append(ops.resample(take.with_joints(
+                            take.joints, text=caption, meta=dict(take.meta)), fps))
             rng = np.random.default_rng(source.seed)
         else:
             options = {k: (str(c.path(v)) if k == "classes_path" else v)

@@ -14,12 +14,12 @@ Overrides are ``path=value``: ``path`` is dotted (``train.iters``, ``study.type`
 from __future__ import annotations
 
 import hashlib
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import yaml
 
+from generation.datasets.humanml3d import normalise as normalise_prompt  # as captions match
 from generation.formats import list_formats
 from rendering import list_styles
 from studyapp.survey.crowd import make_platform
@@ -317,12 +317,6 @@ def _sources(raw, seed, iters, preset) -> list[Source]:
                               f"its own name")
         sources.append(source)
     return sources
-
-
-def normalise_prompt(prompt: str) -> str:
-    """Return a prompt as prompts are compared: ignoring case, spacing and a final full
-    stop (as captions of HumanML3D are matched)."""
-    return re.sub(r"\s+", " ", prompt.strip().lower()).rstrip(" .")
 
 
 def prompt_key(prompt: str) -> str:

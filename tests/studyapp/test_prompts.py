@@ -155,3 +155,45 @@ def test_the_mdm_pairwise_preset_reads(tmp_path):
     assert [s.format for s in config.sources] == ["mdm", "mdm"]
     assert yaml.safe_load((ROOT / "studies" / "mdm_pairwise.yaml").read_text())["study"][
         "practice"] is False
+
+
+def write_humanml3d(root, captions, frames=40):
+    """Write a HumanML3D-layout folder: one clip per caption, new_joints/ and texts/."""
+    (root / "new_joints").mkdir(parents=True)
+    (root / "texts").mkdir()
+    for i, caption in enumerate(captions):
+        np.save(root / "new_joints" / f"{i:06d}.npy", moving_body(frames, 100 + i))
+        (root / "texts" / f"{i:06d}.txt").write_text(f"{caption}#a/DET person/NOUN#0.0#0.0\n")
+
+
+@pytest.mark.django_db
+def test_real_clips_of_a_prompt_come_from_captions_and_show_the_configs_prompt(tmp_path,
+                                                                               media_root):
+    write_humanml3d(tmp_path / "hml", ["A person walks forward.", "someone waves",
+                                       "a person walks forward", "a man sits down"])
+    write_mdm_results(tmp_path / "a" / "results.npy", PROMPTS, repetitions=1, seed=1)
+    raw = config(prompts=["a person walks forward", "someone waves"], data_root="hml",
+                 sources=["real", {"name": "model_a", "file": "a/results.npy", "format": "mdm"}],
+                 clips_per_source=1)
+    raw["data_root"] = str(tmp_path / "hml")
+    study = build_stimuli(parse(raw, tmp_path), tmp_path / "build").study
+    real = study.stimuli.judged().filter(source="real")
+    assert sorted(real.values_list("prompt", flat=True)) == ["a person walks forward",
+                                                             "someone waves"]
+    # Two captions match the first prompt; either may be drawn, the shown prompt is the same.
+    raw["prompts"] = ["a person walks forwards"]
+    with pytest.raises(ConfigError) as error:
+        build_stimuli(parse({**raw, "slug": "other"}, tmp_path), tmp_path / "build2")
+    assert ("sources.0 (real) has no motion for prompt 'a person walks forwards'; close "
+            "matches: 'A person walks forward.'") in str(error.value)
+
+
+@pytest.mark.django_db
+def test_real_clips_for_prompts_need_a_dataset_with_captions(tmp_path, media_root):
+    write_mdm_results(tmp_path / "a" / "results.npy", PROMPTS, repetitions=1, seed=1)
+    raw = config(dataset="demo", sources=["real", {"name": "model_a", "file": "a/results.npy",
+                                                   "format": "mdm"}])
+    with pytest.raises(ConfigError, match=r"sources.0 \(real\): real clips for prompts come "
+                                          r"from a dataset with captions.*humanml3d, kit_ml.*"
+                                          r"dataset 'demo' has none.*--format humanml3d"):
+        build_stimuli(parse(raw, tmp_path), tmp_path / "build")
