@@ -199,10 +199,11 @@ def analyse(table: pd.DataFrame, config: AnalysisConfig | None = None,
         "trials": int(main["trial_key"].nunique()),
         "actions": int(main["action"].nunique()) if "action" in main.columns and not by_prompt
         else 0,
-        "prompts": int(main["prompt"].nunique()) if by_prompt else 0,
         "sources": sources,
         "participants_before": int(rows["pcode"].nunique()),
     }
+    if by_prompt:
+        counts["prompts"] = int(main["prompt"].nunique())
     demographics = None
     if participants is not None and len(participants):
         analysed = set(main["participant"].astype(str))
