@@ -170,6 +170,7 @@ class Build:
                 base, framing = self.real_base()
                 extras = self.extras(base)
             else:
+                same_skeleton(groups)
                 framing = self.pooled_framing([m for _, motions, _ in groups for m in motions])
                 extras = self.prompt_extras(groups)
             self.step("framing")
@@ -525,6 +526,22 @@ class Build:
         manifest = {"slug": c.slug, "study_type": c.study_type, "dataset": c.dataset,
                     "style": c.style, "size": c.size, "clips": entries}
         _write_if_changed(self.folder / "manifest.json", json.dumps(manifest, indent=1) + "\n")
+
+
+def same_skeleton(groups) -> None:
+    """Refuse sources of a prompts study whose figures differ (their skeleton would tell
+    participants which clip is whose)."""
+    first = None
+    for source, motions, _ in groups:
+        skeletons = sorted({m.skeleton for m in motions})
+        if first is None:
+            first = (source.name, skeletons)
+        elif skeletons != first[1]:
+            raise ConfigError(
+                f"sources: {source.name!r} has skeleton {', '.join(skeletons)} but "
+                f"{first[0]!r} has {', '.join(first[1])}; the figure would tell participants "
+                f"the sources apart. Compare sources of one skeleton (models of one dataset: "
+                f"HumanML3D's smpl22 or KIT-ML's kit21)")
 
 
 def motions_for_prompts(prompts, motions, n: int, frames: int, where: str, known=(),

@@ -197,3 +197,14 @@ def test_real_clips_for_prompts_need_a_dataset_with_captions(tmp_path, media_roo
                                           r"from a dataset with captions.*humanml3d, kit_ml.*"
                                           r"dataset 'demo' has none.*--format humanml3d"):
         build_stimuli(parse(raw, tmp_path), tmp_path / "build")
+
+
+@pytest.mark.django_db
+def test_sources_of_different_skeletons_are_refused_as_they_would_tell(tmp_path, media_root):
+    write_mdm_results(tmp_path / "a" / "results.npy", PROMPTS, repetitions=1, seed=1)
+    data = write_mdm_results(tmp_path / "b" / "results.npy", PROMPTS, repetitions=1, seed=2)
+    data["motion"] = data["motion"][:, :21] * 1000  # KIT-ML's 21 joints in millimetres
+    np.save(tmp_path / "b" / "results.npy", data)
+    with pytest.raises(ConfigError, match="'model_b' has skeleton kit21 but 'model_a' has "
+                                          "smpl22; the figure would tell"):
+        build_stimuli(parse(config(), tmp_path), tmp_path / "build")
