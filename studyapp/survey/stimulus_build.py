@@ -470,6 +470,11 @@ class Build:
         fields["dataset"] = c.dataset
         fields["options"] = dict(c.type_options)
         fields["player"] = "" if c.player == "video" else ("body" if c.style == "mesh" else "stick")
+        if c.prompts is not None and not fields.get("instructions"):
+            draft = Study(study_type=c.study_type, options=fields["options"],
+                          clips_per_trial=fields.get("clips_per_trial",
+                                                     self.kind.default_clips_per_trial))
+            fields["instructions"] = self.kind.prompt_instructions(draft)
         return fields
 
     def register(self, clips):

@@ -138,6 +138,10 @@ def test_a_prompt_study_builds_one_condition_per_prompt(tmp_path, media_root):
     assert sorted(catch.values_list("prompt", flat=True)) == sorted(PROMPTS)
     manifest = json.loads(result.manifest.read_text())
     assert {e["prompt"] for e in manifest["clips"]} == set(PROMPTS)
+    # The default instructions speak of a text, not of a named action.
+    assert "a person walks forward and waves" in study.instructions
+    assert "matches the text better" in study.instructions
+    assert "action" not in study.instructions
 
     # A prompt only one source has: the error names it, the other source and close matches.
     raw = config(prompts=[*PROMPTS, "a person jumps up high"], slug="other")
@@ -208,3 +212,15 @@ def test_sources_of_different_skeletons_are_refused_as_they_would_tell(tmp_path,
     with pytest.raises(ConfigError, match="'model_b' has skeleton kit21 but 'model_a' has "
                                           "smpl22; the figure would tell"):
         build_stimuli(parse(config(), tmp_path), tmp_path / "build")
+
+
+@pytest.mark.parametrize("study_type", ["pairwise", "ranking", "fake_or_real"])
+def test_default_instructions_of_every_prompt_type_speak_of_a_text(study_type):
+    from studyapp.survey.models import Study
+    from studyapp.survey.study_types import get_study_type
+
+    kind = get_study_type(study_type)
+    draft = Study(study_type=study_type, options={}, clips_per_trial=kind.default_clips_per_trial)
+    text = kind.prompt_instructions(draft)
+    assert "for example \"a person walks forward and waves\"" in text
+    assert "action" not in text
