@@ -133,3 +133,14 @@ def test_prompts_are_shown_answered_exported_and_analysed(prompt_study, page, ph
     assert set(by_prompt["source"]) == set(SOURCES)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["n_judgements"] == 2 * 2 * len(PROMPTS)
+
+
+def test_the_blindness_audit_cannot_tell_the_two_models_apart(prompt_study, live_server,
+                                                               tmp_path):
+    out = tmp_path / "audit.json"
+    call_command("audit_blindness", study=prompt_study.slug, url=live_server.url,
+                 json_out=str(out))
+    result = json.loads(out.read_text())
+    assert result["source"]["n"] == 2 * len(PROMPTS)  # model_a against model_b
+    assert result["source"]["accuracy"] is not None and result["source"]["passed"]
+    assert result["catch"]["n"] == 3 * len(PROMPTS) and result["catch"]["passed"]
