@@ -224,3 +224,24 @@ def test_default_instructions_of_every_prompt_type_speak_of_a_text(study_type):
     text = kind.prompt_instructions(draft)
     assert "for example \"a person walks forward and waves\"" in text
     assert "action" not in text
+
+
+@pytest.mark.parametrize("study_type", ["pairwise", "ranking", "fake_or_real"])
+def test_the_analysis_reports_per_prompt_where_it_reports_per_action(study_type):
+    from analysis.simulate import simulate
+    from analysis.study import AnalysisConfig, analyse
+
+    table = simulate(study_type, {"real": 1.0, "model_a": 0.0, "model_b": -0.5},
+                     participants=12, trials=4, actions=("walk", "wave"), seed=3)
+    texts = {"walk": "a person walks forward", "wave": "someone waves & <smiles>"}
+    table["prompt"] = table["action"].map(texts)
+    result = analyse(table, AnalysisConfig(bootstrap=20))
+    names = [t.name for t in result.tables]
+    assert not any("action" in name for name in names)
+    by_prompt = next(t for t in result.tables if t.name == "by_prompt")
+    assert "per prompt" in by_prompt.title
+    frame = by_prompt.frame.reset_index()
+    assert sorted(frame["prompt"].unique()) == sorted(texts.values())
+    assert result.counts["prompts"] == 2 and "2 text prompts" in result.methods()
+    plain = analyse(table.drop(columns="prompt"), AnalysisConfig(bootstrap=20))
+    assert "by_action" in [t.name for t in plain.tables] and "prompts" not in plain.counts
