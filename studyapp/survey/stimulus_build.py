@@ -171,7 +171,12 @@ class Build:
                 extras = self.extras(base)
             else:
                 same_skeleton(groups)
-                framing = self.pooled_framing([m for _, motions, _ in groups for m in motions])
+                # As with actions, real clips set the framing when there are any (a change
+                # of a generated source then re-renders only its clips); else every source's.
+                real = [m for source, motions, _ in groups if source.kind == "real"
+                        for m in motions]
+                framing = self.pooled_framing(real or [m for _, motions, _ in groups
+                                                       for m in motions])
                 extras = self.prompt_extras(groups)
             self.step("framing")
             judged = [(m, meta) for _, motions, meta in groups for m in motions]
@@ -295,8 +300,7 @@ class Build:
         frames = c.frames or self.dataset.clip_frames
         fps = c.fps or self.dataset.clip_fps
         if source.kind == "real":
-            takes_for = getattr(self.dataset, "takes_for", None)
-            if takes_for is None:
+            if not hasattr(self.dataset, "takes_for"):  # datasets with captions have it
                 raise ConfigError(
                     f"{where}: real clips for prompts come from a dataset with captions in "
                     f"HumanML3D's layout (humanml3d, kit_ml); dataset {c.dataset!r} has none. Set "
@@ -323,8 +327,9 @@ class Build:
                                    rng)
 
     def pooled_framing(self, motions) -> Framing:
-        """Return one framing fitted to every judged clip of a prompts study (which may have
-        no real data), in the renderer's frame as render_set draws them."""
+        """Return one framing fitted to ``motions`` (a prompts study's real clips, or all its
+        judged clips when it has no real data), in the renderer's frame as render_set draws
+        them."""
         style = get_style(self.config.style)
         return Framing.from_motions([ops.canonical(m, style.dims) for m in motions],
                                     pad=style.pad)

@@ -336,7 +336,8 @@ def _prompts(raw: dict, folder: Path) -> list[str] | None:
         return None
     if given is not None and from_file is not None:
         raise ConfigError("prompts and prompts_from: give one of them (a list of prompts, or a "
-                          "file with one prompt per line)")
+                          "file with one prompt per line); set the other to null, e.g. over a "
+                          "config this one extends")
     key = "prompts" if given is not None else "prompts_from"
     if raw.get("actions") is not None:
         raise ConfigError(f"actions and {key}: a study's trials show either actions or text "
