@@ -184,7 +184,12 @@ def test_real_clips_of_a_prompt_come_from_captions_and_show_the_configs_prompt(t
     real = study.stimuli.judged().filter(source="real")
     assert sorted(real.values_list("prompt", flat=True)) == ["a person walks forward",
                                                              "someone waves"]
-    # Two captions match the first prompt; either may be drawn, the shown prompt is the same.
+    # Real clips set the framing: another model_a re-renders only model_a's clips.
+    raw["study"] = {"type": "pairwise", "practice": False, "catch_trials": 0}
+    build_stimuli(parse(raw, tmp_path), tmp_path / "build")
+    write_mdm_results(tmp_path / "a" / "results.npy", PROMPTS, repetitions=1, seed=9)
+    again = build_stimuli(parse(raw, tmp_path), tmp_path / "build")
+    assert again.sampled == ["model_a"] and again.rendered == 2
     raw["prompts"] = ["a person walks forwards"]
     with pytest.raises(ConfigError) as error:
         build_stimuli(parse({**raw, "slug": "other"}, tmp_path), tmp_path / "build2")
