@@ -394,6 +394,15 @@ def _read_prompt_file(value, folder: Path) -> list:
             raise ConfigError(f"prompts_from: {value!r} has no texts; import motions that carry "
                               f"prompts (import_motions ... --texts FILE), or give a text file")
         return texts
+    if path.suffix.lower() == ".csv":  # a text (or prompt, caption) column, as --texts reads
+        from generation.formats.base import FormatError, read_prompts
+
+        try:
+            found = read_prompts(path)
+        except (FormatError, UnicodeDecodeError) as exc:
+            raise ConfigError(f"prompts_from: {value!r}: {exc}") from None
+        texts = list(found.values()) if isinstance(found, dict) else found
+        return [t for t in texts if t.strip()] or _no_prompt(value)
     if path.suffix in (".npy", ".pt", ".pkl", ".bvh"):
         raise ConfigError(f"prompts_from: {value!r} is not a text file; give one prompt per line, "
                           f"or an interchange .npz (import_motions {value} --format auto --out "
@@ -408,9 +417,11 @@ def _read_prompt_file(value, folder: Path) -> list:
         if not line or line.startswith("#"):
             continue
         lines.append(line.split("#", 1)[0])
-    if not lines:
-        raise ConfigError(f"prompts_from: {value!r} holds no prompt; write one prompt per line")
-    return lines
+    return lines or _no_prompt(value)
+
+
+def _no_prompt(value):
+    raise ConfigError(f"prompts_from: {value!r} holds no prompt; write one prompt per line")
 
 
 # Roles a prompts study can make: catch clips are broken versions of judged clips; the

@@ -68,6 +68,13 @@ def test_prompts_from_a_text_file_or_an_interchange_npz(tmp_path):
     with pytest.raises(ConfigError, match="prompts_from: 'results.npy' is not a text file.*"
                                           "import_motions results.npy"):
         parse(config(prompts=None, prompts_from="results.npy"), tmp_path)
+    (tmp_path / "prompts.csv").write_text("file,text\nsample00.npy,a man sits down\n"
+                                          "sample01.npy,someone waves\n")
+    raw = config(prompts=None, prompts_from="prompts.csv")
+    assert parse(raw, tmp_path).prompts == ["a man sits down", "someone waves"]
+    (tmp_path / "bad.csv").write_text("file,words\nx,y\n")
+    with pytest.raises(ConfigError, match="prompts_from: 'bad.csv'.*expected a text"):
+        parse(config(prompts=None, prompts_from="bad.csv"), tmp_path)
     (tmp_path / "empty.txt").write_text("# nothing\n")
     with pytest.raises(ConfigError, match="prompts_from: 'empty.txt' holds no prompt"):
         parse(config(prompts=None, prompts_from="empty.txt"), tmp_path)
