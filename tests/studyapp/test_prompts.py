@@ -257,3 +257,32 @@ def test_the_analysis_reports_per_prompt_where_it_reports_per_action(study_type)
     assert result.counts["prompts"] == 2 and "2 text prompts" in result.methods()
     plain = analyse(table.drop(columns="prompt"), AnalysisConfig(bootstrap=20))
     assert "by_action" in [t.name for t in plain.tables] and "prompts" not in plain.counts
+
+
+@pytest.mark.django_db
+@pytest.mark.parametrize("study_type, fields", [
+    ("ranking", {"clips_per_trial": 2}), ("fake_or_real", {"clips_per_trial": 1})])
+def test_ranking_and_fake_or_real_studies_of_prompts_build_and_can_be_taken(
+        tmp_path, media_root, make_bot, study_type, fields):
+    from django.utils.html import escape
+
+    prompts = ["a person jumps <twice> & lands", "someone waves"]
+    write_humanml3d(tmp_path / "hml", ["A person jumps <twice> & lands.", "someone waves"])
+    write_mdm_results(tmp_path / "a" / "results.npy", prompts, repetitions=1, seed=1)
+    raw = config(prompts=prompts, slug=f"prompts-{study_type.replace('_', '-')}",
+                 data_root=str(tmp_path / "hml"),
+                 sources=["real", {"name": "model_a", "file": "a/results.npy", "format": "mdm"}],
+                 study={"type": study_type, "practice": False, "catch_trials": 1, **fields})
+    study = build_stimuli(parse(raw, tmp_path), tmp_path / "build").study
+    study.status = "open"
+    study.save()
+    bot = make_bot(study)
+    bot.join()
+    shown = []
+    while (trial := bot.participant().current_trial()) is not None:
+        page = bot.trial_page().content.decode()
+        assert escape(trial.prompt) in page and "<twice>" not in page
+        assert "model_a" not in page
+        shown.append(trial.prompt)
+        bot.answer(bot.answer_data(trial), follow=True)
+    assert set(shown) == set(prompts)
