@@ -199,8 +199,11 @@ class Build:
             self.log(f"{source.name}: {source.kind}"
                      f"{'' if ready else ' (to train: ' + str(source.iters) + ' iterations)'}")
         roles = ", ".join(f"{n} {role}" for role, n in self.roles().items()) or "none"
-        self.log(f"study {self.config.slug!r} ({self.config.study_type}), style "
-                 f"{self.config.style} at {self.config.size} px, extra clips per action: "
+        prompts = self.config.prompts
+        per = "action" if prompts is None else "prompt"
+        self.log(f"study {self.config.slug!r} ({self.config.study_type}"
+                 f"{'' if prompts is None else f', {len(prompts)} prompts'}), style "
+                 f"{self.config.style} at {self.config.size} px, extra clips per {per}: "
                  f"{roles}; manifest in {self.folder}, caches in {self.cache}")
         return BuildResult(Study.objects.filter(slug=self.config.slug).first(),
                            self.folder / "manifest.json")
