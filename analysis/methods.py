@@ -10,6 +10,8 @@ def methods_paragraph(result) -> str:
     counts, config = result.counts, result.config
     sentences = []
     actions = f" of {counts['actions']} actions" if counts["actions"] > 1 else ""
+    if counts.get("prompts", 0) > 1:
+        actions = f" of {counts['prompts']} text prompts"
     sentences.append(
         f"{counts['participants']} participants gave {counts['judgements']} judgements in "
         f"{counts['trials']} trials{actions}, comparing {len(counts['sources'])} sources "

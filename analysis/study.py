@@ -178,7 +178,13 @@ def analyse(table: pd.DataFrame, config: AnalysisConfig | None = None,
     # Number the analysed participants 0..P-1: bootstraps resample exactly these.
     main = main.assign(pcode=pd.factorize(main["pcode"])[0])
 
+    by_prompt = has_prompts(main)
+    if by_prompt:
+        # A prompts study's conditions are its prompts: per-action tables become per prompt.
+        main = main.assign(action=main["prompt"].astype(str))
     analysis = kind.analyse(main, config)
+    if by_prompt:
+        analysis.tables = [per_prompt(t) for t in analysis.tables]
     values = kind.judgement_values(main)
     unit = "pair of stimuli" if kind.answer == "choice" else "stimulus"
     agreement = {"answer": kind.answer, "unit": unit,
@@ -191,10 +197,13 @@ def analyse(table: pd.DataFrame, config: AnalysisConfig | None = None,
         "participants": int(main["pcode"].nunique()),
         "judgements": len(main),
         "trials": int(main["trial_key"].nunique()),
-        "actions": int(main["action"].nunique()) if "action" in main.columns else 0,
+        "actions": int(main["action"].nunique()) if "action" in main.columns and not by_prompt
+        else 0,
         "sources": sources,
         "participants_before": int(rows["pcode"].nunique()),
     }
+    if by_prompt:
+        counts["prompts"] = int(main["prompt"].nunique())
     demographics = None
     if participants is not None and len(participants):
         analysed = set(main["participant"].astype(str))
@@ -202,7 +211,29 @@ def analyse(table: pd.DataFrame, config: AnalysisConfig | None = None,
     names = table["study"].dropna() if "study" in table.columns else pd.Series(dtype=object)
     study = str(names.iloc[0]) if len(names) else ""
     return StudyResult(study, study_type, config, analysis, excluded, agreement, counts, quality,
-                       demographics, notes + analysis.notes, kind.design, criterion)
+                       demographics, notes + analysis.notes,
+                       kind.design.replace("one action", "one text prompt") if by_prompt
+                       else kind.design, criterion)
+
+
+def has_prompts(rows: pd.DataFrame) -> bool:
+    """Return whether the trials of ``rows`` showed text prompts (a ``prompt`` column with
+    a prompt in every row)."""
+    if "prompt" not in rows.columns or rows.empty:
+        return False
+    prompts = rows["prompt"]
+    return bool(prompts.notna().all() and (prompts.astype(str).str.strip() != "").all())
+
+
+def per_prompt(table: Table) -> Table:
+    """Return a per-action table of a prompts study as the per-prompt table it is."""
+    if "action" not in table.name and "action" not in table.frame.columns:
+        return table
+    frame = table.frame.rename(columns={"action": "prompt"})
+    if "action" in (frame.index.names or []):
+        frame = frame.rename_axis(index={"action": "prompt"})
+    return Table(table.name.replace("action", "prompt"),
+                 table.title.replace("per action", "per prompt"), frame, table.note)
 
 
 def _study_type(table) -> str:

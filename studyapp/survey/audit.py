@@ -92,7 +92,8 @@ def _unavailable(item, what, url, status) -> str:
 def audit_study(study, fetch) -> dict:
     """Return ``{"source": {...}, "catch": {...}}`` for ``study`` (see the module docstring).
 
-    ``source`` predicts real vs generated among the judged clips; ``catch`` predicts the
+    ``source`` predicts real vs generated among the judged clips (without real clips: the
+    first source by name vs the others); ``catch`` predicts the
     broken catch clips among the catch and judged ones. Each entry has ``accuracy``,
     ``chance``, ``n``, ``margin`` and ``passed``.
     """
@@ -116,8 +117,12 @@ def audit_study(study, fetch) -> dict:
     judged = [i for i, (role, _) in enumerate(kinds) if role == Stimulus.Role.JUDGED]
     shown = [i for i, (role, _) in enumerate(kinds) if role in (Stimulus.Role.JUDGED,
                                                                 Stimulus.Role.CATCH)]
+    # Real against generated; in a study without real clips (e.g. two text-to-motion
+    # models), the first source by name against the others.
+    sources = sorted({kinds[i][1] for i in judged})
+    told = "real" if "real" in sources or not sources else sources[0]
     return {
-        "source": audit([rows[i] for i in judged], [kinds[i][1] == "real" for i in judged]),
+        "source": audit([rows[i] for i in judged], [kinds[i][1] == told for i in judged]),
         "catch": audit([rows[i] for i in shown],
                        [kinds[i][0] == Stimulus.Role.CATCH for i in shown]),
     }

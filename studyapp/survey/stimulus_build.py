@@ -35,9 +35,11 @@ new set under a new slug, or put the source back).
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import json
 import shutil
+from collections import defaultdict
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -53,7 +55,7 @@ from rendering import VERSION as RENDERING_VERSION
 from rendering import Framing, get_style, render_set
 from studyapp.survey.models import ScoringStandard, Stimulus, Study
 from studyapp.survey.stimuli import Clip, file_hash, register_clips
-from studyapp.survey.stimulus_config import ConfigError, StudyConfig
+from studyapp.survey.stimulus_config import ConfigError, StudyConfig, normalise_prompt, prompt_key
 
 Role = Stimulus.Role
 # Real clips drawn per action beyond the judged ones: a reference, the base of the
@@ -122,8 +124,11 @@ class Build:
 
     def data_fields(self) -> dict:
         c = self.config
-        return {"dataset": c.dataset, "subjects": c.subjects, "actions": c.actions,
-                "frames": c.frames, "fps": c.fps, "n": c.clips_per_source}
+        fields = {"dataset": c.dataset, "subjects": c.subjects, "actions": c.actions,
+                  "frames": c.frames, "fps": c.fps, "n": c.clips_per_source}
+        if c.prompts is not None:
+            fields["prompts"] = c.prompts
+        return fields
 
     def actions(self) -> list[str]:
         try:
@@ -161,9 +166,19 @@ class Build:
                     result.sampled.append(source.name)
                 groups.append((source, motions, meta))
                 self.step(f"sampled {source.name}")
-            base, framing = self.real_base()
+            if c.prompts is None:
+                base, framing = self.real_base()
+                extras = self.extras(base)
+            else:
+                same_skeleton(groups)
+                # As with actions, real clips set the framing when there are any (a change
+                # of a generated source then re-renders only its clips); else every source's.
+                real = [m for source, motions, _ in groups if source.kind == "real"
+                        for m in motions]
+                framing = self.pooled_framing(real or [m for _, motions, _ in groups
+                                                       for m in motions])
+                extras = self.prompt_extras(groups)
             self.step("framing")
-            extras = self.extras(base)
             judged = [(m, meta) for _, motions, meta in groups for m in motions]
             self.bar.total += len(judged) + len(extras)
             self.bar.refresh()
@@ -184,8 +199,11 @@ class Build:
             self.log(f"{source.name}: {source.kind}"
                      f"{'' if ready else ' (to train: ' + str(source.iters) + ' iterations)'}")
         roles = ", ".join(f"{n} {role}" for role, n in self.roles().items()) or "none"
-        self.log(f"study {self.config.slug!r} ({self.config.study_type}), style "
-                 f"{self.config.style} at {self.config.size} px, extra clips per action: "
+        prompts = self.config.prompts
+        per = "action" if prompts is None else "prompt"
+        self.log(f"study {self.config.slug!r} ({self.config.study_type}"
+                 f"{'' if prompts is None else f', {len(prompts)} prompts'}), style "
+                 f"{self.config.style} at {self.config.size} px, extra clips per {per}: "
                  f"{roles}; manifest in {self.folder}, caches in {self.cache}")
         return BuildResult(Study.objects.filter(slug=self.config.slug).first(),
                            self.folder / "manifest.json")
@@ -244,6 +262,9 @@ class Build:
 
     def sample(self, source) -> list:
         c = self.config
+        if c.prompts is not None:
+            motions = self.prompt_motions(source)
+            return [m.with_joints(m.joints, source=source.name, meta=dict(m.meta)) for m in motions]
         n = c.clips_per_source
         frames = c.frames or self.dataset.clip_frames
         if source.kind == "real":
@@ -273,6 +294,61 @@ class Build:
                                   f"{', '.join(self.actions())}; set the actions, or the file's "
                                   f"'action' option")
         return [m.with_joints(m.joints, source=source.name, meta=dict(m.meta)) for m in motions]
+
+    def prompt_motions(self, source) -> list:
+        """Return ``clips_per_source`` motions of ``source`` for each prompt, in prompt order:
+        a file's motions whose text is the prompt, or real takes whose caption is."""
+        c = self.config
+        where = f"sources.{c.sources.index(source)} ({source.name})"
+        frames = c.frames or self.dataset.clip_frames
+        fps = c.fps or self.dataset.clip_fps
+        if source.kind == "real":
+            if not hasattr(self.dataset, "takes_for"):  # datasets with captions have it
+                raise ConfigError(
+                    f"{where}: real clips for prompts come from a dataset with captions in "
+                    f"HumanML3D's layout (humanml3d, kit_ml); dataset {c.dataset!r} has none. Set "
+                    f"dataset (and data_root), or give real clips as a file source (import_motions "
+                    f"HumanML3D/ --format humanml3d --source real --out real.npz)")
+            # As takes_for(prompt) does, for every prompt at once (the dataset is read once):
+            # a take per caption, its text the caption.
+            wanted = {normalise_prompt(p) for p in c.prompts}
+            takes, known = [], []
+            for take in self.dataset.load_takes().motions:
+                for caption in take.meta.get("captions", []):
+                    known.append(caption)
+                    if normalise_prompt(caption) in wanted:
+                        takes.append(ops.resample(take.with_joints(
+                            take.joints, text=caption, meta=dict(take.meta)), fps))
+            rng = np.random.default_rng(source.seed)
+        else:
+            options = {k: (str(c.path(v)) if k == "classes_path" else v)
+                       for k, v in source.options.items()}
+            takes = list(load_motions(c.path(source.file), source.format, fps=fps, **options))
+            known = [m.text for m in takes if m.text]
+            rng = None  # a file's motions are taken in its order
+        return motions_for_prompts(c.prompts, takes, c.clips_per_source, frames, where, known,
+                                   rng)
+
+    def pooled_framing(self, motions) -> Framing:
+        """Return one framing fitted to ``motions`` (a prompts study's real clips, or all its
+        judged clips when it has no real data), in the renderer's frame as render_set draws
+        them."""
+        style = get_style(self.config.style)
+        return Framing.from_motions([ops.canonical(m, style.dims) for m in motions],
+                                    pad=style.pad)
+
+    def prompt_extras(self, groups) -> list[tuple]:
+        """Return the catch clips of a prompts study: per prompt, a broken version of one of
+        its judged clips (of any source, chosen by the seed)."""
+        if not self.roles().get(Role.CATCH):
+            return []
+        rng = np.random.default_rng(self.config.seed + 1)
+        by_prompt = defaultdict(list)
+        for _, motions, _ in groups:
+            for motion in motions:
+                by_prompt[motion.action].append(motion)
+        return [(perturb.catch_clip(mine[int(rng.integers(len(mine)))], rng), Role.CATCH, None)
+                for mine in by_prompt.values()]
 
     def real_base(self):
         """Return real clips (n + EXTRA_REAL per action) and the framing fitted to them, cached."""
@@ -376,11 +452,12 @@ class Build:
                 motion=payload,
             )
             clips.append(clip)
-            entry = {**spec, "action": clip.action, "motion_hash": clip.motion_hash,
-                     "video_hash": clip.video_hash}
+            entry = {**spec, "action": clip.action, "prompt": clip.prompt or None,
+                     "motion_hash": clip.motion_hash, "video_hash": clip.video_hash}
             entries.append({k: entry[k] for k in ("source", "checkpoint", "file", "seed",
-                                                  "action", "role", "score", "motion_hash",
-                                                  "video_hash") if entry.get(k) is not None})
+                                                  "action", "prompt", "role", "score",
+                                                  "motion_hash", "video_hash")
+                            if entry.get(k) is not None})
         return clips, entries, len(missing)
 
     def payloads(self, motions, framing, folder) -> list:
@@ -401,6 +478,11 @@ class Build:
         fields["dataset"] = c.dataset
         fields["options"] = dict(c.type_options)
         fields["player"] = "" if c.player == "video" else ("body" if c.style == "mesh" else "stick")
+        if c.prompts is not None and not fields.get("instructions"):
+            draft = Study(study_type=c.study_type, options=fields["options"],
+                          clips_per_trial=fields.get("clips_per_trial",
+                                                     self.kind.default_clips_per_trial))
+            fields["instructions"] = self.kind.prompt_instructions(draft)
         return fields
 
     def register(self, clips):
@@ -457,6 +539,73 @@ class Build:
         manifest = {"slug": c.slug, "study_type": c.study_type, "dataset": c.dataset,
                     "style": c.style, "size": c.size, "clips": entries}
         _write_if_changed(self.folder / "manifest.json", json.dumps(manifest, indent=1) + "\n")
+
+
+def same_skeleton(groups) -> None:
+    """Refuse sources of a prompts study whose figures differ (their skeleton would tell
+    participants which clip is whose)."""
+    first = None
+    for source, motions, _ in groups:
+        skeletons = sorted({m.skeleton for m in motions})
+        if first is None:
+            first = (source.name, skeletons)
+        elif skeletons != first[1]:
+            raise ConfigError(
+                f"sources: {source.name!r} has skeleton {', '.join(skeletons)} but "
+                f"{first[0]!r} has {', '.join(first[1])}; the figure would tell participants "
+                f"the sources apart. Compare sources of one skeleton (models of one dataset: "
+                f"HumanML3D's smpl22 or KIT-ML's kit21)")
+
+
+def motions_for_prompts(prompts, motions, n: int, frames: int, where: str, known=(),
+                        rng=None) -> list:
+    """Return ``n`` motions per prompt, prompt by prompt, cut to ``frames`` frames.
+
+    A motion is a prompt's when its ``text`` is the prompt (ignoring case, spacing and a
+    final full stop); motions shorter than ``frames`` are not used. ``rng`` draws the
+    motions (default: the first ``n`` in order). Each returned motion's ``action`` is the
+    prompt's key (:func:`prompt_key`), its ``text`` the prompt as the config gives it
+    (one text per trial, whichever source a clip comes from) and ``meta["caption"]`` its
+    own text. Raise :class:`ConfigError` naming the prompt, the source (``where``) and
+    the closest of the ``known`` texts when a prompt has too few motions.
+    """
+    by_text = defaultdict(list)
+    for motion in motions:
+        if motion.text:
+            by_text[normalise_prompt(motion.text)].append(motion)
+    texts = list(dict.fromkeys(t for t in known if t)) or [m.text for m in motions if m.text]
+    out = []
+    for prompt in prompts:
+        found = by_text.get(normalise_prompt(prompt), [])
+        if not found:
+            spelled = {normalise_prompt(t): t for t in reversed(texts)}
+            close = difflib.get_close_matches(normalise_prompt(prompt), list(spelled), n=3,
+                                              cutoff=0.6)
+            if close:
+                hint = "close matches: " + "; ".join(repr(spelled[t]) for t in close)
+            elif texts:
+                hint = f"it has {len(texts)} other prompts, e.g. {texts[0]!r}"
+            else:
+                hint = "it has no prompts at all (import its motions with their texts)"
+            raise ConfigError(f"prompts: {where} has no motion for prompt {prompt!r}; {hint}. Fix "
+                              f"the prompt (or drop it), or give that source motions of it")
+        usable = [m for m in found if m.frames >= frames]
+        if len(usable) < n:
+            longest = max(m.frames for m in found)
+            fix = (f"set frames to {longest} or less" if not usable else
+                   "lower clips_per_source (or frames)")
+            raise ConfigError(f"prompts: {where} has {len(usable)} motion(s) of at least {frames} "
+                              f"frames for prompt {prompt!r} (clips_per_source is {n}; its "
+                              f"longest has {longest}); {fix}")
+        if rng is None:
+            chosen = usable[:n]
+        else:
+            chosen = [usable[i] for i in sorted(rng.choice(len(usable), n, replace=False))]
+        for motion in chosen:
+            cut = ops.trim(motion, 0, frames)
+            out.append(cut.with_joints(cut.joints, action=prompt_key(prompt), text=prompt,
+                                       meta={**cut.meta, "caption": motion.text}))
+    return out
 
 
 def _framing_fields(raw: dict) -> dict:

@@ -13,21 +13,27 @@ Overrides are ``path=value``: ``path`` is dotted (``train.iters``, ``study.type`
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import yaml
 
+from generation.datasets.humanml3d import normalise as normalise_prompt  # as captions match
 from generation.formats import list_formats
 from rendering import list_styles
 from studyapp.survey.crowd import make_platform
 from studyapp.survey.study_types import get_study_type, list_study_types
 from studyapp.survey.study_types.base import COMMON_OPTIONS, check_criteria
 
-TOP = ("slug", "title", "seed", "dataset", "data_root", "subjects", "actions", "frames", "fps",
-       "clips_per_source", "train", "sources", "render", "study")
+TOP = ("slug", "title", "seed", "dataset", "data_root", "subjects", "actions", "prompts",
+       "prompts_from", "frames", "fps", "clips_per_source", "train", "sources", "render", "study")
 MAX_EXTENDS = 5
 PLAYERS = ("video", "webgl")
+MAX_PROMPT = 500  # characters of one prompt
+# Trials group clips by their action field; a prompt longer than it holds is cut and
+# made unique with a hash of the whole prompt.
+ACTION_LENGTH = 100
 
 
 class ConfigError(ValueError):
@@ -74,6 +80,9 @@ class StudyConfig:
     study_options: dict  # Study fields every type has (clips_per_trial, crowd, ...)
     type_options: dict  # the study type's own options (Study.options)
     folder: Path  # relative paths in the config are relative to this
+    # Text prompts instead of actions (``prompts`` or ``prompts_from``): each trial shows
+    # one prompt and every source's clips of it.
+    prompts: list[str] | None = None
 
     def path(self, value: str) -> Path:
         return (self.folder / value).resolve()
@@ -198,6 +207,9 @@ def parse(raw: dict, folder: Path) -> StudyConfig:
     fps = raw.get("fps")
     if fps is not None and (isinstance(fps, bool) or not isinstance(fps, (int, float)) or fps <= 0):
         raise ConfigError(f"fps: {fps!r} must be a positive number, or null for the dataset's")
+    prompts = _prompts(raw, folder)
+    if prompts is not None:
+        _check_prompt_study(raw, sources, study_type, options, type_options)
     return StudyConfig(
         slug=slug,
         title=_text(raw, "title"),
@@ -217,6 +229,7 @@ def parse(raw: dict, folder: Path) -> StudyConfig:
         study_options=options,
         type_options=type_options,
         folder=folder,
+        prompts=prompts,
     )
 
 
@@ -304,6 +317,135 @@ def _sources(raw, seed, iters, preset) -> list[Source]:
                               f"its own name")
         sources.append(source)
     return sources
+
+
+def prompt_key(prompt: str) -> str:
+    """Return the ``action`` of a prompt's clips: the prompt itself, or, when it is longer
+    than the field holds, its start and a hash of the whole prompt."""
+    prompt = " ".join(prompt.split())
+    if len(prompt) <= ACTION_LENGTH:
+        return prompt
+    tag = hashlib.sha256(prompt.encode()).hexdigest()[:8]
+    return f"{prompt[:ACTION_LENGTH - 10].rstrip()}~{tag}"
+
+
+def _prompts(raw: dict, folder: Path) -> list[str] | None:
+    """Return the config's prompts (``prompts`` or ``prompts_from``), checked, or None."""
+    given, from_file = raw.get("prompts"), raw.get("prompts_from")
+    if given is None and from_file is None:
+        return None
+    if given is not None and from_file is not None:
+        raise ConfigError("prompts and prompts_from: give one of them (a list of prompts, or a "
+                          "file with one prompt per line); set the other to null, e.g. over a "
+                          "config this one extends")
+    key = "prompts" if given is not None else "prompts_from"
+    if raw.get("actions") is not None:
+        raise ConfigError(f"actions and {key}: a study's trials show either actions or text "
+                          f"prompts; drop actions (or {key})")
+    if given is not None:
+        if isinstance(given, str):
+            given = [given]
+        if not isinstance(given, list) or not given:
+            raise ConfigError(f"prompts: {given!r} must be a non-empty list of texts, e.g. "
+                              f"[\"a person walks forward\", \"a person jumps\"]")
+        prompts, where = given, "prompts"
+    else:
+        prompts, where = _read_prompt_file(from_file, folder), f"prompts_from ({from_file})"
+    seen = {}
+    out = []
+    for i, prompt in enumerate(prompts):
+        if not isinstance(prompt, str) or not prompt.strip():
+            raise ConfigError(f"{where}: prompt {i + 1} ({prompt!r}) must be a non-empty text")
+        prompt = " ".join(prompt.split())
+        if len(prompt) > MAX_PROMPT:
+            raise ConfigError(f"{where}: prompt {i + 1} has {len(prompt)} characters; a prompt "
+                              f"has at most {MAX_PROMPT} (shorten it)")
+        norm = normalise_prompt(prompt)
+        if norm in seen:
+            if given is None:
+                continue  # a file of generated prompts repeats them (one line per motion)
+            raise ConfigError(f"prompts: {prompt!r} (prompt {i + 1}) is the same prompt as "
+                              f"{seen[norm]!r}; give each prompt once")
+        seen[norm] = prompt
+        out.append(prompt)
+    return out
+
+
+def _read_prompt_file(value, folder: Path) -> list:
+    """Return the prompts of ``prompts_from``: lines of a text file (``caption#...`` keeps the
+    caption, ``#`` comment lines and blank lines are skipped) or an interchange .npz's texts."""
+    if not isinstance(value, str) or not value.strip():
+        raise ConfigError(f"prompts_from: {value!r} must be the path of a text file (one prompt "
+                          f"per line) or of an interchange .npz with texts")
+    path = (folder / value).resolve()
+    if not path.is_file():
+        raise ConfigError(f"prompts_from: {value!r} is not there (looked in {path}); fix the path")
+    if path.suffix == ".npz":
+        from generation.formats import npz
+        from generation.formats.base import FormatError
+
+        try:
+            texts = [m.text or "" for m in npz.load(path)]
+        except (FormatError, ValueError, OSError) as exc:
+            raise ConfigError(f"prompts_from: {value!r} cannot be read as an interchange .npz: "
+                              f"{exc}") from None
+        texts = [t for t in texts if t.strip()]
+        if not texts:
+            raise ConfigError(f"prompts_from: {value!r} has no texts; import motions that carry "
+                              f"prompts (import_motions ... --texts FILE), or give a text file")
+        return texts
+    if path.suffix.lower() == ".csv":  # a text (or prompt, caption) column, as --texts reads
+        from generation.formats.base import FormatError, read_prompts
+
+        try:
+            found = read_prompts(path)
+        except (FormatError, UnicodeDecodeError) as exc:
+            raise ConfigError(f"prompts_from: {value!r}: {exc}") from None
+        texts = list(found.values()) if isinstance(found, dict) else found
+        return [t for t in texts if t.strip()] or _no_prompt(value)
+    if path.suffix in (".npy", ".pt", ".pkl", ".bvh"):
+        raise ConfigError(f"prompts_from: {value!r} is not a text file; give one prompt per line, "
+                          f"or an interchange .npz (import_motions {value} --format auto --out "
+                          f"F.npz) to use its texts")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"prompts_from: {value!r} cannot be read as UTF-8 text: {exc}") from None
+    lines = []
+    for line in text.splitlines():
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        lines.append(line.split("#", 1)[0])
+    return lines or _no_prompt(value)
+
+
+def _no_prompt(value):
+    raise ConfigError(f"prompts_from: {value!r} holds no prompt; write one prompt per line")
+
+
+# Roles a prompts study can make: catch clips are broken versions of judged clips; the
+# others need real clips of the condition beyond the judged ones.
+PROMPT_ROLES = ("catch",)
+
+
+def _check_prompt_study(raw, sources, study_type, options, type_options) -> None:
+    key = "prompts" if raw.get("prompts") is not None else "prompts_from"
+    for i, source in enumerate(sources):
+        if source.kind == "method":
+            raise ConfigError(f"sources.{i}: method {source.method!r} is action-conditioned and "
+                              f"cannot follow {key}; give text-to-motion outputs as a file "
+                              f"source (file: results.npy, format: mdm), or use actions")
+    roles = get_study_type(study_type).stimulus_roles({**options, **type_options})
+    for role in roles:
+        if role in PROMPT_ROLES:
+            continue
+        if role == "practice":
+            raise ConfigError(f"study.practice: a study of {key} has no clips to spare for a "
+                              f"practice trial; set study.practice: false")
+        raise ConfigError(f"study.type: {study_type} studies need {role} clips per action, which "
+                          f"a study of {key} does not make; use pairwise, ranking or "
+                          f"fake_or_real, or actions")
 
 
 def _check_method(source: Source, where: str) -> None:

@@ -136,6 +136,10 @@ class StudyType:
     def default_instructions(self, study) -> str:
         raise NotImplementedError
 
+    def prompt_instructions(self, study) -> str:
+        """Return the default instructions of a study whose trials show text prompts."""
+        return for_prompts(self.default_instructions(study))
+
     @property
     def default_consent(self) -> str:
         return DEFAULT_CONSENT.format(minutes=self.minutes)
@@ -386,6 +390,23 @@ class Graded:
 
     def by_stimulus(self) -> dict:
         return {item.stimulus_id: item for item in self.items}
+
+
+# How the default instructions speak of a trial's action, and of a text prompt instead.
+PROMPT_WORDING = (
+    ('names an action, for example "walk", and shows',
+     'shows a short text, for example "a person walks forward and waves", and'),
+    ("of a figure performing it", "of a figure moving"),
+    ("shows the named action", "matches the text"),
+    ("the named action", "the text"),
+)
+
+
+def for_prompts(text: str) -> str:
+    """Return instructions written for actions reworded for text prompts."""
+    for before, after in PROMPT_WORDING:
+        text = text.replace(before, after)
+    return text
 
 
 def clip_label(position: int) -> str:
