@@ -9,7 +9,10 @@ strength plus a small clip effect. Attentive raters answer from the quality with
   both bad;
 - fake_or_real: judged real with probability sigmoid((q - middle) / noise + rater bias);
 - ratings: quality + rater bias + logistic noise, cut into 1..5 at thresholds spread
-  evenly over the strengths.
+  evenly over the strengths;
+- best_of_k: ``clips_per_trial`` clips of distinct sources (at most one per source), the
+  best by quality + Gumbel noise picked (a Plackett-Luce top-1 draw), with ``tie_rate``
+  of trials answered all good (mean quality above the middle) or all bad.
 
 Inattentive raters answer at random and fail every catch trial; speeders answer faster
 than the clips last. The table has the columns of :mod:`analysis.tables`, so the real
@@ -25,7 +28,10 @@ from analysis.tables import RESPONSE_COLUMNS, AnalysisError
 
 STRENGTHS = {"real": 4.0, "a2m": 3.0, "cond_gru": 1.0}
 ACTIONS = ("walk", "eat", "jump", "sit")
-STUDY_TYPES = ("ranking", "fake_or_real", "rating_standards", "rating_reference", "pairwise")
+STUDY_TYPES = ("ranking", "fake_or_real", "rating_standards", "rating_reference", "pairwise",
+               "best_of_k")
+# Answer columns of a type beyond analysis.tables.RESPONSE_COLUMNS (as the export adds them).
+EXTRA_COLUMNS = {"best_of_k": ("pick",)}
 
 
 def simulate(study_type: str, strengths: dict | None = None, participants: int = 200,
@@ -106,6 +112,8 @@ def simulate(study_type: str, strengths: dict | None = None, participants: int =
         cuts = np.linspace(strength.min() - 0.5, strength.max() + 0.5, 6)[1:-1]
         ratings = np.where(random, rng.integers(1, 6, n_rows), 1 + np.searchsorted(cuts, latent))
         table["rating"] = pd.array(ratings, dtype="Int64")
+    elif study_type == "best_of_k":
+        table["pick"] = _picks(rng, quality, random, m, noise, tie_rate, middle)
     else:
         table["choice"] = pd.Categorical(_choices(rng, quality, position, random, m, noise,
                                                   position_bias, tie_rate, middle))
@@ -150,7 +158,8 @@ def simulate(study_type: str, strengths: dict | None = None, participants: int =
         "completed": True,
     })
     order = np.lexsort((frame["position"].to_numpy(), frame["trial"].to_numpy(), participant))
-    return frame.iloc[order].reset_index(drop=True)[list(RESPONSE_COLUMNS)]
+    columns = list(RESPONSE_COLUMNS) + list(EXTRA_COLUMNS.get(study_type, ()))
+    return frame.iloc[order].reset_index(drop=True)[columns]
 
 
 def _trial_sources(study_type, rng, n_trials, n_sources, clips_per_trial) -> np.ndarray:
@@ -161,6 +170,9 @@ def _trial_sources(study_type, rng, n_trials, n_sources, clips_per_trial) -> np.
         return rng.integers(0, n_sources, (n_trials, 1))
     if study_type == "fake_or_real":
         return rng.integers(0, n_sources, (n_trials, clips_per_trial))
+    if study_type == "best_of_k":
+        k = min(clips_per_trial, n_sources)
+        return np.argsort(rng.random((n_trials, n_sources)), axis=1)[:, :k]
     if n_sources < 2:
         raise AnalysisError("a pairwise study needs at least two sources")
     first = rng.integers(0, n_sources, n_trials)
@@ -181,6 +193,19 @@ def _choices(rng, quality, position, random, m, noise, position_bias, tie_rate, 
     tie = (rng.random(len(q)) < tie_rate) & ~careless
     picks[tie] = np.where((q_left + q_right)[tie] / 2 > middle, "both_good", "both_bad")
     return np.repeat(picks, m)
+
+
+def _picks(rng, quality, random, m, noise, tie_rate, middle):
+    """Return each row's pick: best, other, all_good or all_bad."""
+    utility = np.where(random, 0.0, quality) + noise * rng.gumbel(size=len(quality))
+    utility = utility.reshape(-1, m)
+    picks = np.full(utility.shape, "other", dtype=object)
+    picks[np.arange(len(utility)), utility.argmax(axis=1)] = "best"
+    careless = random.reshape(-1, m)[:, 0]
+    tie = (rng.random(len(utility)) < tie_rate) & ~careless
+    good = quality.reshape(-1, m).mean(axis=1) > middle
+    picks[tie] = np.where(good[tie], "all_good", "all_bad")[:, None]
+    return picks.ravel()
 
 
 def _missing(n: int, dtype):

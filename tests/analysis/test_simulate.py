@@ -7,7 +7,7 @@ from scipy import stats as scipy_stats
 
 from analysis.registry import list_analyses
 from analysis.report import write_report
-from analysis.simulate import STUDY_TYPES, simulate
+from analysis.simulate import EXTRA_COLUMNS, STUDY_TYPES, simulate
 from analysis.study import analyse
 from analysis.tables import RESPONSE_COLUMNS, AnalysisError
 from tests.analysis.conftest import config
@@ -23,17 +23,21 @@ def test_every_analysed_study_type_can_be_simulated():
 @pytest.mark.parametrize("study_type", STUDY_TYPES)
 def test_simulated_table_has_the_response_columns_and_valid_answers(study_type):
     table = simulate(study_type, participants=6, trials=4, catch_trials=1, repeat_trials=2, seed=1)
-    assert list(table.columns) == list(RESPONSE_COLUMNS)
+    assert list(table.columns) == list(RESPONSE_COLUMNS) + list(EXTRA_COLUMNS.get(study_type, ()))
     assert table.groupby("participant")["trial"].nunique().eq(4 + 1 + 2).all()
     kinds = table.groupby("trial_id")["trial_kind"].first().value_counts().to_dict()
     assert kinds == {"main": 24, "catch": 6, "repeat": 12}
     assert table.loc[table["trial_kind"] == "catch", "is_catch"].sum() == 6
     main = table.loc[table["trial_kind"] == "main"]
-    answers = {"ranking": "rank", "fake_or_real": "judged_real", "pairwise": "choice"}
+    answers = {"ranking": "rank", "fake_or_real": "judged_real", "pairwise": "choice",
+               "best_of_k": "pick"}
     answer = answers.get(study_type, "rating")
     assert main[answer].notna().all()
     if study_type == "ranking":
         assert set(main.groupby("trial_id")["rank"].apply(lambda r: tuple(sorted(r)))) == {(1, 2, 3)}
+    if study_type == "best_of_k":  # one clip picked, or all good / all bad
+        verdicts = main.groupby("trial_id")["pick"].apply(lambda p: tuple(sorted(set(p))))
+        assert set(verdicts) <= {("best", "other"), ("all_good",), ("all_bad",)}
     if study_type == "pairwise":
         assert set(main.groupby("trial_id")["position"].apply(lambda p: tuple(sorted(p)))) == {(0, 1)}
 
