@@ -1,7 +1,7 @@
 """Best of K (the MotionPercept protocol): K clips of one action; which one is best?
 
-Each trial shows ``k`` clips of one action (option ``k``, default 4), sources balanced
-over the clips and their positions. The participant picks the best clip, or says that
+Each trial shows ``k`` clips of one action (option ``k``; by default the study's
+``clips_per_trial``, 4), sources balanced over the clips and their positions. The participant picks the best clip, or says that
 the clips are all good or all bad, when none stands out. The answer is stored on the
 trial: the position of the chosen clip, or ``"all_good"`` / ``"all_bad"``.
 """
@@ -43,7 +43,8 @@ class BestOfK(StudyType):
     min_items = 2
     minutes = 8
     default_criterion = Criterion("preference")
-    options = {"k": Option(int, DEFAULT_K, "Clips per trial, of which the best is chosen.")}
+    options = {"k": Option(int, None, "Clips per trial, of which the best is chosen (default: "
+                                      "clips_per_trial, 4).")}
     trial_answer = "pick"
     export_columns = ("pick",)
 
@@ -51,11 +52,11 @@ class BestOfK(StudyType):
         return INSTRUCTIONS.format(k=self.items_per_trial(study))
 
     def items_per_trial(self, study):
-        return self.option(study, "k")
+        return self.option(study, "k") or study.clips_per_trial
 
     def check_options(self, options):
         checked = super().check_options(options)
-        if checked.get("k", DEFAULT_K) < self.min_items:
+        if checked.get("k", self.min_items) < self.min_items:
             raise ValueError(f"k: {checked['k']} must be at least {self.min_items} (clips per trial)")
         return checked
 
