@@ -20,6 +20,7 @@ ANSWER = {
     "fake_or_real": "judged_real",
     "rating_standards": "rating",
     "rating_reference": "rating",
+    "best_of_k": "pick",
     "pairwise": "choice",
 }
 

@@ -30,6 +30,7 @@ CATCH_ANSWERS = {
     "rating_reference": lambda catch: ({"ratings": {catch: 1}}, {"ratings": {catch: 3}}),
     "pairwise": lambda catch: ({"choice": "right" if catch == 0 else "left"},
                                {"choice": "left" if catch == 0 else "right"}),
+    "best_of_k": lambda catch: ({"pick": 1 if catch == 0 else 0}, {"pick": catch}),
 }
 
 
@@ -69,6 +70,8 @@ def join(make_bot, study, **params):
         ("rating_standards", {"ratings": {0: 5, 1: 1, 2: 4}}, {"items": [5, 1, 4]}),
         ("rating_reference", {"ratings": {0: 2, 1: 3, 2: 2}}, {"items": [2, 3, 2]}),
         ("pairwise", {"choice": "right"}, {"trial": "right"}),
+        ("best_of_k", {"pick": 2}, {"trial": 2}),
+        ("best_of_k", {"pick": "all_bad"}, {"trial": "all_bad"}),
     ],
 )
 def test_an_answer_is_stored_under_the_first_criterion(
@@ -99,6 +102,8 @@ def test_an_answer_is_stored_under_the_first_criterion(
         ("rating_reference", lambda d: d | {next(k for k in d if k.startswith("rating_")): "0"}),
         ("pairwise", lambda d: d | {"choice": "both_good"}),  # ties not offered
         ("pairwise", lambda d: {k: v for k, v in d.items() if k != "choice"}),
+        ("best_of_k", lambda d: d | {"pick": "none_good"}),  # not a clip nor an answer offered
+        ("best_of_k", lambda d: {k: v for k, v in d.items() if k != "pick"}),
     ],
 )
 def test_a_tampered_answer_of_any_type_is_refused(study_of, make_bot, study_type, tampering):
@@ -223,6 +228,7 @@ def test_catch_clips_never_enter_main_trials(study_of, make_bot):
         ("fake_or_real", {"verdicts": {0: "real"}}, {"verdicts": {0: "generated"}}),
         ("rating_reference", {"ratings": {0: 4, 1: 2, 2: 3}}, {"ratings": {0: 1, 1: 2, 2: 3}}),
         ("pairwise", {"choice": "left"}, {"choice": "right"}),
+        ("best_of_k", {"pick": 0}, {"pick": 1}),
     ],
 )
 def test_a_repeated_trial_shows_the_same_clips_later_and_records_consistency(
@@ -264,6 +270,8 @@ def mirrored(answers: dict, n: int) -> dict:
     for name, value in answers.items():
         if name == "choice":
             out[name] = flip.get(value, value)
+        elif name == "pick":
+            out[name] = n - 1 - value if isinstance(value, int) else value
         else:
             out[name] = {n - 1 - position: v for position, v in value.items()}
     return out
@@ -500,4 +508,6 @@ def preview_answer(html: str, study_type: str) -> dict:
             data[f"rating_{token}"] = "2"
     if study_type == "pairwise":
         data["choice"] = "left"
+    if study_type == "best_of_k":
+        data["pick"] = re.search(r'name="pick" value="([\w-]+)"', html).group(1)
     return data
