@@ -7,6 +7,8 @@ A judgement is one clip of one trial with its answer, in the column of the study
 - ``judged_real`` (fake_or_real): whether the participant called the clip real;
 - ``choice`` (pairwise): the trial's answer, ``left``, ``right``, ``both_good`` or
   ``both_bad``, on the rows of both clips; ``position`` 0 is the left clip, 1 the right.
+- ``pick`` (best_of_k, a column the export adds): ``best`` on the clip picked, ``other``
+  on the rest, or ``all_good`` / ``all_bad`` on every clip of the trial.
 
 ``trial_kind`` is ``main``, ``catch`` or ``repeat`` (practice trials are not exported);
 ``is_catch`` marks a catch clip and ``catch_passed`` whether its check was passed;
