@@ -187,9 +187,9 @@ class BestOfK(StudyAnalysis):
         tables = [
             Table("sources", "Plackett-Luce (top-1) worth (log scale, 0 = average source) with "
                   f"{config.confidence:.0%} bootstrap intervals over participants, the share of "
-                  'shown clips picked as best, and the share of "all good"/"all bad" trials '
+                  'shown clips picked as best, and the share of all-good and all-bad trials '
                   "that showed the source", sources),
-            Table("answers", 'Share of trials with a clip picked, "all good" and "all bad", '
+            Table("answers", "Share of trials with a clip picked, all good and all bad, "
                   f"with {config.confidence:.0%} Wilson intervals", answers),
         ]
         notes = []
