@@ -10,6 +10,10 @@ strength plus a small clip effect. Attentive raters answer from the quality with
 - fake_or_real: judged real with probability sigmoid((q - middle) / noise + rater bias);
 - ratings: quality + rater bias + logistic noise, cut into 1..5 at thresholds spread
   evenly over the strengths;
+- mushra: one clip per source plus a hidden reference (strength above the best source's)
+  and a low anchor (below the worst's), in random places, each scored 0-100 as
+  ``100 sigmoid(quality + rater bias + logistic noise - middle)``; an attentive rater
+  scores the hidden reference 90-100 but in ``MUSHRA_SLIPS`` of trials;
 - best_of_k: ``clips_per_trial`` clips of distinct sources (at most one per source), the
   best by quality + Gumbel noise picked (a Plackett-Luce top-1 draw), with ``tie_rate``
   of trials answered all good (mean quality above the middle) or all bad.
@@ -29,9 +33,10 @@ from analysis.tables import RESPONSE_COLUMNS, AnalysisError
 STRENGTHS = {"real": 4.0, "a2m": 3.0, "cond_gru": 1.0}
 ACTIONS = ("walk", "eat", "jump", "sit")
 STUDY_TYPES = ("ranking", "fake_or_real", "rating_standards", "rating_reference", "pairwise",
-               "best_of_k")
+               "best_of_k", "mushra")
 # Answer columns of a type beyond analysis.tables.RESPONSE_COLUMNS (as the export adds them).
-EXTRA_COLUMNS = {"best_of_k": ("pick",)}
+EXTRA_COLUMNS = {"best_of_k": ("pick",), "mushra": ("stimulus_role", "score")}
+MUSHRA_SLIPS = 0.02
 
 
 def simulate(study_type: str, strengths: dict | None = None, participants: int = 200,
@@ -56,6 +61,10 @@ def simulate(study_type: str, strengths: dict | None = None, participants: int =
     rng = np.random.default_rng(seed)
     names = np.array(list(strengths), dtype=object)
     strength = np.array(list(strengths.values()), dtype=float)
+    centre = (strength.min() + strength.max()) / 2
+    if study_type == "mushra":  # the hidden reference and the low anchor, as two more sources
+        names = np.append(names, ["reference", "anchor"])
+        strength = np.append(strength, [strength.max() + 1.0, strength.min() - 2.0])
     actions = np.asarray(actions, dtype=object)
     n_sources = len(names)
 
@@ -112,6 +121,13 @@ def simulate(study_type: str, strengths: dict | None = None, participants: int =
         cuts = np.linspace(strength.min() - 0.5, strength.max() + 0.5, 6)[1:-1]
         ratings = np.where(random, rng.integers(1, 6, n_rows), 1 + np.searchsorted(cuts, latent))
         table["rating"] = pd.array(ratings, dtype="Int64")
+    elif study_type == "mushra":
+        latent = quality + rng.normal(0.0, 0.3, participants)[participant] + noise * rng.logistic(size=n_rows)
+        scores = 100 / (1 + np.exp(-(latent - centre)))
+        reference = (row_source == n_sources - 2) & (rng.random(n_rows) >= MUSHRA_SLIPS)
+        scores = np.where(reference, rng.uniform(90, 100, n_rows), scores)
+        scores = np.where(random, rng.uniform(0, 100, n_rows), scores)
+        table["score"] = pd.array(np.rint(scores).astype(np.int64), dtype="Int64")
     elif study_type == "best_of_k":
         table["pick"] = _picks(rng, quality, random, m, noise, tie_rate, middle)
     else:
@@ -149,6 +165,9 @@ def simulate(study_type: str, strengths: dict | None = None, participants: int =
         "n_items": m,
         "trial_kind": kinds,
         "is_catch": is_catch,
+        "stimulus_role": np.select([is_catch, row_source == n_sources - 2, row_source == n_sources - 1],
+                                   ["catch", "reference", "anchor"], "judged")
+        if study_type == "mushra" else "judged",
         **table,
         "catch_passed": pd.arrays.BooleanArray(~random, kind != "catch"),
         "plays": 1,
@@ -164,7 +183,7 @@ def simulate(study_type: str, strengths: dict | None = None, participants: int =
 
 def _trial_sources(study_type, rng, n_trials, n_sources, clips_per_trial) -> np.ndarray:
     """Return ``(trials, m)`` source indices shown in each trial."""
-    if study_type in ("ranking", "rating_standards"):
+    if study_type in ("ranking", "rating_standards", "mushra"):
         return np.tile(np.arange(n_sources), (n_trials, 1))
     if study_type == "rating_reference":
         return rng.integers(0, n_sources, (n_trials, 1))
