@@ -246,7 +246,7 @@ class Bot:
             b"".join(response.streaming_content)
 
     def answer_data(self, trial, ranks=None, plays=1, ratings=None, verdicts=None, choice="left",
-                    pick=None):
+                    pick=None, scores=None):
         """Return a valid POST for ``trial`` of any of the seed papers' study types.
 
         ``ranks``, ``ratings`` and ``verdicts`` map positions to answers (defaults: the
@@ -271,6 +271,9 @@ class Bot:
         if kind == "best_of_k":  # ``pick``: the position picked (default 0), or all_good/all_bad
             judged = {item.position: item.token for item in items if item.role == "judged"}
             data["pick"] = pick if isinstance(pick, str) else judged[pick or 0]
+        if kind == "mushra":  # ``scores``: positions to 0-100 (default 50)
+            for item in items:
+                data[f"score_{item.token}"] = str((scores or {}).get(item.position, 50))
         return data
 
     def answer(self, data, follow=False):

@@ -21,6 +21,7 @@ ANSWER = {
     "rating_standards": "rating",
     "rating_reference": "rating",
     "best_of_k": "pick",
+    "mushra": "score",
     "pairwise": "choice",
 }
 

@@ -31,6 +31,7 @@ CATCH_ANSWERS = {
     "pairwise": lambda catch: ({"choice": "right" if catch == 0 else "left"},
                                {"choice": "left" if catch == 0 else "right"}),
     "best_of_k": lambda catch: ({"pick": 1 if catch == 0 else 0}, {"pick": catch}),
+    "mushra": lambda catch: ({"scores": {catch: 10}}, {"scores": {catch: 80}}),
 }
 
 
@@ -72,6 +73,7 @@ def join(make_bot, study, **params):
         ("pairwise", {"choice": "right"}, {"trial": "right"}),
         ("best_of_k", {"pick": 2}, {"trial": 2}),
         ("best_of_k", {"pick": "all_bad"}, {"trial": "all_bad"}),
+        ("mushra", {"scores": {0: 100, 1: 0, 2: 55}}, {"items": [100, 0, 55, 50, 50]}),
     ],
 )
 def test_an_answer_is_stored_under_the_first_criterion(
@@ -104,6 +106,9 @@ def test_an_answer_is_stored_under_the_first_criterion(
         ("pairwise", lambda d: {k: v for k, v in d.items() if k != "choice"}),
         ("best_of_k", lambda d: d | {"pick": "none_good"}),  # not a clip nor an answer offered
         ("best_of_k", lambda d: {k: v for k, v in d.items() if k != "pick"}),
+        ("mushra", lambda d: d | {next(k for k in d if k.startswith("score_")): "101"}),
+        ("mushra", lambda d: {k: v for k, v in d.items() if k != next(
+            n for n in d if n.startswith("score_"))}),  # a slider never moved
     ],
 )
 def test_a_tampered_answer_of_any_type_is_refused(study_of, make_bot, study_type, tampering):
@@ -229,6 +234,7 @@ def test_catch_clips_never_enter_main_trials(study_of, make_bot):
         ("rating_reference", {"ratings": {0: 4, 1: 2, 2: 3}}, {"ratings": {0: 1, 1: 2, 2: 3}}),
         ("pairwise", {"choice": "left"}, {"choice": "right"}),
         ("best_of_k", {"pick": 0}, {"pick": 1}),
+        ("mushra", {"scores": {0: 80, 1: 20}}, {"scores": {0: 10, 1: 20}}),
     ],
 )
 def test_a_repeated_trial_shows_the_same_clips_later_and_records_consistency(
@@ -506,6 +512,8 @@ def preview_answer(html: str, study_type: str) -> dict:
             data[f"judged_{token}"] = "generated"
         elif study_type.startswith("rating"):
             data[f"rating_{token}"] = "2"
+        elif study_type == "mushra":
+            data[f"score_{token}"] = "30"
     if study_type == "pairwise":
         data["choice"] = "left"
     if study_type == "best_of_k":
