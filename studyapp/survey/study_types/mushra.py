@@ -132,8 +132,9 @@ class Mushra(StudyType):
         return {"score": item_answer}
 
     def bot_answer(self, page, policy):
-        """A score of 50 plus 20 per unit of how good the clip looks to the policy."""
+        """A score of 50 at a utility of 1, plus 25 per unit of how good the clip looks to
+        the policy (prefer-real: real clips 75-90, others 50-65, broken clips below 40)."""
         low, high = SCALE
-        scores = {token: round(50 + 20 * policy.utility(page.sources[token]))
+        scores = {token: round(50 + 25 * (policy.utility(page.sources[token]) - 1))
                   for token in page.tokens}
         return {f"score_{token}": str(min(high, max(low, score))) for token, score in scores.items()}
