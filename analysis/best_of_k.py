@@ -125,12 +125,13 @@ class BestOfK(StudyAnalysis):
                                 f"{', '.join(PICKS)}, e.g. {picks[bad].iloc[0]!r}")
         rows = rows.loc[picks.notna().to_numpy()].copy()
         rows["pick"] = picks.dropna().astype(str).to_numpy()
-        by_trial = rows.groupby("trial_key")["pick"]
-        best = by_trial.apply(lambda p: int((p == "best").sum()))
-        kinds = by_trial.apply(lambda p: frozenset(p))
-        valid = kinds.isin([frozenset({"best", "other"}), frozenset({"best"}),
-                            frozenset({"all_good"}), frozenset({"all_bad"})])
-        valid &= (best == 1) | kinds.isin([frozenset({"all_good"}), frozenset({"all_bad"})])
+        trial = pd.factorize(rows["trial_key"])[0]
+        counts = np.zeros((int(trial.max()) + 1 if len(trial) else 0, len(PICKS)), dtype=np.int64)
+        np.add.at(counts, (trial, pd.Categorical(rows["pick"], categories=PICKS).codes), 1)
+        best, other, good, bad = counts.T
+        picked = (best == 1) & (good == 0) & (bad == 0)
+        none = (best == 0) & (other == 0) & ((good > 0) != (bad > 0))
+        valid = picked | none
         if not valid.all():
             raise AnalysisError(f"{int((~valid).sum())} trial(s) have no single clip picked as best "
                                 f"nor all clips answered all_good or all_bad")
