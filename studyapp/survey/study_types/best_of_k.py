@@ -1,8 +1,9 @@
 """Best of K (the MotionPercept protocol): K clips of one action; which one is best?
 
 Each trial shows ``k`` clips of one action (option ``k``; by default the study's
-``clips_per_trial``, 4), sources balanced over the clips and their positions. The participant picks the best clip, or says that
-the clips are all good or all bad, when none stands out. The answer is stored on the
+``clips_per_trial``, 4), sources balanced over the clips and their positions. The
+participant picks the best clip, or says that the clips are all good or all bad, when
+none stands out. The answer is stored on the
 trial: the position of the chosen clip, or ``"all_good"`` / ``"all_bad"``.
 """
 
@@ -57,7 +58,8 @@ class BestOfK(StudyType):
     def check_options(self, options):
         checked = super().check_options(options)
         if checked.get("k", self.min_items) < self.min_items:
-            raise ValueError(f"k: {checked['k']} must be at least {self.min_items} (clips per trial)")
+            raise ValueError(f"k: {checked['k']} must be at least {self.min_items} "
+                             f"(clips per trial)")
         return checked
 
     def trial_context(self, study, trial, items):

@@ -137,4 +137,5 @@ class Mushra(StudyType):
         low, high = SCALE
         scores = {token: round(50 + 25 * (policy.utility(page.sources[token]) - 1))
                   for token in page.tokens}
-        return {f"score_{token}": str(min(high, max(low, score))) for token, score in scores.items()}
+        return {f"score_{token}": str(min(high, max(low, score)))
+                for token, score in scores.items()}
