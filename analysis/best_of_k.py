@@ -118,7 +118,8 @@ class BestOfK(StudyAnalysis):
         notes = []
         picks = rows["pick"].astype("string")
         if picks.isna().any():
-            notes.append(f"{int(picks.isna().sum())} clip(s) of trials without an answer were left out")
+            notes.append(f"{int(picks.isna().sum())} clip(s) of trials without an answer were "
+                         f"left out")
         bad = picks.notna() & ~picks.isin(PICKS)
         if bad.any():
             raise AnalysisError(f"{int(bad.sum())} row(s) have a pick that is none of "
@@ -133,8 +134,8 @@ class BestOfK(StudyAnalysis):
         none = (best == 0) & (other == 0) & ((good > 0) != (bad > 0))
         valid = picked | none
         if not valid.all():
-            raise AnalysisError(f"{int((~valid).sum())} trial(s) have no single clip picked as best "
-                                f"nor all clips answered all_good or all_bad")
+            raise AnalysisError(f"{int((~valid).sum())} trial(s) have no single clip picked as "
+                                f"best nor all clips answered all_good or all_bad")
         return rows, notes
 
     def analyse(self, rows, config):

@@ -106,7 +106,8 @@ class Mushra(StudyAnalysis):
         rule = (f"Scored the hidden reference below {threshold} in more than {share:.0%} of "
                 f"trials (MUSHRA post-screening)")
         failures = reference_failures(rows, threshold)
-        ids = rows.groupby("pcode")["participant"].first() if "participant" in rows.columns else None
+        ids = (rows.groupby("pcode")["participant"].first()
+               if "participant" in rows.columns else None)
         self.screening = failures.assign(excluded=failures["share_failed"] > share)
         if ids is not None:
             self.screening.index = ids.reindex(self.screening.index).to_numpy()
