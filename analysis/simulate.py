@@ -122,7 +122,8 @@ def simulate(study_type: str, strengths: dict | None = None, participants: int =
         ratings = np.where(random, rng.integers(1, 6, n_rows), 1 + np.searchsorted(cuts, latent))
         table["rating"] = pd.array(ratings, dtype="Int64")
     elif study_type == "mushra":
-        latent = quality + rng.normal(0.0, 0.3, participants)[participant] + noise * rng.logistic(size=n_rows)
+        latent = (quality + rng.normal(0.0, 0.3, participants)[participant]
+                  + noise * rng.logistic(size=n_rows))
         scores = 100 / (1 + np.exp(-(latent - centre)))
         reference = (row_source == n_sources - 2) & (rng.random(n_rows) >= MUSHRA_SLIPS)
         scores = np.where(reference, rng.uniform(90, 100, n_rows), scores)
@@ -165,8 +166,9 @@ def simulate(study_type: str, strengths: dict | None = None, participants: int =
         "n_items": m,
         "trial_kind": kinds,
         "is_catch": is_catch,
-        "stimulus_role": np.select([is_catch, row_source == n_sources - 2, row_source == n_sources - 1],
-                                   ["catch", "reference", "anchor"], "judged")
+        "stimulus_role": np.select(
+            [is_catch, row_source == n_sources - 2, row_source == n_sources - 1],
+            ["catch", "reference", "anchor"], "judged")
         if study_type == "mushra" else "judged",
         **table,
         "catch_passed": pd.arrays.BooleanArray(~random, kind != "catch"),
