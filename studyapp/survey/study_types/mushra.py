@@ -17,7 +17,8 @@ from django import forms
 
 from studyapp.survey.answers import Criterion
 from studyapp.survey.models import Stimulus
-from studyapp.survey.study_types.base import Option, StudyType, registry
+from studyapp.survey import assignment
+from studyapp.survey.study_types.base import Option, StudyType, TrialPlan, registry
 
 SCALE = (0, 100)
 # The recommendation's five labelled intervals, top first.
@@ -82,9 +83,24 @@ class Mushra(StudyType):
         return super().stimulus_roles(settings) | {role: 1 for role in HIDDEN}
 
     def plan_main(self, study, pool, rng):
-        plans = super().plan_main(study, pool, rng)
-        for plan in plans:
-            self._hide(plan, pool, rng)
+        """Return main trials: one clip per source, least judged first, with the action's
+        hidden reference and low anchor; all of them seated so that every source (the
+        anchor too, the reference as its source) visits every place about equally."""
+        n = self.items_per_trial(study)
+        actions = rng.sample(sorted(pool.table), len(pool.table))
+        plans = []
+        for k in range((study.trials_per_participant or len(actions)) if actions else 0):
+            action = actions[k % len(actions)]
+            chosen = assignment.choose_balanced(pool.table[action], pool.items, rng, n)
+            if len(chosen) < self.min_items:
+                continue
+            hidden = [rng.choice(stimuli) for role in HIDDEN
+                      if (stimuli := pool.shown[role][action])]
+            seats = assignment.order_positions(chosen + hidden, pool.positions, rng)
+            for position, stimulus in enumerate(seats):
+                pool.items[stimulus.pk] += 1
+                pool.positions[(stimulus.source, position)] += 1
+            plans.append(TrialPlan(action, seats))
         return plans
 
     def plan_catch(self, study, pool, stimulus, rng):
@@ -95,8 +111,8 @@ class Mushra(StudyType):
 
     @staticmethod
     def _hide(plan, pool, rng):
-        """Put the action's hidden reference and low anchor among the plan's clips, each
-        at a random place (a repeat mirrors them with the rest)."""
+        """Put the action's hidden reference and low anchor among a catch trial's clips,
+        each at a random place."""
         for role in HIDDEN:
             stimuli = pool.shown[role][plan.action]
             if stimuli:
