@@ -48,6 +48,20 @@ def test_every_trial_hides_the_reference_and_the_anchor_among_the_clips(study_of
     assert set(practice.items.values_list("stimulus__role", flat=True)) == {"practice"}
 
 
+def test_every_clip_visits_every_place_about_equally(media_root, make_bot, clips, extra_clips):
+    study = make_study("mushra", clips, extra_clips, slug="seats", trials_per_participant=2)
+    for _ in range(10):
+        join(make_bot, study)
+    seats = Counter()  # the hidden reference counts as its source (real), as assignment does
+    for trial in Trial.objects.filter(kind="main"):
+        for item in trial.items.select_related("stimulus"):
+            seats[item.stimulus.source, item.position] += 1
+    assert {source for source, _ in seats} == set(SOURCES) | {"anchor"}
+    for source in set(SOURCES) | {"anchor"}:
+        shown = [seats[source, p] for p in range(5)]
+        assert max(shown) - min(shown) <= 2, (source, shown)
+
+
 def test_the_page_names_neither_and_starts_every_slider_without_a_score(study_of, make_bot):
     bot = join(make_bot, study_of())
     trial = bot.participant().current_trial()
