@@ -80,6 +80,13 @@ class StudyAnalysis:
         frame = rows[["pcode", "stimulus", self.answer]]
         return frame.set_axis(["participant", "unit", "value"], axis=1)
 
+    def screen(self, rows: pd.DataFrame, config) -> tuple[pd.DataFrame, list[dict], list[str]]:
+        """Return the answered main-trial rows kept by this type's own screening rules,
+        one exclusion record per rule (``rule``, ``applied`` ``"yes"`` or why not,
+        ``participants``, ``trials``, ``judgements`` removed) and notes. Applied only
+        when ``config.exclusions``; counted always. Default: no rules."""
+        return rows, [], []
+
     def analyse(self, rows: pd.DataFrame, config) -> Analysis:
         raise NotImplementedError
 

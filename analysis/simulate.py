@@ -12,7 +12,14 @@ strength plus a small clip effect. Attentive raters answer from the quality with
   ``tie_rate`` of comparisons whose mean quality is below the middle are called both bad;
 - fake_or_real: judged real with probability sigmoid((q - middle) / noise + rater bias);
 - ratings: quality + rater bias + logistic noise, cut into 1..5 at thresholds spread
-  evenly over the strengths.
+  evenly over the strengths;
+- mushra: one clip per source plus a hidden reference (strength above the best source's)
+  and a low anchor (below the worst's), in random places, each scored 0-100 as
+  ``100 sigmoid(quality + rater bias + logistic noise - middle)``; an attentive rater
+  scores the hidden reference 90-100 but in ``MUSHRA_SLIPS`` of trials;
+- best_of_k: ``clips_per_trial`` clips of distinct sources (at most one per source), the
+  best by quality + Gumbel noise picked (a Plackett-Luce top-1 draw), with ``tie_rate``
+  of trials answered all good (mean quality above the middle) or all bad.
 
 Inattentive raters answer at random and fail every catch trial; speeders answer faster
 than the clips last. The table has the columns of :mod:`analysis.tables`, so the real
@@ -33,7 +40,10 @@ GRADED_CHOICES = ("left_much", "left", "left_slightly", "no_preference", "right_
 STRENGTHS = {"real": 4.0, "a2m": 3.0, "cond_gru": 1.0}
 ACTIONS = ("walk", "eat", "jump", "sit")
 STUDY_TYPES = ("ranking", "fake_or_real", "rating_standards", "rating_reference", "pairwise",
-               "pairwise_graded")
+               "pairwise_graded", "best_of_k", "mushra")
+# Answer columns of a type beyond analysis.tables.RESPONSE_COLUMNS (as the export adds them).
+EXTRA_COLUMNS = {"best_of_k": ("pick",), "mushra": ("stimulus_role", "score")}
+MUSHRA_SLIPS = 0.02
 
 
 def simulate(study_type: str, strengths: dict | None = None, participants: int = 200,
@@ -58,6 +68,10 @@ def simulate(study_type: str, strengths: dict | None = None, participants: int =
     rng = np.random.default_rng(seed)
     names = np.array(list(strengths), dtype=object)
     strength = np.array(list(strengths.values()), dtype=float)
+    centre = (strength.min() + strength.max()) / 2
+    if study_type == "mushra":  # the hidden reference and the low anchor, as two more sources
+        names = np.append(names, ["reference", "anchor"])
+        strength = np.append(strength, [strength.max() + 1.0, strength.min() - 2.0])
     actions = np.asarray(actions, dtype=object)
     n_sources = len(names)
 
@@ -118,6 +132,16 @@ def simulate(study_type: str, strengths: dict | None = None, participants: int =
         table["choice"] = pd.Categorical(
             _graded_choices(rng, quality, position, random, m, noise, position_bias, tie_rate,
                             middle), categories=GRADED_CHOICES)
+    elif study_type == "mushra":
+        latent = (quality + rng.normal(0.0, 0.3, participants)[participant]
+                  + noise * rng.logistic(size=n_rows))
+        scores = 100 / (1 + np.exp(-(latent - centre)))
+        reference = (row_source == n_sources - 2) & (rng.random(n_rows) >= MUSHRA_SLIPS)
+        scores = np.where(reference, rng.uniform(90, 100, n_rows), scores)
+        scores = np.where(random, rng.uniform(0, 100, n_rows), scores)
+        table["score"] = pd.array(np.rint(scores).astype(np.int64), dtype="Int64")
+    elif study_type == "best_of_k":
+        table["pick"] = _picks(rng, quality, random, m, noise, tie_rate, middle)
     else:
         table["choice"] = pd.Categorical(_choices(rng, quality, position, random, m, noise,
                                                   position_bias, tie_rate, middle))
@@ -153,6 +177,10 @@ def simulate(study_type: str, strengths: dict | None = None, participants: int =
         "n_items": m,
         "trial_kind": kinds,
         "is_catch": is_catch,
+        "stimulus_role": np.select(
+            [is_catch, row_source == n_sources - 2, row_source == n_sources - 1],
+            ["catch", "reference", "anchor"], "judged")
+        if study_type == "mushra" else "judged",
         **table,
         "catch_passed": pd.arrays.BooleanArray(~random, kind != "catch"),
         "plays": 1,
@@ -162,17 +190,21 @@ def simulate(study_type: str, strengths: dict | None = None, participants: int =
         "completed": True,
     })
     order = np.lexsort((frame["position"].to_numpy(), frame["trial"].to_numpy(), participant))
-    return frame.iloc[order].reset_index(drop=True)[list(RESPONSE_COLUMNS)]
+    columns = list(RESPONSE_COLUMNS) + list(EXTRA_COLUMNS.get(study_type, ()))
+    return frame.iloc[order].reset_index(drop=True)[columns]
 
 
 def _trial_sources(study_type, rng, n_trials, n_sources, clips_per_trial) -> np.ndarray:
     """Return ``(trials, m)`` source indices shown in each trial."""
-    if study_type in ("ranking", "rating_standards"):
+    if study_type in ("ranking", "rating_standards", "mushra"):
         return np.tile(np.arange(n_sources), (n_trials, 1))
     if study_type == "rating_reference":
         return rng.integers(0, n_sources, (n_trials, 1))
     if study_type == "fake_or_real":
         return rng.integers(0, n_sources, (n_trials, clips_per_trial))
+    if study_type == "best_of_k":
+        k = min(clips_per_trial, n_sources)
+        return np.argsort(rng.random((n_trials, n_sources)), axis=1)[:, :k]
     if n_sources < 2:
         raise AnalysisError("a pairwise study needs at least two sources")
     first = rng.integers(0, n_sources, n_trials)
@@ -210,6 +242,17 @@ def _graded_choices(rng, quality, position, random, m, noise, position_bias, tie
     bad = (rng.random(len(q)) < tie_rate) & ~careless & ((q_left + q_right) / 2 < middle)
     index[bad] = 7
     return np.repeat(np.asarray(GRADED_CHOICES, dtype=object)[index], m)
+def _picks(rng, quality, random, m, noise, tie_rate, middle):
+    """Return each row's pick: best, other, all_good or all_bad."""
+    utility = np.where(random, 0.0, quality) + noise * rng.gumbel(size=len(quality))
+    utility = utility.reshape(-1, m)
+    picks = np.full(utility.shape, "other", dtype=object)
+    picks[np.arange(len(utility)), utility.argmax(axis=1)] = "best"
+    careless = random.reshape(-1, m)[:, 0]
+    tie = (rng.random(len(utility)) < tie_rate) & ~careless
+    good = quality.reshape(-1, m).mean(axis=1) > middle
+    picks[tie] = np.where(good[tie], "all_good", "all_bad")[:, None]
+    return picks.ravel()
 
 
 def _missing(n: int, dtype):

@@ -33,6 +33,9 @@ class AnalysisConfig:
     confidence: float = 0.95
     seed: int = 0
     real_source: str = "real"
+    # The study type's own options (Study.options), for analyses that follow them (a
+    # screening threshold); empty when a table is analysed without its study.
+    type_options: dict = field(default_factory=dict)
 
     def __post_init__(self):
         if not 0 < self.confidence < 1:
@@ -164,6 +167,9 @@ def analyse(table: pd.DataFrame, config: AnalysisConfig | None = None,
     main = kept.loc[(kept["trial_kind"] == "main").to_numpy() & ~kept["is_catch"].to_numpy()]
     main, answer_notes = kind.answered(main)
     notes += answer_notes
+    main, screened, screen_notes = kind.screen(main, config)
+    notes += screen_notes
+    excluded = _with_screening(excluded, screened)
     if main.empty:
         raise AnalysisError(
             "no answered main-trial judgements are left after exclusions "
@@ -234,6 +240,20 @@ def per_prompt(table: Table) -> Table:
         frame = frame.rename_axis(index={"action": "prompt"})
     return Table(table.name.replace("action", "prompt"),
                  table.title.replace("per action", "per prompt"), frame, table.note)
+
+
+def _with_screening(excluded: pd.DataFrame, screened: list[dict]) -> pd.DataFrame:
+    """Return the exclusion table with the study type's own rules (``screened``, counted as
+    the shared rules are) before its last row, "Analysed", which loses what they removed."""
+    if not screened:
+        return excluded
+    analysed = excluded.iloc[-1].copy()
+    for record in screened:
+        if record["applied"] == "yes":
+            for name in ("participants", "trials", "judgements"):
+                analysed[name] -= record[name]
+    rules = pd.DataFrame(screened, columns=excluded.columns)
+    return pd.concat([excluded.iloc[:-1], rules, analysed.to_frame().T], ignore_index=True)
 
 
 def _study_type(table) -> str:

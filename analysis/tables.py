@@ -9,6 +9,10 @@ A judgement is one clip of one trial with its answer, in the column of the study
   ``both_bad``, on the rows of both clips; ``position`` 0 is the left clip, 1 the right;
   for pairwise_graded the point of its 7-point scale (``left_much`` .. ``right_much``,
   ``no_preference``; left is clip A) or ``both_bad``.
+- ``pick`` (best_of_k, a column the export adds): ``best`` on the clip picked, ``other``
+  on the rest, or ``all_good`` / ``all_bad`` on every clip of the trial.
+- ``score`` (mushra, a column the export adds): 0..100 per clip, the hidden reference
+  and the low anchor included (``stimulus_role`` ``reference`` / ``anchor``).
 
 ``trial_kind`` is ``main``, ``catch`` or ``repeat`` (practice trials are not exported);
 ``is_catch`` marks a catch clip and ``catch_passed`` whether its check was passed;

@@ -19,6 +19,8 @@ Policies (``POLICIES``):
   with probability ``s_l / (s_l + s_r)``. Fake or real: "real" with probability
   ``logistic(log s - c)``, ``c`` the mean log strength of the study's sources. Rating:
   ``round(3 + 1.5 (log s - c) + e)``, ``e ~ N(0, 0.6)``, clipped to 1..5.
+  Best of K and MUSHRA read each clip's utility (log strength, centred, plus a Gumbel
+  draw): the clip of highest utility is picked; a slider is set to ``50 + 25 (u - 1)``.
 - ``inattentive``: at random, except that every catch trial is answered wrongly (the
   broken clip treated as the best): the participant ends with the failed-attention outcome.
 - ``decline``: does not consent (the no-consent outcome); ``screen-out``: consents but

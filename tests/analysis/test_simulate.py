@@ -7,7 +7,7 @@ from scipy import stats as scipy_stats
 
 from analysis.registry import list_analyses
 from analysis.report import write_report
-from analysis.simulate import STUDY_TYPES, simulate
+from analysis.simulate import EXTRA_COLUMNS, STUDY_TYPES, simulate
 from analysis.study import analyse
 from analysis.tables import RESPONSE_COLUMNS, AnalysisError
 from tests.analysis.conftest import config
@@ -23,18 +23,21 @@ def test_every_analysed_study_type_can_be_simulated():
 @pytest.mark.parametrize("study_type", STUDY_TYPES)
 def test_simulated_table_has_the_response_columns_and_valid_answers(study_type):
     table = simulate(study_type, participants=6, trials=4, catch_trials=1, repeat_trials=2, seed=1)
-    assert list(table.columns) == list(RESPONSE_COLUMNS)
+    assert list(table.columns) == list(RESPONSE_COLUMNS) + list(EXTRA_COLUMNS.get(study_type, ()))
     assert table.groupby("participant")["trial"].nunique().eq(4 + 1 + 2).all()
     kinds = table.groupby("trial_id")["trial_kind"].first().value_counts().to_dict()
     assert kinds == {"main": 24, "catch": 6, "repeat": 12}
     assert table.loc[table["trial_kind"] == "catch", "is_catch"].sum() == 6
     main = table.loc[table["trial_kind"] == "main"]
     answers = {"ranking": "rank", "fake_or_real": "judged_real", "pairwise": "choice",
-               "pairwise_graded": "choice"}
+               "pairwise_graded": "choice", "best_of_k": "pick", "mushra": "score"}
     answer = answers.get(study_type, "rating")
     assert main[answer].notna().all()
     if study_type == "ranking":
         assert set(main.groupby("trial_id")["rank"].apply(lambda r: tuple(sorted(r)))) == {(1, 2, 3)}
+    if study_type == "best_of_k":  # one clip picked, or all good / all bad
+        verdicts = main.groupby("trial_id")["pick"].apply(lambda p: tuple(sorted(set(p))))
+        assert set(verdicts) <= {("best", "other"), ("all_good",), ("all_bad",)}
     if study_type.startswith("pairwise"):
         assert set(main.groupby("trial_id")["position"].apply(lambda p: tuple(sorted(p)))) == {(0, 1)}
 
@@ -47,8 +50,9 @@ def test_bots_with_known_strengths_are_recovered(study_type, tmp_path):
     result = analyse(table, config(bootstrap=100))
     write_report(result, tmp_path)
     summary = json.loads((tmp_path / "summary.json").read_text())
-    tau = scipy_stats.kendalltau([TRUE_ORDER.index(s) for s in summary["order"]], range(4)).statistic
-    assert tau >= 0.9, summary["order"]
+    order = [s for s in summary["order"] if s in TRUE_ORDER]  # mushra: also its controls
+    tau = scipy_stats.kendalltau([TRUE_ORDER.index(s) for s in order], range(4)).statistic
+    assert tau >= 0.9 and len(order) == 4, summary["order"]
     excluded = result.exclusions.set_index("rule").loc["Failed more than 0 catch trial(s)", "participants"]
     assert excluded == table.loc[table["catch_passed"].eq(False), "participant"].nunique() > 0
     for source, entry in summary["sources"].items():

@@ -245,7 +245,8 @@ class Bot:
             assert response.status_code == 200, response.status_code
             b"".join(response.streaming_content)
 
-    def answer_data(self, trial, ranks=None, plays=1, ratings=None, verdicts=None, choice="left"):
+    def answer_data(self, trial, ranks=None, plays=1, ratings=None, verdicts=None, choice="left",
+                    pick=None, scores=None):
         """Return a valid POST for ``trial`` of any of the seed papers' study types.
 
         ``ranks``, ``ratings`` and ``verdicts`` map positions to answers (defaults: the
@@ -267,6 +268,12 @@ class Bot:
                 data[f"rating_{token}"] = str((ratings or {}).get(item.position, 3))
             elif kind == "fake_or_real":
                 data[f"judged_{token}"] = (verdicts or {}).get(item.position, "real")
+        if kind == "best_of_k":  # ``pick``: the position picked (default 0), or all_good/all_bad
+            judged = {item.position: item.token for item in items if item.role == "judged"}
+            data["pick"] = pick if isinstance(pick, str) else judged[pick or 0]
+        if kind == "mushra":  # ``scores``: positions to 0-100 (default 50)
+            for item in items:
+                data[f"score_{item.token}"] = str((scores or {}).get(item.position, 50))
         return data
 
     def answer(self, data, follow=False):

@@ -11,7 +11,8 @@ from tests.studyapp.test_browser import ALL_WATCHED, snap, trial_id
 
 pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
 
-TYPES = ["fake_or_real", "rating_standards", "rating_reference", "pairwise"]
+TYPES = ["fake_or_real", "rating_standards", "rating_reference", "pairwise", "best_of_k",
+         "mushra"]
 FORM_DATA = "() => Object.fromEntries(new FormData(document.querySelector('[data-trial-form]')))"
 
 
@@ -52,6 +53,26 @@ def answer(page, study_type: str, n: int, tap=False) -> dict:
         else:
             page.keyboard.press("ArrowLeft" if side == "left" else "ArrowRight")
         return {"choice": side}
+    if study_type == "best_of_k":  # a clip on even trials, "All bad" on odd ones
+        if n % 2:
+            target, given = page.locator(".choice-all_bad"), "all_bad"
+        else:
+            target, given = page.locator(".judged").nth(n % len(clips)).locator(".choice"), n % len(clips)
+        target.tap() if tap else target.click()
+        return {"pick": given}
+    if study_type == "mushra":  # drag (or tap) every slider; the last one unlocks the answer
+        scores = {}
+        for i, token in enumerate(clips):
+            if i == len(clips) - 1:
+                expect(page.locator("[data-submit]")).to_be_disabled()  # one slider untouched
+            box = page.locator(".judged").nth(i)
+            slider, number = box.locator("input[type=range]"), box.locator("input[type=number]")
+            if tap:
+                slider.tap()
+            else:
+                slider.fill(str(10 * (1 + (i + n) % 4)))  # 10-40: the broken clip scores low
+            scores[token] = int(number.input_value())
+        return scores
     scores = {}
     for i, token in enumerate(clips):
         scores[token] = 1 + (i + n) % 2  # 1 or 2: the broken clip, wherever, scores low
@@ -73,6 +94,8 @@ def stored(trial: Trial, study_type: str) -> dict:
     key = trial.participant.study.kind.criteria(trial.participant.study)[0].key
     if study_type == "pairwise":
         return {"choice": trial.answers.get(key)}
+    if study_type == "best_of_k":
+        return {"pick": trial.answers.get(key)}
     return {item.token: item.answers.get(key) for item in trial.items.judged()}
 
 
@@ -143,11 +166,11 @@ def test_chromium_completes_every_type(page, live_server, study_of, study_type):
             assert stored(trial, study_type) == given
     catch = next(t for t in trials.values() if t.kind == "catch")
     assert catch.catch_passed is not None
-    if study_type != "pairwise":
+    if study_type not in ("pairwise", "best_of_k"):
         assert catch.catch_passed  # every clip was called generated or scored 1-2
 
 
-@pytest.mark.parametrize("study_type", ["pairwise", "rating_reference"])
+@pytest.mark.parametrize("study_type", ["pairwise", "rating_reference", "best_of_k", "mushra"])
 def test_a_phone_takes_the_study_by_touch(phone_page, live_server, study_of, study_type):
     page = phone_page
     study = study_of(study_type, practice=False, ask_demographics=False)

@@ -207,6 +207,8 @@ PRESETS = {  # preset -> (study type, datasets it must build from)
     "cskeletongan_rating.yaml": ("rating_standards", ["h36m2d"]),
     "sagcn_rating.yaml": ("rating_reference", ["h36m2d"]),
     "pairwise_graded.yaml": ("pairwise_graded", ["demo", "h36m"]),
+    "motionpercept_best_of_k.yaml": ("best_of_k", ["demo"]),
+    "mushra_rating.yaml": ("mushra", ["demo"]),
 }
 ACTIONS_OF = {"demo": "[walk,wave]", "h36m": "[Walking,Eating]", "h36m2d": "[Walking,Eating]"}
 

@@ -20,6 +20,8 @@ ANSWER = {
     "fake_or_real": "judged_real",
     "rating_standards": "rating",
     "rating_reference": "rating",
+    "best_of_k": "pick",
+    "mushra": "score",
     "pairwise": "choice",
     "pairwise_graded": "choice",
 }

@@ -32,6 +32,8 @@ CATCH_ANSWERS = {
                                {"choice": "left" if catch == 0 else "right"}),
     "pairwise_graded": lambda catch: ({"choice": "right_slightly" if catch == 0 else "left_much"},
                                       {"choice": "no_preference"}),
+    "best_of_k": lambda catch: ({"pick": 1 if catch == 0 else 0}, {"pick": catch}),
+    "mushra": lambda catch: ({"scores": {catch: 10}}, {"scores": {catch: 80}}),
 }
 
 
@@ -72,6 +74,9 @@ def join(make_bot, study, **params):
         ("rating_reference", {"ratings": {0: 2, 1: 3, 2: 2}}, {"items": [2, 3, 2]}),
         ("pairwise", {"choice": "right"}, {"trial": "right"}),
         ("pairwise_graded", {"choice": "right_slightly"}, {"trial": "right_slightly"}),
+        ("best_of_k", {"pick": 2}, {"trial": 2}),
+        ("best_of_k", {"pick": "all_bad"}, {"trial": "all_bad"}),
+        ("mushra", {"scores": {0: 100, 1: 0, 2: 55}}, {"items": [100, 0, 55, 50, 50]}),
     ],
 )
 def test_an_answer_is_stored_under_the_first_criterion(
@@ -103,6 +108,11 @@ def test_an_answer_is_stored_under_the_first_criterion(
         ("pairwise", lambda d: d | {"choice": "both_good"}),  # ties not offered
         ("pairwise", lambda d: {k: v for k, v in d.items() if k != "choice"}),
         ("pairwise_graded", lambda d: d | {"choice": "both_good"}),  # not on its scale
+        ("best_of_k", lambda d: d | {"pick": "none_good"}),  # not a clip nor an answer offered
+        ("best_of_k", lambda d: {k: v for k, v in d.items() if k != "pick"}),
+        ("mushra", lambda d: d | {next(k for k in d if k.startswith("score_")): "101"}),
+        ("mushra", lambda d: {k: v for k, v in d.items() if k != next(
+            n for n in d if n.startswith("score_"))}),  # a slider never moved
     ],
 )
 def test_a_tampered_answer_of_any_type_is_refused(study_of, make_bot, study_type, tampering):
@@ -228,6 +238,8 @@ def test_catch_clips_never_enter_main_trials(study_of, make_bot):
         ("rating_reference", {"ratings": {0: 4, 1: 2, 2: 3}}, {"ratings": {0: 1, 1: 2, 2: 3}}),
         ("pairwise", {"choice": "left"}, {"choice": "right"}),
         ("pairwise_graded", {"choice": "left"}, {"choice": "right"}),
+        ("best_of_k", {"pick": 0}, {"pick": 1}),
+        ("mushra", {"scores": {0: 80, 1: 20}}, {"scores": {0: 10, 1: 20}}),
     ],
 )
 def test_a_repeated_trial_shows_the_same_clips_later_and_records_consistency(
@@ -269,6 +281,8 @@ def mirrored(answers: dict, n: int) -> dict:
     for name, value in answers.items():
         if name == "choice":
             out[name] = flip.get(value, value)
+        elif name == "pick":
+            out[name] = n - 1 - value if isinstance(value, int) else value
         else:
             out[name] = {n - 1 - position: v for position, v in value.items()}
     return out
@@ -503,8 +517,12 @@ def preview_answer(html: str, study_type: str) -> dict:
             data[f"judged_{token}"] = "generated"
         elif study_type.startswith("rating"):
             data[f"rating_{token}"] = "2"
+        elif study_type == "mushra":
+            data[f"score_{token}"] = "30"
     if study_type == "pairwise":
         data["choice"] = "left"
     if study_type == "pairwise_graded":
         data["choice"] = "left_slightly"
+    if study_type == "best_of_k":
+        data["pick"] = re.search(r'name="pick" value="([\w-]+)"', html).group(1)
     return data

@@ -50,6 +50,7 @@ class Command(BaseCommand):
 
     def handle(self, *args, study, responses, out, **options):
         participants = None
+        type_options = {}
         if responses:
             try:
                 table = read_responses(responses)
@@ -63,6 +64,7 @@ class Command(BaseCommand):
             table = responses_frame(record)
             participants = _participants(record)
             name = record.slug
+            type_options = dict(record.options or {})
             if options["max_failed_catch"] is None:
                 options["max_failed_catch"] = record.max_failed_catch  # as its outcomes
             if table.empty:
@@ -74,6 +76,7 @@ class Command(BaseCommand):
                 max_failed_catch=options["max_failed_catch"],
                 max_failed_repeats=options["max_failed_repeats"], completed_only=options["completed_only"],
                 bootstrap=options["bootstrap"], seed=options["seed"], real_source=options["real_source"],
+                type_options=type_options,
             )
             results = analyse_all(table, config, participants=participants)
             if not responses and not options["no_audit"]:

@@ -1,0 +1,196 @@
+"""MUSHRA: clips scored 0-100 beside a hidden reference and a low anchor (ITU-R BS.1534).
+
+The hidden reference (rows whose ``stimulus_role`` is ``reference``) and the low anchor
+(``anchor``) are conditions of their own, ``hidden_reference`` and ``anchor``, whatever
+their source. Before the statistics the recommendation's post-screening leaves out a
+participant who scores the hidden reference below ``screen_threshold`` (90) in more than
+``screen_share`` (15 %) of their trials (:meth:`Mushra.screen`; the study's options when
+analysed with its study).
+
+Each participant contributes one number per condition, their mean score (as the
+recommendation analyses MUSHRA data); a condition's score is the mean over participants,
+with a percentile interval from resampling participants
+(:func:`analysis.worth.resample_participants`). Conditions are compared with Friedman's
+test and Wilcoxon signed-rank tests between every pair, Holm-corrected, on the
+participants who scored every condition.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from analysis import stats, worth
+from analysis.counts import ranked_sources, source_counts
+from analysis.formatting import bootstrap_text, number, p_text
+from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
+from analysis.tables import AnalysisError
+
+SCALE = (0, 100)
+SCREEN_THRESHOLD = 90
+SCREEN_SHARE = 0.15
+HIDDEN_REFERENCE, ANCHOR = "hidden_reference", "anchor"
+ROLES = {"reference": HIDDEN_REFERENCE, "anchor": ANCHOR}
+
+
+def screening_rule(config) -> tuple[int, float]:
+    """Return the post-screening threshold and share: the study's options, else 90 and 15 %."""
+    options = getattr(config, "type_options", None) or {}
+    threshold = options.get("screen_threshold", SCREEN_THRESHOLD)
+    share = options.get("screen_share", SCREEN_SHARE)
+    return int(threshold), float(share)
+
+
+def reference_failures(rows: pd.DataFrame, threshold: int) -> pd.DataFrame:
+    """Return per participant (``pcode``) the trials with a hidden reference, how many
+    scored it below ``threshold``, and that share."""
+    reference = rows.loc[rows["source"] == HIDDEN_REFERENCE]
+    per_trial = reference.groupby(["pcode", "trial_key"])["score"].min()
+    failed = (per_trial < threshold).groupby(level="pcode")
+    frame = pd.DataFrame({"trials": failed.size(), "failed": failed.sum()})
+    frame["share_failed"] = frame["failed"] / frame["trials"]
+    return frame
+
+
+def participant_means(rows: pd.DataFrame) -> pd.DataFrame:
+    """Return ``(participants, conditions)``: each participant's mean score per condition."""
+    return rows.groupby(["pcode", "source"])["score"].mean().unstack("source")
+
+
+def bootstrap_means(means: pd.DataFrame, resampled: np.ndarray, confidence: float):
+    """Return percentile intervals of the mean over participants of ``means`` (NaN where a
+    participant did not score a condition), participants resampled as ``resampled``."""
+    values = means.to_numpy(dtype=float)
+    present = np.isfinite(values)
+    weights = resampled[:, means.index.to_numpy()].astype(float)  # (R, P) of these participants
+    with np.errstate(invalid="ignore", divide="ignore"):
+        samples = (weights @ np.where(present, values, 0.0)) / (weights @ present)
+    return stats.percentile_interval(samples, confidence)
+
+
+@register_analysis("mushra")
+class Mushra(StudyAnalysis):
+    """Each trial scores one action's clips 0-100 at once, with a hidden reference and a
+    low anchor among them."""
+
+    answer = "score"
+    agreement_level = "interval"
+    design = ("each trial showed clips of one action side by side, with a hidden real reference "
+              "and a low anchor (a degraded real clip) among them, and participants scored every "
+              "clip from 0 (bad) to 100 (excellent) on sliders (MUSHRA)")
+
+    def answered(self, rows):
+        """Return the scored rows, scores whole numbers 0..100, the hidden reference and
+        the anchor as conditions of their own (``source``)."""
+        notes = []
+        scores = pd.to_numeric(rows["score"], errors="coerce")
+        if scores.isna().any():
+            notes.append(f"{int(scores.isna().sum())} clip(s) without a score were left out")
+        low, high = SCALE
+        bad = scores.notna() & ((scores % 1 != 0) | (scores < low) | (scores > high))
+        if bad.any():
+            raise AnalysisError(f"{int(bad.sum())} score(s) are not whole numbers from {low} to "
+                                f"{high}, e.g. {scores[bad].iloc[0]!r}")
+        rows = rows.loc[scores.notna().to_numpy()].copy()
+        rows["score"] = scores.dropna().to_numpy(dtype=np.int64)
+        if "stimulus_role" in rows.columns:
+            roles = rows["stimulus_role"].astype("string").map(ROLES)
+            rows["source"] = roles.fillna(rows["source"]).astype(str).to_numpy()
+        else:
+            notes.append("the table has no stimulus_role column: the hidden reference and the "
+                         "anchor cannot be told from the sources, and no post-screening was done")
+        return rows, notes
+
+    def screen(self, rows, config):
+        threshold, share = screening_rule(config)
+        rule = (f"Scored the hidden reference below {threshold} in more than {share:.0%} of "
+                f"trials (MUSHRA post-screening)")
+        failures = reference_failures(rows, threshold)
+        ids = (rows.groupby("pcode")["participant"].first()
+               if "participant" in rows.columns else None)
+        self.screening = failures.assign(excluded=failures["share_failed"] > share)
+        if ids is not None:
+            self.screening.index = ids.reindex(self.screening.index).to_numpy()
+        self.screening.index.name = "participant"
+        if failures.empty:
+            record = {"rule": rule, "applied": "skipped (no hidden reference)", "participants": 0,
+                      "trials": 0, "judgements": 0}
+            return rows, [record], []
+        flagged = rows["pcode"].isin(failures.index[failures["share_failed"] > share]).to_numpy()
+        record = {"rule": rule, "applied": "yes" if config.exclusions else "no (--no-exclusions)",
+                  "participants": int(rows.loc[flagged, "pcode"].nunique()),
+                  "trials": int(rows.loc[flagged, "trial_key"].nunique()),
+                  "judgements": int(flagged.sum())}
+        notes = []
+        if config.exclusions and flagged.all():
+            raise AnalysisError(f"every participant fails the post-screening ({rule.lower()}); "
+                                f"try --no-exclusions to see them all")
+        if config.exclusions:
+            rows = rows.loc[~flagged]
+        return rows, [record], notes
+
+    def analyse(self, rows, config):
+        means = participant_means(rows)
+        sources = source_counts(rows)
+        sources["score"] = means.mean(axis=0)
+        sources["sd"] = means.std(axis=0, ddof=1)
+        sources["median"] = means.median(axis=0)
+        if config.bootstrap > 0 and len(means) >= 2:
+            resampled = worth.resample_participants(int(rows["pcode"].max()) + 1, config.bootstrap,
+                                                    config.seed)
+            low, high = bootstrap_means(means, resampled, config.confidence)
+        else:
+            low = high = np.full(means.shape[1], np.nan)
+        sources["ci_low"] = pd.Series(low, index=means.columns)
+        sources["ci_high"] = pd.Series(high, index=means.columns)
+        sources["condition"] = [
+            {HIDDEN_REFERENCE: "hidden reference", ANCHOR: "low anchor"}.get(s, "source")
+            for s in sources.index]
+        sources = ranked_sources(sources)[["score", "ci_low", "ci_high", "sd", "median",
+                                           "condition", "n_participants", "n_judgements"]]
+        names = list(sources.index)
+        tables = [Table("sources", "Mean over participants of each participant's mean score "
+                        f"(0-100) with {config.confidence:.0%} bootstrap intervals over "
+                        "participants", sources)]
+        tests, methods, notes = {}, [], []
+        complete = means[names].dropna()
+        if len(complete) >= 2:
+            omnibus = stats.friedman(complete.to_numpy())
+            tests["friedman"] = {k: v for k, v in omnibus.items() if k != "mean_ranks"}
+            posthoc = stats.pairwise_wilcoxon(complete.to_numpy(), names)
+            tables.append(Table("pairwise_tests", "Wilcoxon signed-rank tests on participants' "
+                                "mean scores (a - b), Holm-corrected", posthoc))
+            methods.append(
+                f"Conditions were compared with Friedman's test on each participant's mean score "
+                f"({len(complete)} participants who scored every condition; chi2({omnibus['df']}) "
+                f"= {number(omnibus['statistic'], 2)}, {p_text(omnibus['p'])}) and Wilcoxon "
+                f"signed-rank tests between every pair of conditions with Holm's correction")
+        else:
+            notes.append("fewer than two participants scored every condition: no tests")
+        if len(complete) < len(means):
+            notes.append(f"{len(means) - len(complete)} participant(s) did not score every "
+                         f"condition and are left out of the tests")
+        screening = getattr(self, "screening", None)
+        threshold, share = screening_rule(config)
+        if screening is not None and not screening.empty:
+            frame = screening.reset_index()
+            tables.append(Table("post_screening", f"Hidden reference scored below {threshold}, "
+                                f"per participant (excluded above {share:.0%} of trials)", frame))
+        methods.insert(0, (
+            f"For each condition (the sources, the hidden reference and the low anchor) we "
+            f"report the mean over participants of each participant's mean score, "
+            f"{bootstrap_text(config)}; following the MUSHRA recommendation, participants who "
+            f"scored the hidden reference below {threshold} in more than {share:.0%} of trials "
+            f"were excluded beforehand"))
+        plots = [Plot("mean_score", "Mean score (0-100)", _plot(sources))]
+        return Analysis(measure="mean MUSHRA score (0-100)", sources=sources, tables=tables,
+                        plots=plots, methods=methods, notes=notes, tests=tests)
+
+
+def _plot(sources):
+    def draw():
+        from analysis.figures import interval_figure
+
+        return interval_figure(sources, "Mean score (0-100)", bars=True, limits=SCALE)
+
+    return draw
