@@ -281,10 +281,13 @@ class StudyType:
         fill = assignment.choose_balanced(
             pool.table.get(stimulus.action, {}), Counter(), rng, self.items_per_trial(study) - 1
         )
-        stimuli = fill + [stimulus]
-        rng.shuffle(stimuli)
-        if len(stimuli) < self.min_items:
+        if len(fill) + 1 < self.min_items:
             return None
+        # Seated as main trials are (sources over positions), so catch trials do not
+        # unbalance where each source is shown.
+        stimuli = assignment.order_positions(fill + [stimulus], pool.positions, rng)
+        for position, seated in enumerate(stimuli):
+            pool.positions[(seated.source, position)] += 1
         return TrialPlan(stimulus.action, stimuli, Trial.Kind.CATCH)
 
     def add_shown(self, study, pool, plans, rng) -> None:
