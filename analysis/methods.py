@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from analysis.formatting import number
+from analysis.stats import MIN_PARTICIPANTS
 
 
 def methods_paragraph(result) -> str:
@@ -36,9 +37,15 @@ def methods_paragraph(result) -> str:
         sentences.append(f"Attention: {row.check}: {number(row.value, 3)} ({row.detail}, "
                          f"{row.participants} participants)")
     sentences.append(
-        f"All intervals are {config.confidence:.0%}; p-values of families of comparisons are "
+        f"All intervals are {config.confidence:.0%} and, but for agreement, over participants: "
+        f"bootstrap resamples draw participants with all of their judgements (or, for d', "
+        f"take one value per participant), because one person's judgements are alike and "
+        f"are not independent observations; p-values of families of comparisons are "
         f"Holm-corrected"
     )
+    if counts["participants"] < MIN_PARTICIPANTS:
+        sentences.append(f"With {counts['participants']} participants (fewer than "
+                         f"{MIN_PARTICIPANTS}) these intervals are rough")
     return " ".join(_sentence(s) for s in sentences if s)
 
 
