@@ -119,6 +119,8 @@ def test_each_question_has_its_labelled_field_and_both_are_required(
     second = preferring(trial, study_type, ORDER[::-1], KEYS[1])
     for question in QUESTIONS:
         assert question in page
+    if study_type != "fake_or_real":
+        assert "each of the 2 questions below" in page
     for name in [*first, *second]:
         assert f'name="{name}"' in page
 
