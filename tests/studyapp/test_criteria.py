@@ -192,3 +192,30 @@ def test_each_question_is_analysed_and_reported_on_its_own(
         assert (out / key / "report.html").is_file() and (out / key / "sources.csv").is_file()
     exported = (out / "responses.csv").read_text().splitlines()
     assert "criterion" in exported[0].split(",")
+
+
+@pytest.mark.django_db(transaction=True)
+def test_the_admin_shows_the_report_of_each_question(
+        media_root, clips, extra_clips, make_bot, admin_client, settings, tmp_path):
+    from studyapp.survey.results import report_folder
+
+    settings.VAR_DIR = tmp_path
+    study = two_questions("rating_standards", clips, extra_clips, trials_per_participant=1)
+    for n in range(2):
+        bot = make_bot(study)
+        bot.join(PROLIFIC_PID=f"p{n}")
+        trial = bot.participant().current_trial()
+        bot.trial_page()
+        assert bot.answer(both(bot, trial, "rating_standards")).status_code == 302
+    call_command("analyze", study=study.slug, out=str(report_folder(study)), bootstrap=10,
+                 no_audit=True, min_time_factor=0)
+    base = f"/admin/survey/study/{study.pk}/results/report/"
+    index = b"".join(admin_client.get(base).streaming_content).decode()
+    for key, question in zip(KEYS, QUESTIONS):
+        assert f'href="{key}/report.html"' in index
+        shown = admin_client.get(f"{base}{key}/report.html")
+        assert shown.status_code == 200
+        assert f"({key})" in b"".join(shown.streaming_content).decode()
+    assert admin_client.get(f"{base}elsewhere/report.html").status_code == 404
+    # No path leads out of the study's folder (no route matches: Django adds a slash).
+    assert admin_client.get(f"{base}..%2Fnaturalness/report.html").status_code in (301, 404)
