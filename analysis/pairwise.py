@@ -180,16 +180,12 @@ def win_rates(trials: pd.DataFrame, names, config):
     pairs = list(itertools.combinations(range(k), 2))
     first = np.array([a for a, _ in pairs], dtype=np.int64)
     second = np.array([b for _, b in pairs], dtype=np.int64)
-
-    def rates(table):
-        counts = np.bincount(table["winner"].to_numpy() * k + table["loser"].to_numpy(),
-                             minlength=k * k).reshape(k, k)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return counts[first, second] / (counts[first, second] + counts[second, first])
-
-    _, lows, highs = stats.participant_bootstrap(
-        decided[["pcode", "winner", "loser"]], rates, config.bootstrap, config.seed,
-        config.confidence)
+    people = pd.factorize(decided["pcode"])[0]
+    won = stats.per_participant(people, decided["winner"].to_numpy() * k + decided["loser"].to_numpy(),
+                          k * k).reshape(-1, k, k)
+    _, lows, highs = stats.ratio_bootstrap(
+        won[:, first, second], won[:, first, second] + won[:, second, first],
+        config.bootstrap, config.seed, config.confidence)
     records = []
     for (a, b), low, high in zip(pairs, np.atleast_1d(lows), np.atleast_1d(highs)):
         won_a, won_b = int(wins[a, b]), int(wins[b, a])
@@ -236,14 +232,13 @@ def position_bias(trials: pd.DataFrame, config) -> dict:
     decided = trials["winner"] >= 0
     left = int((trials["choice"] == CHOICES.index("left")).sum())
     n = int(decided.sum())
-    won_left = pd.DataFrame({"pcode": trials.loc[decided, "pcode"].to_numpy(),
-                             "left": (trials.loc[decided, "choice"] == CHOICES.index("left"))
-                             .to_numpy(dtype=float)})
-    low, high = float("nan"), float("nan")
-    if n:
-        _, low, high = stats.participant_bootstrap(
-            won_left, lambda table: table["left"].mean(), config.bootstrap, config.seed,
-            config.confidence)
+    people = pd.factorize(trials.loc[decided, "pcode"])[0]
+    won_left = (trials.loc[decided, "choice"] == CHOICES.index("left")).to_numpy(dtype=float)
+    _, low, high = stats.ratio_bootstrap(
+        stats.per_participant(people, np.zeros(len(people)), 1, won_left),
+        stats.per_participant(people, np.zeros(len(people)), 1),
+        config.bootstrap, config.seed, config.confidence)
+    low, high = float(low[0]), float(high[0])
     return {"share_left": left / n if n else float("nan"), "ci_low": float(low), "ci_high": float(high),
             "left": left, "n_decided": n, "p": stats.binomial_p(left, n, 0.5),
             "n_participants": int(trials.loc[decided, "pcode"].nunique())}

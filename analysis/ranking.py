@@ -247,18 +247,13 @@ def share_intervals(shares: pd.DataFrame, config, rows: pd.DataFrame) -> pd.Data
     n = shares["n_judgements"].to_numpy(dtype=float)[:, None]
     counts = np.rint(shares[ranks].to_numpy(dtype=float) * n)
     n_sources, n_ranks = len(shares), len(ranks)
-    slim = pd.DataFrame({"pcode": rows["pcode"].to_numpy(),
-                         "cell": shares.index.get_indexer(rows["source"]) * n_ranks
-                         + rows["rank"].to_numpy() - 1})
-
-    def cell_shares(table):
-        cells = np.bincount(table["cell"].to_numpy(), minlength=n_sources * n_ranks)
-        cells = cells.reshape(n_sources, n_ranks)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return (cells / cells.sum(axis=1, keepdims=True)).ravel()
-
-    _, low, high = stats.participant_bootstrap(slim, cell_shares, config.bootstrap, config.seed,
-                                               config.confidence)
+    people = pd.factorize(rows["pcode"])[0]
+    source = shares.index.get_indexer(rows["source"])
+    cells = stats.per_participant(people, source * n_ranks + rows["rank"].to_numpy() - 1,
+                                  n_sources * n_ranks)
+    judged = np.repeat(stats.per_participant(people, source, n_sources), n_ranks, axis=1)
+    _, low, high = stats.ratio_bootstrap(cells, judged, config.bootstrap, config.seed,
+                                         config.confidence)
     frame = pd.DataFrame({
         "source": np.repeat(shares.index.to_numpy(), len(ranks)),
         "rank": np.tile([int(r[5:]) for r in ranks], len(shares)),

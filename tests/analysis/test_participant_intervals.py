@@ -92,6 +92,23 @@ def test_bootstrap_keeps_the_statistics_shape_and_renumbers_participants():
     assert values.shape == low.shape == (2,)
 
 
+def test_the_fast_ratio_bootstrap_equals_the_general_one():
+    rng = np.random.default_rng(2)
+    table = correlated_table(rng, n_participants=15, per_participant=6)
+    table["rating"] = rng.integers(1, 6, len(table)).astype(float)
+    general = stats.participant_bootstrap(
+        table, lambda t: t.groupby("source")["rating"].mean(), n=60, seed=9)
+    fast = stats.bootstrap_means(table, "rating", n=60, seed=9)
+    for got, expected in zip((fast["score"], fast["ci_low"], fast["ci_high"]), general):
+        assert got.to_numpy() == pytest.approx(expected.reindex(got.index).to_numpy())
+    # Undefined ratios (a group no participant drawn judged) are left out, not counted as 0.
+    numerator = np.array([[1.0, 0.0], [0.0, 0.0], [1.0, 0.0]])
+    denominator = np.array([[1.0, 1.0], [1.0, 0.0], [1.0, 0.0]])
+    score, low, high = stats.ratio_bootstrap(numerator, denominator, n=200)
+    assert score == pytest.approx([2 / 3, 0.0])
+    assert (low[1], high[1]) == (0.0, 0.0) and 0 <= low[0] <= high[0] <= 1
+
+
 def test_bootstrap_without_resamples_or_participants_has_no_interval():
     rows = pd.DataFrame({"pcode": [1, 1], "x": [1.0, 2.0]})
     assert np.isnan(stats.participant_bootstrap(rows, lambda t: t["x"].mean(), n=100)[1])
