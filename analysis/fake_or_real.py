@@ -44,7 +44,7 @@ class FakeOrReal(StudyAnalysis):
         real = config.real_source
         tests, methods, notes = {}, [], []
         methods.append(
-            f"For each source (and each action) we report the share of its clips judged real, "
+            f"For each source{_per_action(rows)} we report the share of its clips judged real, "
             f"{participant_bootstrap_text(config)}"
         )
         tables = []
@@ -145,6 +145,10 @@ def sensitivity(rows: pd.DataFrame, real: str, confidence: float = 0.95) -> tupl
 
 def _interval(result) -> str:
     return f"[{number(result['ci_low'], 2)}, {number(result['ci_high'], 2)}]"
+
+
+def _per_action(rows) -> str:
+    return " (and each action)" if "action" in rows.columns and rows["action"].nunique() > 1 else ""
 
 
 def _plot(sources):

@@ -34,9 +34,7 @@ def participant_bootstrap_text(config) -> str:
     if config.bootstrap <= 0:
         return "without intervals (the bootstrap was switched off)"
     return (f"with a {config.confidence:.0%} percentile interval from {config.bootstrap} "
-            f"bootstrap resamples of participants (each resample draws participants with "
-            f"replacement and keeps all of their judgements, so judgements of one person are "
-            f"not counted as independent)")
+            f"bootstrap resamples of participants")
 
 
 def number(value, digits: int = 3) -> str:

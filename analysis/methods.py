@@ -36,12 +36,14 @@ def methods_paragraph(result) -> str:
     for row in result.quality.itertuples():
         sentences.append(f"Attention: {row.check}: {number(row.value, 3)} ({row.detail}, "
                          f"{row.participants} participants)")
+    dprime = " (d' has one value per participant)" if "dprime" in result.analysis.tests else ""
+    but = ", but for agreement," if agreement["n_units"] else ""
     sentences.append(
-        f"All intervals are {config.confidence:.0%} and, but for agreement, over participants: "
-        f"bootstrap resamples draw participants with all of their judgements (or, for d', "
-        f"take one value per participant), because one person's judgements are alike and "
-        f"are not independent observations; p-values of families of comparisons are "
-        f"Holm-corrected"
+        f"All intervals are {config.confidence:.0%} and{but} over participants: each "
+        f"bootstrap resample draws participants with replacement and keeps all of their "
+        f"judgements{dprime}, because one person's judgements are "
+        f"alike and are not independent observations; p-values of families of comparisons "
+        f"are Holm-corrected"
     )
     if counts["participants"] < MIN_PARTICIPANTS:
         sentences.append(f"With {counts['participants']} participants (fewer than "

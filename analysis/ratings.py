@@ -66,7 +66,7 @@ class RatingStandards(StudyAnalysis):
             by_action = mean_ratings(rows, config, by=("action", "source"))
             tables.append(Table("by_action", "Mean rating per action", by_action.reset_index()))
         methods = [
-            f"For each source (and each action) we report the mean rating, "
+            f"For each source{_per_action(rows)} we report the mean rating, "
             f"{participant_bootstrap_text(config)}",
             f"sources were compared with a Kruskal-Wallis test (H({omnibus['df']}) = "
             f"{number(omnibus['statistic'], 2)}, {p_text(omnibus['p'])}) and pairwise "
@@ -100,6 +100,10 @@ def mean_ratings(rows: pd.DataFrame, config, by=("source",)) -> pd.DataFrame:
                                   config.confidence)
     frame = frame.join(means)
     return frame[["score", "ci_low", "ci_high", "sd", "n_participants", "n_judgements"]]
+
+
+def _per_action(rows) -> str:
+    return " (and each action)" if "action" in rows.columns and rows["action"].nunique() > 1 else ""
 
 
 def _plot(sources):
