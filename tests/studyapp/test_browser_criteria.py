@@ -1,6 +1,7 @@
-"""A real Chromium takes a rating study that asks two questions of every clip, on the
-live server, through to the export: both questions shown and labelled, the answer held
-back until both are given, each stored and exported under its own criterion."""
+"""A real Chromium takes studies that ask two questions of the same clips, on the live
+server: a rating study through to the export (both questions shown and labelled, the
+answer held back until both are given, each stored and exported under its own
+criterion) and a ranking with one list per question."""
 
 import pandas as pd
 import pytest
@@ -72,3 +73,34 @@ def test_chromium_answers_two_questions_per_clip_through_to_the_export(
     assert sorted(table["criterion"].unique()) == ["fit", "naturalness"]
     got = {(row.trial_id, row.stimulus, row.criterion): row.rating for row in table.itertuples()}
     assert got == expected
+
+
+def test_chromium_ranks_the_clips_once_per_question(
+        page, live_server, transactional_db, media_root, clips, tmp_path):
+    study = make_study("ranking", clips, criteria=["naturalness", "fit to the action"],
+                       trials_per_participant=1)
+    begin(page, f"{live_server.url}/s/{study.slug}/?PROLIFIC_PID=two-rankings")
+    page.get_by_role("button", name="Start").click()
+    page.wait_for_function(ALL_WATCHED, timeout=15_000)
+    panels = page.locator("[data-ranking-panel]")
+    expect(panels).to_have_count(2)
+    expect(panels.locator("h2")).to_have_text(["Naturalness", "Fit to the action"])
+    submit = page.locator("[data-submit]")
+    panels.nth(0).get_by_role("button", name="Keep this order").click()
+    expect(submit).to_be_disabled()  # the second list is still unranked
+    # The second question: the first clip of the list moved to the bottom.
+    second = panels.nth(1)
+    moved = second.locator(".rank-row").first.get_attribute("data-clip")
+    for _ in range(2):
+        second.locator(f".rank-row[data-clip='{moved}'] [data-move='1']").click()
+    order = [second.locator(".rank-row").nth(i).get_attribute("data-clip") for i in range(3)]
+    first = [panels.nth(0).locator(".rank-row").nth(i).get_attribute("data-clip") for i in range(3)]
+    assert order == first[1:] + first[:1]
+    expect(submit).to_be_enabled()
+    submit_and_wait(page)
+
+    expect(page.locator("[data-completion-code]")).to_be_visible()
+    trial = Trial.objects.get(kind=Trial.Kind.MAIN)
+    stored = {item.token: item.answers for item in trial.items.judged()}
+    assert stored == {token: {"naturalness": first.index(token) + 1,
+                              "fit_to_the_action": order.index(token) + 1} for token in first}
