@@ -30,6 +30,7 @@ def test_chromium_answers_two_questions_per_clip_through_to_the_export(
     while "/trial/" in page.url:
         page.wait_for_function(ALL_WATCHED, timeout=15_000)
         expect(page.locator(".lede")).to_contain_text("each of the 2 questions below")
+        expect(page.locator("#scale-hint")).to_have_text("For each question: 1 = lowest · 5 = highest")
         cards = page.locator(".judged")
         clips_on_screen = tokens(page)
         assert cards.count() == len(clips_on_screen) >= 2
