@@ -59,7 +59,8 @@ class FakeOrReal(StudyAnalysis):
             methods.append(
                 f"each generated source's rate was compared with the rate of the real clips "
                 f"({number(real_rate, 3)}) by an exact two-sided binomial test, Holm-corrected over "
-                f"the {len(generated)} generated source(s)"
+                f"the {len(generated)} generated source(s) (the test counts judgements as "
+                f"independent, so with participants who differ its p-values are too small)"
             )
             per_participant, summary = sensitivity(rows, real, config.confidence)
             tests["dprime"] = summary

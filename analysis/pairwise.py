@@ -104,7 +104,8 @@ class Pairwise(StudyAnalysis):
         methods = [
             f"For each pair of sources we report the share of decided comparisons (a clip chosen) "
             f"won by each, {participant_bootstrap_text(config)}, and exact binomial tests "
-            f"against 50 % with Holm's correction; {ties} comparison(s) answered 'both good' or "
+            f"against 50 % with Holm's correction (these tests count comparisons as "
+            f"independent, so with participants who differ their p-values are too small); {ties} comparison(s) answered 'both good' or "
             f"'both bad' count as ties and are left out of win rates and worths",
             f"a Bradley-Terry worth per source was fitted to the decided comparisons (log scale, "
             f"centred on 0, with a weak prior of one virtual win and loss per source), "

@@ -70,7 +70,9 @@ class RatingStandards(StudyAnalysis):
             f"{participant_bootstrap_text(config)}",
             f"sources were compared with a Kruskal-Wallis test (H({omnibus['df']}) = "
             f"{number(omnibus['statistic'], 2)}, {p_text(omnibus['p'])}) and pairwise "
-            f"two-sided Mann-Whitney U tests with Holm's correction, which treat the ratings as ordinal",
+            f"two-sided Mann-Whitney U tests with Holm's correction, which treat the ratings as "
+            f"ordinal and count them as independent (with participants who differ, their "
+            f"p-values are too small)",
         ]
         plots = [Plot("mean_rating", "Mean rating", _plot(sources))]
         return Analysis(measure="mean rating", sources=sources, tables=tables, plots=plots,
