@@ -1,6 +1,7 @@
 """Fake or real: the share of each source's clips judged real (seed 000, Fig. 5).
 
-Each generated source's rate is tested against the real clips' rate (exact binomial,
+Shares come with percentile intervals from a bootstrap over participants. Each
+generated source's rate is tested against the real clips' rate (exact binomial,
 Holm-corrected), and each participant's sensitivity d' says how well they told real
 from generated (hit = a real clip called real, false alarm = a generated one).
 """
@@ -12,7 +13,7 @@ import pandas as pd
 
 from analysis import stats
 from analysis.counts import ranked_sources, source_counts
-from analysis.formatting import number, p_text
+from analysis.formatting import number, p_text, participant_bootstrap_text
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
 from analysis.tables import as_boolean
 
@@ -39,12 +40,12 @@ class FakeOrReal(StudyAnalysis):
                              "value": rows["judged_real"].to_numpy(dtype=int)})
 
     def analyse(self, rows, config):
-        sources = judged_real_shares(rows, config.confidence)
+        sources = judged_real_shares(rows, config)
         real = config.real_source
         tests, methods, notes = {}, [], []
         methods.append(
-            f"For each source we report the share of its clips judged real with Wilson "
-            f"{config.confidence:.0%} score intervals"
+            f"For each source{_per_action(rows)} we report the share of its clips judged real, "
+            f"{participant_bootstrap_text(config)}"
         )
         tables = []
         if real in sources.index:
@@ -58,7 +59,8 @@ class FakeOrReal(StudyAnalysis):
             methods.append(
                 f"each generated source's rate was compared with the rate of the real clips "
                 f"({number(real_rate, 3)}) by an exact two-sided binomial test, Holm-corrected over "
-                f"the {len(generated)} generated source(s)"
+                f"the {len(generated)} generated source(s) (the test counts judgements as "
+                f"independent, so with participants who differ its p-values are too small)"
             )
             per_participant, summary = sensitivity(rows, real, config.confidence)
             tests["dprime"] = summary
@@ -83,23 +85,24 @@ class FakeOrReal(StudyAnalysis):
         columns = ["score", "ci_low", "ci_high", "judged_real", "difference", "p", "p_holm",
                    "n_participants", "n_judgements"]
         sources = ranked_sources(sources).reindex(columns=[c for c in columns if c in sources.columns])
-        tables.insert(0, Table("sources", f"Share judged real with {config.confidence:.0%} Wilson "
-                               f"intervals; binomial tests against the real clips' rate", sources))
+        tables.insert(0, Table("sources", f"Share judged real with {config.confidence:.0%} intervals "
+                               f"over participants (bootstrap); binomial tests against the real "
+                               f"clips' rate", sources))
         if "action" in rows.columns and rows["action"].nunique() > 1:
-            by_action = judged_real_shares(rows, config.confidence, by=("action", "source"))
+            by_action = judged_real_shares(rows, config, by=("action", "source"))
             tables.append(Table("by_action", "Share judged real per action", by_action.reset_index()))
         plots = [Plot("judged_real", "Share of clips judged real", _plot(sources))]
         return Analysis(measure="share judged real", sources=sources, tables=tables, plots=plots,
                         methods=methods, notes=notes, tests=tests)
 
 
-def judged_real_shares(rows: pd.DataFrame, confidence: float = 0.95, by=("source",)) -> pd.DataFrame:
-    """Return ``score`` (share judged real), Wilson ``ci_low``/``ci_high`` and counts per group."""
+def judged_real_shares(rows: pd.DataFrame, config, by=("source",)) -> pd.DataFrame:
+    """Return ``score`` (share judged real), ``ci_low``/``ci_high`` over participants
+    (:func:`analysis.stats.bootstrap_means`) and counts per group of ``by``."""
     frame = source_counts(rows, by)
     frame["judged_real"] = rows.groupby(list(by), observed=True)["judged_real"].sum().astype(int)
-    frame["score"] = frame["judged_real"] / frame["n_judgements"]
-    frame["ci_low"], frame["ci_high"] = stats.wilson_interval(
-        frame["judged_real"], frame["n_judgements"], confidence)
+    frame = frame.join(stats.bootstrap_means(rows, "judged_real", by, config.bootstrap,
+                                             config.seed, config.confidence))
     return frame[["score", "ci_low", "ci_high", "judged_real", "n_participants", "n_judgements"]]
 
 
@@ -143,6 +146,10 @@ def sensitivity(rows: pd.DataFrame, real: str, confidence: float = 0.95) -> tupl
 
 def _interval(result) -> str:
     return f"[{number(result['ci_low'], 2)}, {number(result['ci_high'], 2)}]"
+
+
+def _per_action(rows) -> str:
+    return " (and each action)" if "action" in rows.columns and rows["action"].nunique() > 1 else ""
 
 
 def _plot(sources):

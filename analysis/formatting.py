@@ -29,6 +29,14 @@ def bootstrap_text(config) -> str:
             f"resamples of participants")
 
 
+def participant_bootstrap_text(config) -> str:
+    """Return how intervals over participants were obtained, for the methods paragraph."""
+    if config.bootstrap <= 0:
+        return "without intervals (the bootstrap was switched off)"
+    return (f"with a {config.confidence:.0%} percentile interval from {config.bootstrap} "
+            f"bootstrap resamples of participants")
+
+
 def number(value, digits: int = 3) -> str:
     """Return ``value`` with ``digits`` decimals, or ``n/a``."""
     if value is None or (isinstance(value, float) and not math.isfinite(value)):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from analysis.formatting import number
+from analysis.stats import MIN_PARTICIPANTS
 
 
 def methods_paragraph(result) -> str:
@@ -37,10 +38,18 @@ def methods_paragraph(result) -> str:
     for row in result.quality.itertuples():
         sentences.append(f"Attention: {row.check}: {number(row.value, 3)} ({row.detail}, "
                          f"{row.participants} participants)")
+    dprime = " (d' has one value per participant)" if "dprime" in result.analysis.tests else ""
+    but = ", but for agreement," if agreement["n_units"] else ""
     sentences.append(
-        f"All intervals are {config.confidence:.0%}; p-values of families of comparisons are "
-        f"Holm-corrected"
+        f"All intervals are {config.confidence:.0%} and{but} over participants: each "
+        f"bootstrap resample draws participants with replacement and keeps all of their "
+        f"judgements{dprime}, because one person's judgements are "
+        f"alike and are not independent observations; p-values of families of comparisons "
+        f"are Holm-corrected"
     )
+    if counts["participants"] < MIN_PARTICIPANTS:
+        sentences.append(f"With {counts['participants']} participants (fewer than "
+                         f"{MIN_PARTICIPANTS}) these intervals are rough")
     return " ".join(_sentence(s) for s in sentences if s)
 
 

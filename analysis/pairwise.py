@@ -1,8 +1,9 @@
 """Pairwise preference: two clips side by side, the better one (or both good, both bad).
 
 Reported: the win rate of each pair of sources over the comparisons one of them won
-(Wilson intervals, binomial test against 50 %, Holm-corrected), Bradley-Terry worths
-with bootstrap intervals (ties left out), and the left/right position bias.
+(binomial test against 50 %, Holm-corrected), Bradley-Terry worths (ties left out), and
+the left/right position bias; every interval resamples participants with all their
+comparisons.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import pandas as pd
 
 from analysis import stats, worth
 from analysis.counts import ranked_sources, source_counts
-from analysis.formatting import bootstrap_text, number, p_text
+from analysis.formatting import bootstrap_text, number, p_text, participant_bootstrap_text
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
 from analysis.tables import AnalysisError
 
@@ -72,7 +73,7 @@ class Pairwise(StudyAnalysis):
     def analyse(self, rows, config):
         names = sorted(rows["source"].unique())
         trials = comparisons(rows, names)
-        pairs, matrix = win_rates(trials, names, config.confidence)
+        pairs, matrix = win_rates(trials, names, config)
         resampled = worth.resample_participants(int(rows["pcode"].max()) + 1, config.bootstrap, config.seed)
         fitted = bradley_terry(trials, names, config, resampled)
         sources = source_counts(rows).join(fitted)
@@ -84,15 +85,17 @@ class Pairwise(StudyAnalysis):
             sources["win_rate"] = pd.Series(wins / played, index=names)
         sources = ranked_sources(sources)[["score", "ci_low", "ci_high", "win_rate", "n_participants",
                                            "n_judgements"]]
-        bias = position_bias(trials, config.confidence)
+        bias = position_bias(trials, config)
         ties = int((trials["winner"] < 0).sum())
         tables = [
             Table("sources", f"Bradley-Terry worth (log scale, 0 = average source) with "
                   f"{config.confidence:.0%} bootstrap intervals, and the share of decided "
                   f"comparisons won", sources),
             Table("win_rates", f"Win rate of a over b among decided comparisons, {config.confidence:.0%} "
-                  f"Wilson intervals, binomial test against 50 % (Holm)", pairs),
-            Table("position_bias", "Share of decided comparisons won by the left clip",
+                  f"intervals over participants (bootstrap), binomial test against 50 % (Holm)",
+                  pairs),
+            Table("position_bias", "Share of decided comparisons won by the left clip, with "
+                  "its interval over participants",
                   pd.DataFrame([bias])),
         ]
         if "action" in rows.columns and rows["action"].nunique() > 1:
@@ -100,8 +103,9 @@ class Pairwise(StudyAnalysis):
                                 self._by_action(rows, trials, names, config, resampled)))
         methods = [
             f"For each pair of sources we report the share of decided comparisons (a clip chosen) "
-            f"won by each, with Wilson {config.confidence:.0%} intervals and exact binomial tests "
-            f"against 50 % with Holm's correction; {ties} comparison(s) answered 'both good' or "
+            f"won by each, {participant_bootstrap_text(config)}, and exact binomial tests "
+            f"against 50 % with Holm's correction (these tests count comparisons as "
+            f"independent, so with participants who differ their p-values are too small); {ties} comparison(s) answered 'both good' or "
             f"'both bad' count as ties and are left out of win rates and worths",
             f"a Bradley-Terry worth per source was fitted to the decided comparisons (log scale, "
             f"centred on 0, with a weak prior of one virtual win and loss per source), "
@@ -161,8 +165,12 @@ def comparisons(rows: pd.DataFrame, names) -> pd.DataFrame:
     return frame
 
 
-def win_rates(trials: pd.DataFrame, names, confidence: float = 0.95):
-    """Return the per-pair table and the ``(K, K)`` matrix of row-over-column win rates."""
+def win_rates(trials: pd.DataFrame, names, config):
+    """Return the per-pair table and the ``(K, K)`` matrix of row-over-column win rates.
+
+    Intervals resample participants with all their comparisons
+    (:func:`analysis.stats.participant_bootstrap`).
+    """
     k = len(names)
     decided = trials.loc[trials["winner"] >= 0]
     wins = np.bincount(decided["winner"] * k + decided["loser"], minlength=k * k).reshape(k, k)
@@ -170,11 +178,19 @@ def win_rates(trials: pd.DataFrame, names, confidence: float = 0.95):
     pair = np.minimum(tied["left"], tied["right"]) * k + np.maximum(tied["left"], tied["right"])
     ties = {name: np.bincount(pair[tied["choice"] == CHOICES.index(name)], minlength=k * k).reshape(k, k)
             for name in ("both_good", "both_bad")}
+    pairs = list(itertools.combinations(range(k), 2))
+    first = np.array([a for a, _ in pairs], dtype=np.int64)
+    second = np.array([b for _, b in pairs], dtype=np.int64)
+    people = pd.factorize(decided["pcode"])[0]
+    won = stats.per_participant(people, decided["winner"].to_numpy() * k + decided["loser"].to_numpy(),
+                          k * k).reshape(-1, k, k)
+    _, lows, highs = stats.ratio_bootstrap(
+        won[:, first, second], won[:, first, second] + won[:, second, first],
+        config.bootstrap, config.seed, config.confidence)
     records = []
-    for a, b in itertools.combinations(range(k), 2):
+    for (a, b), low, high in zip(pairs, np.atleast_1d(lows), np.atleast_1d(highs)):
         won_a, won_b = int(wins[a, b]), int(wins[b, a])
         n = won_a + won_b
-        low, high = stats.wilson_interval(won_a, n, confidence)
         records.append({
             "a": names[a], "b": names[b], "wins_a": won_a, "wins_b": won_b,
             "both_good": int(ties["both_good"][a, b]), "both_bad": int(ties["both_bad"][a, b]),
@@ -211,12 +227,19 @@ def bradley_terry(trials: pd.DataFrame, names, config, resampled=None, present=N
                          "ci_high": fitted["ci_high"]}, index=index)
 
 
-def position_bias(trials: pd.DataFrame, confidence: float = 0.95) -> dict:
-    """Return the share of decided comparisons won by the left clip, its interval and test."""
+def position_bias(trials: pd.DataFrame, config) -> dict:
+    """Return the share of decided comparisons won by the left clip, its interval over
+    participants and its test."""
     decided = trials["winner"] >= 0
     left = int((trials["choice"] == CHOICES.index("left")).sum())
     n = int(decided.sum())
-    low, high = stats.wilson_interval(left, n, confidence)
+    people = pd.factorize(trials.loc[decided, "pcode"])[0]
+    won_left = (trials.loc[decided, "choice"] == CHOICES.index("left")).to_numpy(dtype=float)
+    _, low, high = stats.ratio_bootstrap(
+        stats.per_participant(people, np.zeros(len(people)), 1, won_left),
+        stats.per_participant(people, np.zeros(len(people)), 1),
+        config.bootstrap, config.seed, config.confidence)
+    low, high = float(low[0]), float(high[0])
     return {"share_left": left / n if n else float("nan"), "ci_low": float(low), "ci_high": float(high),
             "left": left, "n_decided": n, "p": stats.binomial_p(left, n, 0.5),
             "n_participants": int(trials.loc[decided, "pcode"].nunique())}

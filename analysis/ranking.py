@@ -1,8 +1,8 @@
 """Preference ranking: the share of each source's clips at each rank, and its worth.
 
 The shares are the statistic behind seed 000, Fig. 4 ("64 % of A2M motions in the top
-2"). The study analysis adds Wilson intervals to the shares, Plackett-Luce worths with
-bootstrap intervals, Friedman's test with Kendall's W and pairwise Wilcoxon tests on
+2"). The study analysis adds intervals to the shares and Plackett-Luce worths (both
+bootstraps over participants), Friedman's test with Kendall's W and pairwise Wilcoxon tests on
 each participant's mean rank per source, and the same per action.
 """
 
@@ -13,7 +13,7 @@ import pandas as pd
 
 from analysis import stats, worth
 from analysis.counts import ranked_sources, source_counts
-from analysis.formatting import bootstrap_text, number, p_text
+from analysis.formatting import bootstrap_text, number, p_text, participant_bootstrap_text
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
 from analysis.tables import AnalysisError, ranked_judgements
 
@@ -155,14 +155,15 @@ class Ranking(StudyAnalysis):
         sources = ranked_sources(sources)[["score", "ci_low", "ci_high", "mean_rank", "top_1",
                                            "top_2", "n_participants", "n_judgements"]]
         shares = shares.loc[sources.index]
-        intervals = share_intervals(shares, config.confidence)
+        intervals = share_intervals(shares, config, rows)
 
         tables = [
             Table("sources", "Plackett-Luce worth (log scale, 0 = average source) with "
                   f"{config.confidence:.0%} bootstrap intervals, mean rank and top-k shares", sources),
             Table("rank_shares", "Share of each source's judgements at each rank (as seed 000, Fig. 4)",
                   shares),
-            Table("rank_share_intervals", f"Rank shares with {config.confidence:.0%} Wilson intervals",
+            Table("rank_share_intervals", f"Rank shares with {config.confidence:.0%} intervals over "
+                  f"participants (bootstrap)",
                   intervals),
         ]
         tests, methods, notes = {}, [], []
@@ -187,8 +188,8 @@ class Ranking(StudyAnalysis):
             notes.append(f"{len(means) - len(complete)} participant(s) did not rank every source "
                          f"and are left out of Friedman's test")
         methods.insert(0, (
-            f"For each source we report the share of its judgements at each rank with Wilson "
-            f"{config.confidence:.0%} intervals, and a Plackett-Luce worth fitted to the rankings "
+            f"For each source we report the share of its judgements at each rank, "
+            f"{participant_bootstrap_text(config)}, and a Plackett-Luce worth fitted to the rankings "
             f"(log scale, centred on 0; a weak prior of one virtual win and one virtual loss per "
             f"source against a reference keeps estimates finite), {bootstrap_text(config)}"
         ))
@@ -236,12 +237,23 @@ def plackett_luce(rows: pd.DataFrame, names, config, resampled=None) -> pd.DataF
                          "ci_high": fitted["ci_high"]}, index=pd.Index(names, name="source"))
 
 
-def share_intervals(shares: pd.DataFrame, confidence: float = 0.95) -> pd.DataFrame:
-    """Return one row per source and rank: ``share``, Wilson ``ci_low``/``ci_high``, counts."""
+def share_intervals(shares: pd.DataFrame, config, rows: pd.DataFrame) -> pd.DataFrame:
+    """Return one row per source and rank: ``share``, ``ci_low``/``ci_high``, counts.
+
+    Intervals resample the participants (``pcode``) of the ranked ``rows`` with all
+    their rankings (:func:`analysis.stats.participant_bootstrap`).
+    """
     ranks = rank_columns(shares)
     n = shares["n_judgements"].to_numpy(dtype=float)[:, None]
     counts = np.rint(shares[ranks].to_numpy(dtype=float) * n)
-    low, high = stats.wilson_interval(counts, n, confidence)
+    n_sources, n_ranks = len(shares), len(ranks)
+    people = pd.factorize(rows["pcode"])[0]
+    source = shares.index.get_indexer(rows["source"])
+    cells = stats.per_participant(people, source * n_ranks + rows["rank"].to_numpy() - 1,
+                                  n_sources * n_ranks)
+    judged = np.repeat(stats.per_participant(people, source, n_sources), n_ranks, axis=1)
+    _, low, high = stats.ratio_bootstrap(cells, judged, config.bootstrap, config.seed,
+                                         config.confidence)
     frame = pd.DataFrame({
         "source": np.repeat(shares.index.to_numpy(), len(ranks)),
         "rank": np.tile([int(r[5:]) for r in ranks], len(shares)),

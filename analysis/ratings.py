@@ -1,6 +1,7 @@
 """Realism ratings 1-5: the mean score per source (seed 003, Table 3; seed 004, Table 5).
 
-Means come with Student-t intervals; sources are compared by their rating
+Means come with percentile intervals from a bootstrap over participants (each
+participant's ratings stay together); sources are compared by their rating
 distributions (Kruskal-Wallis across all, Mann-Whitney U between each pair with Holm's
 correction), which respects that the scale is ordinal.
 """
@@ -12,7 +13,7 @@ import pandas as pd
 
 from analysis import stats
 from analysis.counts import ranked_sources, source_counts
-from analysis.formatting import number, p_text
+from analysis.formatting import number, p_text, participant_bootstrap_text
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
 from analysis.tables import AnalysisError
 
@@ -44,7 +45,7 @@ class RatingStandards(StudyAnalysis):
 
     def analyse(self, rows, config):
         names = sorted(rows["source"].unique())
-        sources = mean_ratings(rows, config.confidence)
+        sources = mean_ratings(rows, config)
         values, groups = rows["rating"].to_numpy(), rows["source"].to_numpy()
         omnibus = stats.kruskal_wallis(values, groups, names)
         posthoc = stats.pairwise_mann_whitney(values, groups, names)
@@ -56,20 +57,22 @@ class RatingStandards(StudyAnalysis):
         distribution["n_judgements"] = sources["n_judgements"]
         tables = [
             Table("sources", f"Mean rating ({low}-{high}, higher = more realistic) with "
-                  f"{config.confidence:.0%} t intervals", sources),
+                  f"{config.confidence:.0%} intervals over participants (bootstrap)", sources),
             Table("rating_shares", "Share of each source's clips at each rating", distribution),
             Table("pairwise_tests", "Mann-Whitney U tests between sources (superiority: chance "
                   "that a rating of a beats one of b, ties half), Holm-corrected", posthoc),
         ]
         if "action" in rows.columns and rows["action"].nunique() > 1:
-            by_action = mean_ratings(rows, config.confidence, by=("action", "source"))
+            by_action = mean_ratings(rows, config, by=("action", "source"))
             tables.append(Table("by_action", "Mean rating per action", by_action.reset_index()))
         methods = [
-            f"For each source we report the mean rating with a Student-t {config.confidence:.0%} "
-            f"interval over its judgements",
+            f"For each source{_per_action(rows)} we report the mean rating, "
+            f"{participant_bootstrap_text(config)}",
             f"sources were compared with a Kruskal-Wallis test (H({omnibus['df']}) = "
             f"{number(omnibus['statistic'], 2)}, {p_text(omnibus['p'])}) and pairwise "
-            f"two-sided Mann-Whitney U tests with Holm's correction, which treat the ratings as ordinal",
+            f"two-sided Mann-Whitney U tests with Holm's correction, which treat the ratings as "
+            f"ordinal and count them as independent (with participants who differ, their "
+            f"p-values are too small)",
         ]
         plots = [Plot("mean_rating", "Mean rating", _plot(sources))]
         return Analysis(measure="mean rating", sources=sources, tables=tables, plots=plots,
@@ -84,15 +87,25 @@ class RatingReference(RatingStandards):
               "the same action was shown as a reference")
 
 
-def mean_ratings(rows: pd.DataFrame, confidence: float = 0.95, by=("source",)) -> pd.DataFrame:
-    """Return ``score`` (mean rating), t ``ci_low``/``ci_high``, ``sd`` and counts per group."""
+def mean_ratings(rows: pd.DataFrame, config, by=("source",)) -> pd.DataFrame:
+    """Return ``score`` (mean rating), ``ci_low``/``ci_high`` over participants, ``sd`` and
+    counts per group of ``by``.
+
+    The interval resamples participants with all their ratings
+    (:func:`analysis.stats.participant_bootstrap`; ``config`` gives the number of
+    resamples, seed and confidence).
+    """
     frame = source_counts(rows, by)
     groups = rows.groupby(list(by), observed=True)["rating"]
-    frame["score"] = groups.mean()
     frame["sd"] = groups.std(ddof=1)
-    frame["ci_low"], frame["ci_high"] = stats.t_interval(frame["score"], frame["sd"],
-                                                         frame["n_judgements"], confidence)
+    means = stats.bootstrap_means(rows, "rating", by, config.bootstrap, config.seed,
+                                  config.confidence)
+    frame = frame.join(means)
     return frame[["score", "ci_low", "ci_high", "sd", "n_participants", "n_judgements"]]
+
+
+def _per_action(rows) -> str:
+    return " (and each action)" if "action" in rows.columns and rows["action"].nunique() > 1 else ""
 
 
 def _plot(sources):

@@ -1,12 +1,15 @@
 """Intervals, tests and corrections used by every study type, vectorised over groups.
 
-Each function works on counts or arrays, never on response tables, so that it can be
-checked against numbers computed by hand.
+Each function works on counts or arrays, so that it can be checked against numbers
+computed by hand; the one exception is :func:`participant_bootstrap`, which resamples a
+table's participants with all their judgements and is how every study type gives its
+intervals (judgements of one participant are alike, so they are not independent).
 """
 
 from __future__ import annotations
 
 import itertools
+import warnings
 
 import numpy as np
 import pandas as pd
@@ -39,6 +42,176 @@ def t_interval(mean, sd, n, confidence: float = 0.95):
     with np.errstate(invalid="ignore", divide="ignore"):
         half = stats.t.ppf(0.5 + confidence / 2, np.where(n >= 2, n - 1, np.nan)) * sd / np.sqrt(n)
     return mean - half, mean + half
+
+
+# Below this many participants an interval over participants rests on too few of them
+# to mean much; analyses add a note saying so.
+MIN_PARTICIPANTS = 10
+
+
+def participant_draws(n_participants: int, repeats: int, seed: int = 0) -> np.ndarray:
+    """Return ``(repeats, n_participants)`` participant codes drawn with replacement.
+
+    The draws are those of ``analysis.worth.resample_participants`` with the same
+    ``seed`` (which counts them), so worths and other intervals resample alike.
+    """
+    return np.concatenate([chunk for _, chunk in _draws(n_participants, repeats, seed)]
+                          or [np.empty((0, n_participants), dtype=np.int64)])
+
+
+def _draws(n_participants: int, repeats: int, seed: int, per_chunk: int | None = None):
+    """Yield ``(first replicate, (r, P) participant codes)`` in chunks of bounded size."""
+    rng = np.random.default_rng(seed)
+    per_chunk = per_chunk or max(1, CHUNK_ELEMENTS // max(n_participants, 1))
+    for first in range(0, repeats, per_chunk):
+        size = min(per_chunk, repeats - first)
+        chunk = np.empty((size, n_participants), dtype=np.int64)
+        for r in range(size):
+            chunk[r] = rng.integers(0, n_participants, n_participants, dtype=np.int32)
+        yield first, chunk
+
+
+# Largest (replicates x participants) array the bootstraps hold at once.
+CHUNK_ELEMENTS = 4_000_000
+
+
+def participant_bootstrap(rows: pd.DataFrame, statistic, n: int = 1000, seed: int = 0,
+                          confidence: float = 0.95, participant: str = "pcode"):
+    """Return ``(estimate, ci_low, ci_high)`` of ``statistic(rows)``, with percentile
+    intervals over participants.
+
+    Each of the ``n`` replicates draws as many participants as ``rows`` has, with
+    replacement, keeps every row of each participant drawn, and computes
+    ``statistic`` of that table. A participant drawn twice enters twice, as two
+    participants: the ``participant`` column of a replicate is renumbered ``0..P-1`` by
+    draw, so a statistic may group by it.
+
+    ``statistic`` takes a table like ``rows`` and returns a number, a 1-D array or a
+    ``pd.Series`` (aligned on the index of the full data's result; a group missing from a
+    replicate is NaN there). Replicates where a value is NaN are left out of that value's
+    interval. The three results have the statistic's shape (Series keep its index).
+    Intervals are NaN when ``n`` is 0 or ``rows`` has fewer than 2 participants.
+
+        mean = lambda t: t.groupby("source")["rating"].mean()
+        score, low, high = participant_bootstrap(rows, mean, n=1000, seed=0)
+
+    This copies the table per replicate; for means and shares (ratios of sums over
+    participants) :func:`ratio_bootstrap` gives the same intervals from per-participant
+    sums, fast enough for a million judgements (:func:`bootstrap_means` wraps it).
+    """
+    estimate = statistic(rows)
+    codes, people = pd.factorize(rows[participant])
+    n_participants = len(people)
+    as_series = isinstance(estimate, pd.Series)
+    flat = np.atleast_1d(np.asarray(estimate, dtype=float))
+    nan = np.full(flat.shape, np.nan)
+    if n <= 0 or n_participants < 2:
+        return _shaped(estimate, flat, nan, nan)
+    order = np.argsort(codes, kind="stable")
+    sizes = np.bincount(codes, minlength=n_participants)
+    starts = np.r_[0, np.cumsum(sizes)[:-1]]
+    samples = np.full((n, flat.size), np.nan)
+    for first, chunk in _draws(n_participants, n, seed):
+        for r, drawn in enumerate(chunk, start=first):
+            lengths = sizes[drawn]
+            offsets = np.arange(lengths.sum()) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+            replicate = rows.take(order[np.repeat(starts[drawn], lengths) + offsets])
+            replicate[participant] = np.repeat(np.arange(n_participants), lengths)
+            value = statistic(replicate)
+            if as_series:
+                value = pd.Series(value).reindex(estimate.index)
+            samples[r] = np.asarray(value, dtype=float).ravel()
+    low, high = _percentiles(samples, confidence)
+    return _shaped(estimate, flat, low, high)
+
+
+def per_participant(participants, groups, n_groups: int, values=None,
+                    n_participants: int | None = None) -> np.ndarray:
+    """Return ``(P, n_groups)`` sums of ``values`` (default: counts) per participant code
+    ``0..P-1`` and group code ``0..n_groups-1``: the input of :func:`ratio_bootstrap`."""
+    participants = np.asarray(participants, dtype=np.int64)
+    groups = np.asarray(groups, dtype=np.int64)
+    if n_participants is None:
+        n_participants = int(participants.max()) + 1 if len(participants) else 0
+    sums = np.bincount(participants * n_groups + groups, weights=values,
+                       minlength=n_participants * n_groups)
+    return sums.reshape(n_participants, n_groups).astype(float)
+
+
+def ratio_bootstrap(numerator, denominator, n: int = 1000, seed: int = 0,
+                    confidence: float = 0.95):
+    """Return ``(estimate, ci_low, ci_high)`` of ratios of sums over participants, each
+    ``(G,)``, with percentile intervals from resampling participants.
+
+    ``numerator`` and ``denominator`` are ``(P, G)`` per-participant sums (see
+    :func:`per_participant`): a share is (successes, trials), a mean (sum, count). The
+    estimate is ``numerator.sum(0) / denominator.sum(0)``; a replicate weighs each
+    participant by how often it was drawn. The draws are :func:`participant_draws`'s,
+    so this equals :func:`participant_bootstrap` of the same ratio. Replicates where a
+    ratio is undefined (0 / 0) are left out of its interval; intervals are NaN when ``n`` is
+    0 or there are fewer than 2 participants.
+    """
+    numerator = np.asarray(numerator, dtype=float)
+    denominator = np.asarray(denominator, dtype=float)
+    n_participants, n_groups = numerator.shape
+    with np.errstate(invalid="ignore", divide="ignore"):
+        estimate = numerator.sum(axis=0) / denominator.sum(axis=0)
+    nan = np.full(n_groups, np.nan)
+    if n <= 0 or n_participants < 2:
+        return estimate, nan, nan
+    samples = np.empty((n, n_groups))
+    for first, chunk in _draws(n_participants, n, seed):
+        weights = np.stack([np.bincount(drawn, minlength=n_participants) for drawn in chunk])
+        weights = weights.astype(float)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            samples[first:first + len(chunk)] = (weights @ numerator) / (weights @ denominator)
+    low, high = _percentiles(samples, confidence)
+    return estimate, low, high
+
+
+def bootstrap_means(rows: pd.DataFrame, value: str, by=("source",), n: int = 1000,
+                    seed: int = 0, confidence: float = 0.95,
+                    participant: str = "pcode") -> pd.DataFrame:
+    """Return the mean of column ``value`` per group of ``by`` columns, with intervals over
+    participants (:func:`ratio_bootstrap`; the same as :func:`participant_bootstrap` of
+    the group means).
+
+    Returns ``score``, ``ci_low``, ``ci_high`` indexed by the groups (sorted). A share is
+    the mean of a 0/1 column.
+    """
+    by = list(by)
+    groups = rows.groupby(by, observed=True, sort=True).size().index
+    keys = pd.MultiIndex.from_frame(rows[by]) if len(by) > 1 else pd.Index(rows[by[0]])
+    codes = groups.get_indexer(keys)
+    people = pd.factorize(rows[participant])[0]
+    sums = per_participant(people, codes, len(groups), rows[value].to_numpy(dtype=float))
+    counts = per_participant(people, codes, len(groups))
+    score, low, high = ratio_bootstrap(sums, counts, n, seed, confidence)
+    return pd.DataFrame({"score": score, "ci_low": low, "ci_high": high}, index=groups)
+
+
+def _percentiles(samples, confidence):
+    tail = 100 * (1 - confidence) / 2
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a value NaN in every replicate
+        low, high = np.nanpercentile(samples, [tail, 100 - tail], axis=0)
+    return low, high
+
+
+def _shaped(estimate, flat, low, high):
+    if isinstance(estimate, pd.Series):
+        return (estimate, pd.Series(low, index=estimate.index), pd.Series(high, index=estimate.index))
+    if np.ndim(estimate) == 0:
+        return float(flat[0]), float(low[0]), float(high[0])
+    return flat, low, high
+
+
+def small_sample_note(n_participants: int) -> str | None:
+    """Return a note for a report when ``n_participants`` is below :data:`MIN_PARTICIPANTS`."""
+    if n_participants >= MIN_PARTICIPANTS:
+        return None
+    return (f"only {n_participants} participant(s): intervals over participants rest on fewer "
+            f"than {MIN_PARTICIPANTS} people and mean little; read them as rough")
 
 
 def percentile_interval(samples: np.ndarray, confidence: float = 0.95, axis: int = 0):

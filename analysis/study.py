@@ -14,6 +14,7 @@ import pandas as pd
 
 from analysis import exclusions
 from analysis.agreement import krippendorff_alpha
+from analysis.stats import small_sample_note
 from analysis.registry import Analysis, Table, get_analysis
 from analysis.tables import AnalysisError, as_boolean
 
@@ -210,6 +211,9 @@ def analyse(table: pd.DataFrame, config: AnalysisConfig | None = None,
     }
     if by_prompt:
         counts["prompts"] = int(main["prompt"].nunique())
+    small = small_sample_note(counts["participants"])
+    if small:
+        notes.append(small)
     demographics = None
     if participants is not None and len(participants):
         analysed = set(main["participant"].astype(str))

@@ -121,6 +121,9 @@ class StudyAdmin(admin.ModelAdmin):
                 name="survey_study_results"),
             path("<int:pk>/results/report/", self.admin_site.admin_view(results.report_view),
                  name="survey_study_report"),
+            path("<int:pk>/results/report/<slug:criterion>/report.html",
+                 self.admin_site.admin_view(results.report_view),
+                 name="survey_study_criterion_report"),
         ]
         return own + super().get_urls()
 

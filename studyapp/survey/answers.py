@@ -30,6 +30,11 @@ class Criterion:
     key: str
     question: str = ""
 
+    @property
+    def text(self) -> str:
+        """Return the words shown for this question: its question, else its key as words."""
+        return self.question or self.key.replace("_", " ").capitalize()
+
 
 @dataclass
 class Answer:
@@ -95,21 +100,24 @@ class TrialForm(forms.Form):
                 },
             )
         self.fields["events"] = forms.CharField(required=False, max_length=MAX_EVENTS_BYTES)
+        self.questions = {}
         for index, criterion in enumerate(self.criteria):
             if self.kind.item_prefix:
                 for item in self.judged:
                     formfield = self.kind.item_field(study, item, self.label(item),
                                                      len(self.judged))
                     name = field_name(f"{self.kind.item_prefix}_{item.token}", index, criterion)
-                    self.fields[name] = self._asked(formfield, criterion, index)
+                    self.fields[name] = self._asked(formfield, criterion, name)
             if self.kind.trial_answer:
                 formfield = self.kind.trial_field(study, self.judged)
                 name = field_name(self.kind.trial_answer, index, criterion)
-                self.fields[name] = self._asked(formfield, criterion, index)
+                self.fields[name] = self._asked(formfield, criterion, name)
 
-    def _asked(self, formfield, criterion, index):
-        if index and criterion.question:
-            formfield.label = f"{criterion.question}: {formfield.label}"
+    def _asked(self, formfield, criterion, name):
+        if len(self.criteria) > 1:
+            # Several questions of the same clips: each field and its errors name theirs.
+            formfield.label = f"{criterion.text}: {formfield.label}"
+            self.questions[name] = criterion.text
         return formfield
 
     def label(self, item) -> str:
@@ -133,7 +141,8 @@ class TrialForm(forms.Form):
             if None not in values.values():
                 problem = self.kind.check_answer(self.study, values, self.judged)
                 if problem:
-                    raise forms.ValidationError(problem)
+                    several = len(self.criteria) > 1
+                    raise forms.ValidationError(f"{criterion.text}: {problem}" if several else problem)
         return cleaned
 
     def item_values(self, cleaned, index, criterion) -> dict:
@@ -167,5 +176,12 @@ class TrialForm(forms.Form):
             if name == NON_FIELD_ERRORS:
                 continue
             label = self.fields[name].label
-            out += [e if e.startswith(names) else f"{label}: {e}" for e in errors]
+            question = self.questions.get(name)
+            for e in errors:
+                if not e.startswith(names):
+                    out.append(f"{label}: {e}")
+                elif question:
+                    out.append(f"{question}: {e}")
+                else:
+                    out.append(e)
         return out

@@ -396,7 +396,7 @@ class Question:
     """One criterion of a trial page: its words and the field names of its answers."""
 
     def __init__(self, kind, index, criterion, judged):
-        self.index, self.key, self.text = index, criterion.key, criterion.question
+        self.index, self.key, self.text = index, criterion.key, criterion.text
         self.rows = [
             (item, field_name(f"{kind.item_prefix}_{item.token}", index, criterion))
             for item in judged

@@ -58,12 +58,21 @@ def results_view(admin_site, request, pk):
 
 
 @xframe_options_sameorigin  # shown in the Results page's frame, on this site only
-def report_view(request, pk):
-    """Return the study's latest ``report.html`` (self-contained, figures embedded)."""
+def report_view(request, pk, criterion=None):
+    """Return the study's latest ``report.html`` (self-contained, figures embedded).
+
+    A study asking several questions has one report per ``criterion`` (its key) beside
+    an index linking them.
+    """
     if not request.user.has_perm("survey.view_study"):
         raise PermissionDenied("viewing results needs the permission to view studies")
     study = get_object_or_404(Study, pk=pk)
-    report = report_folder(study) / "report.html"
+    folder = report_folder(study)
+    if criterion is not None:
+        if criterion not in [c.key for c in study.kind.criteria(study)]:
+            raise Http404("the study asks no such question")
+        folder = folder / criterion
+    report = folder / "report.html"
     if not report.is_file():
         raise Http404("no analysis yet")
     return FileResponse(open(report, "rb"), content_type="text/html; charset=utf-8")

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy import stats as scipy_stats
 
-from analysis.stats import holm, wilson_interval
+from analysis.stats import holm
 from analysis.study import analyse
 from analysis.tables import AnalysisError
 from tests.analysis.conftest import config, make_table, trial
@@ -27,14 +27,15 @@ def fake_or_real_table(answers=ANSWERS):
     ])
 
 
-def test_shares_and_wilson_intervals():
+def test_shares_with_intervals_over_participants():
     # real 7 of 8, a2m 4 of 8, gru 2 of 8
     sources = analyse(fake_or_real_table(), config()).analysis.sources
     assert list(sources.index) == ["real", "a2m", "gru"]
     assert sources["score"].tolist() == pytest.approx([7 / 8, 4 / 8, 2 / 8])
     assert sources["judged_real"].tolist() == [7, 4, 2]
-    low, high = wilson_interval(4, 8)
-    assert sources.loc["a2m", ["ci_low", "ci_high"]].tolist() == pytest.approx([low, high])
+    # a2m: P1 called 3 of 4 clips real, P2 1 of 4. A resample of two participants is P1
+    # twice (3/4), P2 twice (1/4) or both (1/2): the interval is [1/4, 3/4].
+    assert sources.loc["a2m", ["ci_low", "ci_high"]].tolist() == pytest.approx([0.25, 0.75])
     assert sources["n_participants"].tolist() == [2, 2, 2]
 
 

@@ -1,6 +1,5 @@
-"""Mean ratings, t intervals and Mann-Whitney tests against numbers worked out by hand."""
+"""Mean ratings, intervals over participants and Mann-Whitney tests against numbers worked out by hand."""
 
-import numpy as np
 import pytest
 from scipy import stats as scipy_stats
 
@@ -18,15 +17,15 @@ def ratings_table(study_type="rating_standards", ratings=RATINGS):
 
 
 @pytest.mark.parametrize("study_type", ["rating_standards", "rating_reference"])
-def test_mean_ratings_with_t_intervals(study_type):
+def test_mean_ratings_with_intervals_over_participants(study_type):
     sources = analyse(ratings_table(study_type), config()).analysis.sources
     assert list(sources.index) == ["real", "a2m", "gru"]
     assert sources["score"].tolist() == pytest.approx([14 / 3, 3.0, 4 / 3])
-    # real: sd = sqrt(1/3), t(2) = 4.3027: 14/3 -/+ 4.3027 * 0.57735 / sqrt(3)
-    half = scipy_stats.t.ppf(0.975, 2) * np.sqrt(1 / 3) / np.sqrt(3)
+    # real is rated 5, 4, 5 by P1, P2, P3. A resample of three participants is all P2
+    # (mean 4) with chance 1/27, all P1 or P3 (mean 5) with 8/27, both above 2.5 %: the
+    # percentile interval is [4, 5], never beyond what the participants gave.
     interval = sources.loc["real", ["ci_low", "ci_high"]].tolist()
-    assert interval == pytest.approx([14 / 3 - half, 14 / 3 + half])
-    assert half == pytest.approx(1.4342, abs=1e-4)
+    assert interval == pytest.approx([4.0, 5.0])
     assert sources["n_judgements"].tolist() == [3, 3, 3]
 
 

@@ -23,7 +23,9 @@ def responses(tmp_path):
 def test_analyze_an_exported_table(responses, tmp_path, capsys):
     out = tmp_path / "report"
     call_command("analyze", responses=str(responses), out=str(out), bootstrap=50)
-    printed = capsys.readouterr().out
+    captured = capsys.readouterr()
+    printed = captured.out
+    assert "fewer than 10" not in captured.err
     assert "(fake_or_real): " in printed and "Sources by share judged real (best first):" in printed
     summary = json.loads((out / "summary.json").read_text())
     assert summary["order"][0] == "real"
@@ -41,9 +43,21 @@ def test_options_reach_the_analysis(responses, tmp_path):
     assert summary["config"]["exclusions"] is False and summary["config"]["min_time_factor"] == 0.5
     assert summary["config"]["max_failed_catch"] == 2
     assert summary["config"]["max_failed_repeats"] == 1
-    assert summary["sources"]["real"]["ci"][0] is not None  # Wilson intervals need no bootstrap
+    # Every interval resamples participants: without the bootstrap there is none.
+    assert summary["sources"]["real"]["ci"] == [None, None]
     rules = pd.read_csv(out / "exclusions.csv").set_index("rule")
     assert rules.loc["Analysed", "judgements"] == rules.iloc[0]["judgements"]
+
+
+def test_too_few_participants_are_noted(tmp_path, capsys):
+    table = simulate("fake_or_real", participants=4, trials=4, seed=3)
+    path = write_responses(table, tmp_path / "few.csv")
+    call_command("analyze", responses=str(path), out=str(tmp_path / "out"), bootstrap=50)
+    note = "only 4 participant(s): intervals over participants rest on fewer than 10 people"
+    assert f"Note: {note}" in capsys.readouterr().err
+    assert note in (tmp_path / "out" / "report.html").read_text()
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert any(n.startswith(note) for n in summary["notes"])
 
 
 @pytest.mark.parametrize("table, message", [

@@ -23,6 +23,7 @@ in ``analysis/``.
 
 from __future__ import annotations
 
+import re
 from collections import Counter
 from dataclasses import dataclass, field
 
@@ -172,7 +173,7 @@ class StudyType:
         """Return the questions asked of every trial's clips, the first one first."""
         if not study.criteria:
             return [self.default_criterion]
-        return [Criterion(c["key"], c.get("question", "")) for c in study.criteria]
+        return [criterion_of(c) for c in study.criteria]
 
     def clean_study(self, study) -> dict:
         """Return ``{field: message}`` of what is wrong with ``study`` for this type."""
@@ -419,16 +420,34 @@ def clip_label(position: int) -> str:
     return f"Clip {name}"
 
 
+def criterion_of(entry) -> Criterion:
+    """Return the :class:`Criterion` of one entry of a study's ``criteria``: a mapping
+    ``{key, question}``, or a text such as ``fit to the action`` (key ``fit_to_the_action``,
+    shown as written, first letter capitalised)."""
+    if isinstance(entry, str):
+        words = " ".join(entry.split())
+        key = re.sub(r"[^a-z0-9]+", "_", words.lower()).strip("_")
+        return Criterion(key, words[:1].upper() + words[1:])
+    return Criterion(entry["key"], entry.get("question", ""))
+
+
 def check_criteria(criteria) -> str | None:
     """Return what is wrong with a study's ``criteria`` list, or None."""
-    import re
-
     if not criteria:
         return None
     if not isinstance(criteria, list):
-        return "criteria must be a list of {key, question}"
+        return ("criteria must be a list of questions, e.g. [naturalness, fit to the action] "
+                "or [{key: naturalness, question: How natural is the movement?}]")
     keys = []
     for i, c in enumerate(criteria):
+        if isinstance(c, str):
+            key = criterion_of(c).key
+            if not re.fullmatch(r"[a-z][a-z0-9_]{0,29}", key):
+                return (f"criteria.{i}: {c!r} must start with a letter and make a key of at "
+                        f"most 30 letters, digits and underscores (it makes {key!r}); or give "
+                        f"{{key: short_name, question: ...}}")
+            keys.append(key)
+            continue
         if not isinstance(c, dict) or set(c) - {"key", "question"}:
             return f"criteria.{i}: give key and question, e.g. {{key: naturalness, question: ...}}"
         key = c.get("key")
@@ -438,5 +457,6 @@ def check_criteria(criteria) -> str | None:
             return f"criteria.{i}.question: must be text"
         keys.append(key)
     if len(set(keys)) != len(keys):
-        return "criteria: each key must be used once"
+        twice = next(k for k in keys if keys.count(k) > 1)
+        return f"criteria: the key {twice!r} is used twice; each question needs its own key"
     return None

@@ -39,7 +39,8 @@ class Command(BaseCommand):
                             help="Also exclude participants who answered more than N repeated "
                                  "trials differently (default: counted, not applied).")
         parser.add_argument("--bootstrap", type=int, default=1000, metavar="N",
-                            help="Bootstrap resamples for intervals (default 1000; 0 = none).")
+                            help="Bootstrap resamples of participants for every interval "
+                                 "(default 1000; 0 = none).")
         parser.add_argument("--seed", type=int, default=0, help="Seed of the bootstrap.")
         parser.add_argument("--no-audit", action="store_true",
                             help="Skip the blindness audit of the study's clips.")
