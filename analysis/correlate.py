@@ -144,7 +144,7 @@ def correlate(human: pd.DataFrame, metrics: pd.DataFrame, *, directions: dict | 
         direction = directions.get(name, "higher")
         values = metrics.loc[sources, name].to_numpy(float)
         row = {"metric": name, "direction": DIRECTION_TEXT.get(direction, direction),
-               "n_sources": int(np.isfinite(values).sum())}
+               "real": real.get(name, np.nan), "n_sources": int(np.isfinite(values).sum())}
         if direction == "real" and (real.get(name) is None or not np.isfinite(real.get(name))):
             notes.append(f"{name}: no real value to compare with; not correlated")
             rows.append({**row, **_empty()})
@@ -163,7 +163,8 @@ def correlate(human: pd.DataFrame, metrics: pd.DataFrame, *, directions: dict | 
                 low, high = _percentiles(draws[:, k], confidence)
                 row[f"{key}_low"], row[f"{key}_high"] = low, high
         rows.append(row)
-    table = pd.DataFrame(rows, columns=["metric", "direction", "n_sources", *_empty()])
+    table = pd.DataFrame(rows, columns=["metric", "direction", "real", "n_sources",
+                                       *_empty()])
     per_source = human.loc[sources, [c for c in ("score", "ci_low", "ci_high") if c in human.columns]]
     per_source = per_source.join(metrics.loc[sources])
     per_source.index.name = "source"
@@ -255,17 +256,17 @@ def scatter_figure(result: Correlation, metric: str):
             ax.annotate(str(source), (xi, yi), xytext=(4, 4), textcoords="offset points",
                         fontsize=7.5, color="0.25")
         real = result.real.get(metric)
+        caption = f"N = {len(frame)} sources" + (" (too few to mean much)" if result.too_few else "")
         if result.directions.get(metric) == "real" and real is not None and np.isfinite(real):
             ax.axvline(real, color="0.5", linestyle="--", linewidth=0.8)
+            caption += "; dashed line: the real clips' value"
         ax.set_xlabel(f"{metric} ({DIRECTION_TEXT.get(result.directions.get(metric), '')})")
         ax.set_ylabel(result.human_measure)
         ax.grid(color="0.9", linewidth=0.6)
         ax.set_axisbelow(True)
         ax.set_title(f"{metric}: Spearman {number(row['spearman'], 2)}, Kendall "
                      f"{number(row['kendall'], 2)}", loc="left")
-        fig.text(0.0, 0.0, f"N = {len(frame)} sources" + (" (too few to mean much)"
-                                                            if result.too_few else ""),
-                 ha="left", va="top", fontsize=7.5, color="0.35")
+        fig.text(0.0, 0.0, caption, ha="left", va="top", fontsize=7.5, color="0.35")
     return fig
 
 
