@@ -211,17 +211,20 @@ def human_draws(table: pd.DataFrame, score_of, n: int, seed: int = 0) -> pd.Data
 
     ``score_of(table) -> Series`` (per source) is the study's analysis, run again on each
     resample (without its own bootstrap); a resample it cannot analyse (e.g. every
-    participant drawn saw one source only) is a row of NaN.
+    participant drawn saw one source only) is a row of NaN, counted in
+    ``frame.attrs["failed"]``.
     """
     rng = np.random.default_rng(seed)
-    rows = []
+    rows, failed = [], 0
     for _ in range(int(n)):
         try:
             rows.append(score_of(resample_participants(table, rng)))
-        except AnalysisError:
+        except (ValueError, np.linalg.LinAlgError):  # AnalysisError is a ValueError
             rows.append(pd.Series(dtype=float))
+            failed += 1
     frame = pd.DataFrame(rows).reset_index(drop=True)
     frame.columns = frame.columns.astype(str)
+    frame.attrs["failed"] = failed
     return frame
 
 
@@ -299,7 +302,9 @@ def write_correlation_report(result: Correlation, out, title: str = "Human score
     method = (f"Intervals: {result.confidence:.0%} percentile intervals of {result.n_bootstrap} "
               f"bootstrap draws, each pairing the human scores of one resample of participants "
               f"(with all their judgements, the study's analysis run again) with the metrics of "
-              f"one resample of each source's motions."
+              f"one resample of each source's motions. With few sources a rank correlation takes few "
+              f"values, so a percentile interval can lie beside its own point estimate: read "
+              f"it as the spread of the draws."
               if result.n_bootstrap else "No intervals (the bootstrap was switched off).")
     body.append(f"<h2>Methods</h2><p class='methods'>{esc(method)}"
                 + "".join(f" {esc(d)}" for d in details or []) + "</p>")

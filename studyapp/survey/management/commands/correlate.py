@@ -98,6 +98,9 @@ class Command(BaseCommand):
                 return analyse(rows, single, criterion=result.criterion).analysis.sources["score"]
 
             draws = human_draws(table, score_of, n, options["seed"])
+            if draws.attrs.get("failed"):
+                notes.append(f"{draws.attrs['failed']} of {n} resamples of participants could "
+                             f"not be analysed and are left out of the intervals")
         values, per_draw, real, skipped, details = self._metrics(
             motions.generated, generated, dataset, options["data_root"], classifier,
             max(n, 1) if n else 20, options["seed"])
@@ -165,6 +168,14 @@ class Command(BaseCommand):
     def _print(self, study, outcome, written, out):
         self.stdout.write(f"Study {study}: {len(outcome.sources)} methods, human score: "
                           f"{outcome.human_measure}.")
+        metrics = list(outcome.table["metric"])
+        for source, row in outcome.sources.sort_values("score", ascending=False).iterrows():
+            values = ", ".join(f"{name} {row[name]:.4g}" for name in metrics
+                               if np.isfinite(row[name]))
+            self.stdout.write(f"  {source}: {number(row['score'])} "
+                              f"{interval(row['ci_low'], row['ci_high'])}; {values}")
+        self.stdout.write("Rank correlations with each metric's goodness (+1: the metric "
+                          "orders the methods as the participants did):")
         for row in outcome.table.itertuples():
             self.stdout.write(
                 f"  {row.metric:<14} ({row.direction}): Spearman {number(row.spearman, 2)} "
