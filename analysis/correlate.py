@@ -291,7 +291,8 @@ def write_correlation_report(result: Correlation, out, title: str = "Human score
             f"sources exactly as the participants did, -1 exactly the other way (each "
             f"metric is turned so that higher is better first).</p>"]
     if result.too_few:
-        body.append(f"<p class='warning'><b>Too few sources.</b> {esc(too_few_note(len(result.sources)))}.</p>")
+        warning = esc(too_few_note(len(result.sources)))
+        body.append(f"<p class='warning'><b>Too few sources.</b> {warning}.</p>")
     body.append("<h2>Correlations</h2><ul>")
     for row in result.table.itertuples():
         body.append(

@@ -103,10 +103,11 @@ class Command(BaseCommand):
                              f"not be analysed and are left out of the intervals")
         values, per_draw, real, skipped, details = self._metrics(
             motions.generated, generated, dataset, options["data_root"], classifier,
-            max(n, 1) if n else 20, options["seed"])
+            n or 20, options["seed"])
         notes += [f"{name} skipped: {reason}" for name, reason in skipped.items()]
         try:
-            outcome = correlate(human.loc[generated], pd.DataFrame(values).T.loc[generated],
+            measured = pd.DataFrame(values).T.loc[generated].astype(float)
+            outcome = correlate(human.loc[generated], measured,
                                 real=real, human_draws=draws, metric_draws=per_draw if n else None,
                                 human_measure=result.analysis.measure)
         except AnalysisError as exc:
