@@ -43,8 +43,8 @@ import pandas as pd
 from analysis import stats, worth
 from analysis.counts import ranked_sources, source_counts
 from analysis.formatting import bootstrap_text, number, p_text
+from analysis.pairwise import comparisons_answered
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
-from analysis.tables import AnalysisError
 
 SCALE = ("left_much", "left", "left_slightly", "no_preference", "right_slightly", "right",
          "right_much")
@@ -77,25 +77,7 @@ class PairwiseGraded(StudyAnalysis):
               "'No preference' to 'B much better', or 'Both bad'")
 
     def answered(self, rows):
-        notes = []
-        choice = rows["choice"].astype("string").str.strip().str.lower()
-        unknown = sorted(set(choice.dropna().unique()) - set(CHOICES))
-        if unknown:
-            raise AnalysisError(f"unknown choice(s) {', '.join(unknown)} in a graded pairwise "
-                                f"table; expected {', '.join(CHOICES)}")
-        if choice.isna().any():
-            notes.append(f"{int(choice.isna().sum())} clip(s) of unanswered comparisons were left out")
-        rows = rows.loc[choice.notna().to_numpy()].copy()
-        rows["choice"] = pd.Categorical(choice.dropna(), categories=CHOICES)
-        rows["position"] = pd.to_numeric(rows["position"], errors="coerce")
-        rows = rows.sort_values(["trial_key", "position"], kind="stable")
-        shape = rows.groupby("trial_key")["position"].agg(["size", "min", "max"])
-        good = shape.index[(shape["size"] == 2) & (shape["min"] == 0) & (shape["max"] == 1)]
-        if len(good) < len(shape):
-            notes.append(f"{len(shape) - len(good)} comparison(s) without exactly one left (position 0) "
-                         f"and one right (position 1) clip were left out")
-            rows = rows.loc[rows["trial_key"].isin(good)]
-        return rows, notes
+        return comparisons_answered(rows, CHOICES, "graded pairwise")
 
     def judgement_values(self, rows):
         """Return one value per graded comparison: its pair of clips (in a fixed order)
