@@ -10,7 +10,7 @@ worth finite; intervals come from resampling participants
 (:func:`analysis.worth.resample_participants`), every replicate refitted at once.
 
 Trials answered "all good" or "all bad" pick no clip: they leave the fit and are
-reported as shares (with Wilson intervals), overall and per source shown.
+reported as shares (with bootstrap intervals over participants), overall and per source shown.
 """
 
 from __future__ import annotations
@@ -185,14 +185,14 @@ class BestOfK(StudyAnalysis):
                                            "all_good_share", "all_bad_share", "n_participants",
                                            "n_judgements"]]
 
-        answers = _answer_shares(verdict, config.confidence)
+        answers = _answer_shares(verdict, participant, n_participants, config)
         tables = [
             Table("sources", "Plackett-Luce (top-1) worth (log scale, 0 = average source) with "
                   f"{config.confidence:.0%} bootstrap intervals over participants, the share of "
                   'shown clips picked as best, and the share of all-good and all-bad trials '
                   "that showed the source", sources),
             Table("answers", "Share of trials with a clip picked, all good and all bad, "
-                  f"with {config.confidence:.0%} Wilson intervals", answers),
+                  f"with {config.confidence:.0%} bootstrap intervals over participants", answers),
         ]
         notes = []
         if n_participants < FEW_PARTICIPANTS:
@@ -245,11 +245,17 @@ class BestOfK(StudyAnalysis):
         return pd.concat(frames, ignore_index=True).reindex(columns=columns)
 
 
-def _answer_shares(verdict, confidence) -> pd.DataFrame:
+def _answer_shares(verdict, participant, n_participants, config) -> pd.DataFrame:
+    """Return the share of trials of each kind of answer, with intervals over participants."""
     n = len(verdict)
     labels = {"pick": "a clip picked as best", "all_good": "all good", "all_bad": "all bad"}
     counts = np.array([(verdict == name).sum() for name in labels])
-    low, high = stats.wilson_interval(counts, n, confidence)
+    kinds = pd.Categorical(verdict, categories=list(labels)).codes
+    answered = stats.per_participant(participant, kinds, len(labels),
+                                     n_participants=n_participants)
+    trials = np.repeat(answered.sum(axis=1, keepdims=True), len(labels), axis=1)
+    _, low, high = stats.ratio_bootstrap(answered, trials, config.bootstrap, config.seed,
+                                         config.confidence)
     return pd.DataFrame({"answer": list(labels), "meaning": list(labels.values()),
                          "trials": counts, "share": counts / n, "ci_low": low, "ci_high": high})
 

@@ -33,24 +33,7 @@ class Pairwise(StudyAnalysis):
               "better one, or answered that both were good or both bad")
 
     def answered(self, rows):
-        notes = []
-        choice = rows["choice"].astype("string").str.strip().str.lower()
-        unknown = sorted(set(choice.dropna().unique()) - set(CHOICES))
-        if unknown:
-            raise AnalysisError(f"unknown choice(s) {', '.join(unknown)}; expected {', '.join(CHOICES)}")
-        if choice.isna().any():
-            notes.append(f"{int(choice.isna().sum())} clip(s) of unanswered comparisons were left out")
-        rows = rows.loc[choice.notna().to_numpy()].copy()
-        rows["choice"] = pd.Categorical(choice.dropna(), categories=CHOICES)
-        rows["position"] = pd.to_numeric(rows["position"], errors="coerce")
-        rows = rows.sort_values(["trial_key", "position"], kind="stable")
-        shape = rows.groupby("trial_key")["position"].agg(["size", "min", "max"])
-        good = shape.index[(shape["size"] == 2) & (shape["min"] == 0) & (shape["max"] == 1)]
-        if len(good) < len(shape):
-            notes.append(f"{len(shape) - len(good)} comparison(s) without exactly one left (position 0) "
-                         f"and one right (position 1) clip were left out")
-            rows = rows.loc[rows["trial_key"].isin(good)]
-        return rows, notes
+        return comparisons_answered(rows, CHOICES)
 
     def judgement_values(self, rows):
         """Return one value per comparison: its pair of clips (in a fixed order) and the
@@ -261,3 +244,30 @@ def _matrix_plot(matrix):
         return win_matrix_figure(matrix)
 
     return draw
+
+
+def comparisons_answered(rows, choices, table: str = "") -> tuple[pd.DataFrame, list[str]]:
+    """Return the rows of answered comparisons (``choice`` one of ``choices``, as a
+    categorical), each with exactly one left (position 0) and one right (position 1) clip,
+    sorted by trial and position, and notes on what was left out. ``table`` names the kind
+    of table in the error of an unknown choice."""
+    notes = []
+    choice = rows["choice"].astype("string").str.strip().str.lower()
+    unknown = sorted(set(choice.dropna().unique()) - set(choices))
+    if unknown:
+        where = f" in a {table} table" if table else ""
+        raise AnalysisError(f"unknown choice(s) {', '.join(unknown)}{where}; "
+                            f"expected {', '.join(choices)}")
+    if choice.isna().any():
+        notes.append(f"{int(choice.isna().sum())} clip(s) of unanswered comparisons were left out")
+    rows = rows.loc[choice.notna().to_numpy()].copy()
+    rows["choice"] = pd.Categorical(choice.dropna(), categories=choices)
+    rows["position"] = pd.to_numeric(rows["position"], errors="coerce")
+    rows = rows.sort_values(["trial_key", "position"], kind="stable")
+    shape = rows.groupby("trial_key")["position"].agg(["size", "min", "max"])
+    good = shape.index[(shape["size"] == 2) & (shape["min"] == 0) & (shape["max"] == 1)]
+    if len(good) < len(shape):
+        notes.append(f"{len(shape) - len(good)} comparison(s) without exactly one left (position 0) "
+                     f"and one right (position 1) clip were left out")
+        rows = rows.loc[rows["trial_key"].isin(good)]
+    return rows, notes

@@ -19,8 +19,8 @@ participants with replacement and keeps all their judgements):
   propensity to tie;
 - the position bias of both models and the raw share of directional answers that favour
   the left clip;
-- per pair of sources the directional win rate (Wilson intervals, binomial tests against
-  50 % with Holm's correction) and the mean grade;
+- per pair of sources the directional win rate (bootstrap intervals over participants,
+  binomial tests against 50 % with Holm's correction) and the mean grade;
 - Elo ratings, descriptive only: no model, no interval, averaged over random orders of
   the comparisons because Elo depends on the order it reads them in;
 - the share of each source's comparisons answered "Both bad" (those answers carry no
@@ -43,8 +43,8 @@ import pandas as pd
 from analysis import stats, worth
 from analysis.counts import ranked_sources, source_counts
 from analysis.formatting import bootstrap_text, number, p_text
+from analysis.pairwise import comparisons_answered
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
-from analysis.tables import AnalysisError
 
 SCALE = ("left_much", "left", "left_slightly", "no_preference", "right_slightly", "right",
          "right_much")
@@ -77,25 +77,7 @@ class PairwiseGraded(StudyAnalysis):
               "'No preference' to 'B much better', or 'Both bad'")
 
     def answered(self, rows):
-        notes = []
-        choice = rows["choice"].astype("string").str.strip().str.lower()
-        unknown = sorted(set(choice.dropna().unique()) - set(CHOICES))
-        if unknown:
-            raise AnalysisError(f"unknown choice(s) {', '.join(unknown)} in a graded pairwise "
-                                f"table; expected {', '.join(CHOICES)}")
-        if choice.isna().any():
-            notes.append(f"{int(choice.isna().sum())} clip(s) of unanswered comparisons were left out")
-        rows = rows.loc[choice.notna().to_numpy()].copy()
-        rows["choice"] = pd.Categorical(choice.dropna(), categories=CHOICES)
-        rows["position"] = pd.to_numeric(rows["position"], errors="coerce")
-        rows = rows.sort_values(["trial_key", "position"], kind="stable")
-        shape = rows.groupby("trial_key")["position"].agg(["size", "min", "max"])
-        good = shape.index[(shape["size"] == 2) & (shape["min"] == 0) & (shape["max"] == 1)]
-        if len(good) < len(shape):
-            notes.append(f"{len(shape) - len(good)} comparison(s) without exactly one left (position 0) "
-                         f"and one right (position 1) clip were left out")
-            rows = rows.loc[rows["trial_key"].isin(good)]
-        return rows, notes
+        return comparisons_answered(rows, CHOICES, "graded pairwise")
 
     def judgement_values(self, rows):
         """Return one value per graded comparison: its pair of clips (in a fixed order)
@@ -139,8 +121,8 @@ class PairwiseGraded(StudyAnalysis):
             "score", "ci_low", "ci_high", "davidson", "davidson_low", "davidson_high", "elo",
             "both_bad_share", "both_bad", "n_participants", "n_judgements"]]
 
-        bias = position_bias(trials, ordinal, davidson, k, config.confidence)
-        pairs, matrix = pair_table(trials, names, config.confidence)
+        bias = position_bias(trials, ordinal, davidson, k, config)
+        pairs, matrix = pair_table(trials, names, config)
         cuts = thresholds(ordinal, k, config.confidence)
         n_graded = int(trials["graded"].sum())
         n_both_bad = int((~trials["graded"]).sum())
@@ -156,7 +138,7 @@ class PairwiseGraded(StudyAnalysis):
             Table("position_bias", "Left/right position bias: a positive shift, or a share above 0.5, "
                   "means the left clip (A) is favoured", bias),
             Table("pairs", f"Per pair of sources: answers, mean grade of a over b, and the win "
-                  f"rate of a among directional answers ({ci} Wilson intervals, binomial test "
+                  f"rate of a among directional answers ({ci} bootstrap intervals over participants, binomial test "
                   f"against 50 %, Holm)", pairs),
             Table("thresholds", "Cut points of the ordinal model (grade of A at most the "
                   "category)", cuts),
@@ -176,8 +158,10 @@ class PairwiseGraded(StudyAnalysis):
             f"{_interval_text(bias, 'Davidson log order effect')}; the left clip was favoured in "
             f"{_interval_text(bias, 'share of directional answers favouring the left clip')} "
             f"of directional answers (binomial test against 0.5: {p_text(_bias_row(bias, 'share of directional answers favouring the left clip')['p'])})",
-            f"per pair of sources, the win rate among directional answers has Wilson intervals "
-            f"and an exact binomial test against 50 % with Holm's correction",
+            f"per pair of sources, the win rate among directional answers has bootstrap intervals "
+            f"over participants and an exact binomial test against 50 % with Holm's correction "
+            f"(the tests treat answers as independent, so their p-values are too small when "
+            f"participants differ)",
             f"Elo ratings (K = {ELO_K:g}, start {ELO_START:g}, averaged over {ELO_ORDERS} random "
             f"orders of the comparisons) are given for comparison only; they are descriptive, "
             f"with no model behind them and no interval",
@@ -417,13 +401,26 @@ def thresholds(fitted, k, confidence=0.95) -> pd.DataFrame:
     return pd.DataFrame({"cut": labels, "estimate": point, "ci_low": low, "ci_high": high})
 
 
-def position_bias(trials, ordinal, davidson, k, confidence) -> pd.DataFrame:
+def _share_interval(wins, people, groups, n_groups, config):
+    """Return ``(ci_low, ci_high)`` of each group's share of ``wins`` (booleans, one per
+    answer) with a bootstrap over participants (``people``: codes 0..P-1)."""
+    won = stats.per_participant(people, groups, n_groups, wins.astype(float))
+    asked = stats.per_participant(people, groups, n_groups)
+    _, low, high = stats.ratio_bootstrap(won, asked, config.bootstrap, config.seed,
+                                         config.confidence)
+    return low, high
+
+
+def position_bias(trials, ordinal, davidson, k, config) -> pd.DataFrame:
     """Return the position bias three ways: the ordinal shift, Davidson's log order effect,
     and the raw share of directional answers that favour the left clip."""
     directional = trials.loc[trials["graded"] & (trials["grade"] != 0)]
     left = int((directional["grade"] > 0).sum())
     n = len(directional)
-    low, high = stats.wilson_interval(left, n, confidence)
+    people = pd.factorize(directional["pcode"])[0]
+    low, high = _share_interval((directional["grade"] > 0).to_numpy(), people,
+                                np.zeros(n, dtype=np.int64), 1, config)
+    low, high = low[0], high[0]
     n_people = int(trials.loc[trials["graded"], "pcode"].nunique())
     records = [
         {"measure": "ordinal shift beta (logit)", "estimate": float(ordinal["theta"][k]),
@@ -441,9 +438,10 @@ def position_bias(trials, ordinal, davidson, k, confidence) -> pd.DataFrame:
     return frame
 
 
-def pair_table(trials, names, confidence):
+def pair_table(trials, names, config):
     """Return the per-pair table and the ``(K, K)`` matrix of directional win rates."""
     k = len(names)
+    people = trials["pcode"].to_numpy()
     a = np.minimum(trials["left"], trials["right"]).to_numpy()
     b = np.maximum(trials["left"], trials["right"]).to_numpy()
     # The grade of the pair's first source (a), whichever side it was shown on.
@@ -457,7 +455,10 @@ def pair_table(trials, names, confidence):
         won_a, won_b = int((g > 0).sum()), int((g < 0).sum())
         wins[i, j], wins[j, i] = won_a, won_b
         n = won_a + won_b
-        low, high = stats.wilson_interval(won_a, n, confidence)
+        decided = here & graded & (grade_a != 0)
+        low, high = _share_interval(grade_a[decided] > 0, pd.factorize(people[decided])[0],
+                                    np.zeros(int(decided.sum()), dtype=np.int64), 1, config)
+        low, high = (low[0], high[0]) if n else (np.nan, np.nan)
         records.append({
             "a": names[i], "b": names[j], "n": int(here.sum()), "a_better": won_a,
             "no_preference": int((g == 0).sum()), "b_better": won_b,

@@ -253,6 +253,7 @@ def render_set(
     framing: Framing | None = None,
     follow: bool = True,
     formats=("mp4",),
+    on_clip=None,
 ) -> RenderReport:
     """Render every motion in one framing to ``out_dir/<hash>.mp4`` and ``<hash>.png``.
 
@@ -265,7 +266,8 @@ def render_set(
     records what was rendered from what, for the researcher only: never serve it.
     ``formats`` may add ``"webm"`` (VP9) and ``"gif"``, as ``<hash>.webm`` and
     ``<hash>.gif`` beside the mp4. ``workers > 1`` spawns processes, so a calling
-    script needs the ``if __name__ == "__main__":`` guard.
+    script needs the ``if __name__ == "__main__":`` guard. ``on_clip(index)`` is called
+    as each clip is done (rendered or failed), e.g. to show progress.
     """
     style_class = get_style(style)
     width, height = _dimensions(size)
@@ -296,14 +298,15 @@ def render_set(
 
     results = []
     bar = tqdm(total=len(ready), unit="clip", desc="rendering", disable=not progress)
+    done = _Progress(bar, on_clip)
     if ready and (workers <= 1 or len(ready) == 1):
         with style_class(report.framing, width, height) as drawer:
             for index in ready:
                 results.append(_attempt(drawer, index, motions[index], fps, out_dir, formats))
-                bar.update()
+                done(index)
     elif ready:
         results = _render_parallel(
-            motions, ready, style, report.framing, (width, height), fps, out_dir, workers, bar,
+            motions, ready, style, report.framing, (width, height), fps, out_dir, workers, done,
             formats,
         )
     bar.close()
@@ -322,7 +325,19 @@ def render_set(
     return report
 
 
-def _render_parallel(motions, ready, style, framing, size, fps, out_dir, workers, bar, formats):
+class _Progress:
+    """Count a finished clip on the bar and tell the caller's ``on_clip``."""
+
+    def __init__(self, bar, on_clip):
+        self.bar, self.on_clip = bar, on_clip
+
+    def __call__(self, index: int) -> None:
+        self.bar.update()
+        if self.on_clip is not None:
+            self.on_clip(index)
+
+
+def _render_parallel(motions, ready, style, framing, size, fps, out_dir, workers, done, formats):
     # Spawned, not forked: the caller may hold threads (torch, Django) a fork would copy.
     context = multiprocessing.get_context("spawn")
     results = []
@@ -341,7 +356,7 @@ def _render_parallel(motions, ready, style, framing, size, fps, out_dir, workers
                 results.append(future.result())
             except Exception as exc:  # a worker died; its clip fails, the others go on
                 results.append((futures[future], f"{type(exc).__name__}: {exc}"))
-            bar.update()
+            done(futures[future])
     return results
 
 

@@ -38,6 +38,7 @@ from __future__ import annotations
 import difflib
 import hashlib
 import json
+import os
 import shutil
 from collections import defaultdict
 from contextlib import contextmanager
@@ -424,8 +425,10 @@ class Build:
         if missing:
             incoming = folder / f".incoming-{c.slug}"
             shutil.rmtree(incoming, ignore_errors=True)
-            report = render_set([items[i][0] for i in missing], incoming, style=c.style,
-                                size=c.size, framing=framing, progress=False)
+            report = render_set(
+                [items[i][0] for i in missing], incoming, style=c.style, size=c.size,
+                framing=framing, progress=False, workers=render_workers(len(missing)),
+                on_clip=lambda i: self.step(f"rendered {items[missing[i]][0].source}"))
             if report.failures:
                 raise BuildError(f"clips failed to render in the {c.style!r} style: "
                                  f"{report.failures}")
@@ -436,7 +439,6 @@ class Build:
                         path.replace(target)
                 index[keys[missing[done.index]]] = {"video_hash": done.video_hash,
                                                     "duration": done.duration}
-                self.step(f"rendered {items[missing[done.index]][0].source}")
             shutil.rmtree(incoming, ignore_errors=True)
             _write_if_changed(index_file, json.dumps(index, sort_keys=True, indent=1))
         payloads = self.payloads([m for m, _ in items], framing, folder)
@@ -631,6 +633,27 @@ def default_folders(config: StudyConfig, out=None, cache=None) -> tuple[Path, Pa
     root = Path(settings.VAR_DIR) / "stimuli"
     folder = Path(out) if out else root / config.slug
     return folder, Path(cache) if cache else (folder if out else root / "cache")
+
+
+# Fewer clips than this render in the build's own process: starting worker processes
+# (each imports the renderer) costs more than it saves.
+PARALLEL_FROM = 12
+
+
+def render_workers(n_clips: int) -> int:
+    """Return how many processes render ``n_clips``: ``STUDY_RENDER_WORKERS`` if set,
+    else one per CPU core (at most 4) once there are ``PARALLEL_FROM`` clips."""
+    given = os.environ.get("STUDY_RENDER_WORKERS", "").strip()
+    if given:
+        try:
+            return max(1, int(given))
+        except ValueError:
+            raise BuildError(f"STUDY_RENDER_WORKERS={given!r} is not a whole number; "
+                             f"set it to how many processes render clips, e.g. 2") from None
+    if n_clips < PARALLEL_FROM:
+        return 1
+    return max(1, min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                      else (os.cpu_count() or 1)))
 
 
 def build_stimuli(config: StudyConfig, folder, progress=None, log=None,

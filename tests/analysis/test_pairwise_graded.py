@@ -2,13 +2,14 @@
 fit, the participant bootstrap, known strengths and a known position bias recovered."""
 
 import numpy as np
+import pandas as pd
 import pytest
 from scipy import optimize
 from scipy import stats as scipy_stats
 
 from analysis import pairwise_graded as graded
 from analysis.simulate import simulate
-from analysis.stats import wilson_interval
+from analysis.stats import participant_bootstrap
 from analysis.study import analyse
 from analysis.tables import AnalysisError
 from tests.analysis.conftest import config, make_table, trial
@@ -48,7 +49,11 @@ def test_per_pair_counts_both_bad_shares_and_raw_position_bias():
     row = pairs.loc[("a2m", "real")]
     assert row[["n", "a_better", "no_preference", "b_better", "both_bad"]].tolist() == [7, 1, 1, 5, 0]
     assert row["mean_grade_a"] == pytest.approx((-3 - 2 - 1 + 1 - 3 + 0 - 2) / 7)
-    assert row[["ci_low", "ci_high"]].tolist() == pytest.approx(list(wilson_interval(1, 6)))
+    # The win rate's interval is over participants: the bootstrap of the same share.
+    decided = pd.DataFrame({"pcode": [1, 1, 2, 2, 2, 3], "a_won": [0, 0, 0, 1, 0, 0]})
+    _, low, high = participant_bootstrap(decided, lambda t: t["a_won"].mean(),
+                                         n=config().bootstrap, seed=config().seed)
+    assert row[["ci_low", "ci_high"]].tolist() == pytest.approx([low, high])
     assert row["p"] == pytest.approx(scipy_stats.binomtest(1, 6, 0.5).pvalue)
     assert "p_holm" in pairs.columns
     assert pairs.loc[("a2m", "gru"), ["a_better", "no_preference", "b_better", "both_bad"]].tolist() == [

@@ -78,19 +78,16 @@ def test_a_fresh_clone_without_var_migrates(tmp_path):
 
 def test_demo_refuses_a_taken_port_before_building(tmp_path):
     import socket
-    import time
 
     with socket.socket() as taken:
         taken.bind(("127.0.0.1", 0))
         taken.listen()
         port = taken.getsockname()[1]
-        start = time.monotonic()
         done = manage("demo", "--addr", f"127.0.0.1:{port}", STUDY_VAR_DIR=str(tmp_path))
         assert done.returncode != 0
         assert f"port {port} on 127.0.0.1 is in use" in done.stderr
         assert f"make demo PORT={port + 10}" in done.stderr
         assert not (tmp_path / "demo").exists()  # nothing was built
-        assert time.monotonic() - start < 60
 
 
 def test_studies_links_use_the_address_served(tmp_path):

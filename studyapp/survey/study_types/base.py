@@ -413,6 +413,14 @@ def for_prompts(text: str) -> str:
     return text
 
 
+def scores_consistent(before: "Graded", now: "Graded", max_change) -> bool:
+    """Whether no clip's score in ``now`` moved by more than ``max_change`` from ``before``
+    (a repeated trial of a type that scores each clip)."""
+    earlier = before.by_stimulus()
+    return all(abs(now.value(item) - before.value(earlier[item.stimulus_id])) <= max_change
+               for item in now.items)
+
+
 def clip_label(position: int) -> str:
     """Return the name a participant sees for the clip at ``position`` ("Clip A")."""
     letters = "ABCDEFGHIJKLMNOPQRSTUVWXYZ"

@@ -18,7 +18,7 @@ from django import forms
 from studyapp.survey.answers import Criterion
 from studyapp.survey.models import Stimulus
 from studyapp.survey import assignment
-from studyapp.survey.study_types.base import Option, StudyType, TrialPlan, registry
+from studyapp.survey.study_types.base import Option, StudyType, TrialPlan, registry, scores_consistent
 
 SCALE = (0, 100)
 # The recommendation's five labelled intervals, top first.
@@ -140,9 +140,7 @@ class Mushra(StudyType):
 
     def consistent(self, before, now):
         """No clip's score moves by more than MAX_CHANGE."""
-        earlier = before.by_stimulus()
-        return all(abs(now.value(item) - before.value(earlier[item.stimulus_id])) <= MAX_CHANGE
-                   for item in now.items)
+        return scores_consistent(before, now, MAX_CHANGE)
 
     def export_values(self, trial_answer, item_answer, item, items):
         return {"score": item_answer}

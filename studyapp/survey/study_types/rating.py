@@ -8,7 +8,7 @@ template ``rating.html`` beside this module.
 from django import forms
 
 from studyapp.survey.answers import Criterion
-from studyapp.survey.study_types.base import StudyType
+from studyapp.survey.study_types.base import StudyType, scores_consistent
 
 SCALE = [
     (1, "Not realistic at all"),
@@ -53,9 +53,7 @@ class RatingStudy(StudyType):
 
     def consistent(self, before, now):
         """No clip's score changes by more than one."""
-        earlier = before.by_stimulus()
-        return all(abs(now.value(item) - before.value(earlier[item.stimulus_id])) <= MAX_CHANGE
-                   for item in now.items)
+        return scores_consistent(before, now, MAX_CHANGE)
 
     def export_values(self, trial_answer, item_answer, item, items):
         return {"rating": item_answer}
