@@ -1,9 +1,10 @@
 """The `stick` style draws what it drew before it was made faster.
 
-The PNGs in ``data/stick_reference`` were drawn by the style as it was at rendering
-VERSION 3 (before the backdrop tables, the shadow at one size and the reused buffers):
-the same clips, framing and frames drawn now must match them to within what no one can
-see (less than one grey level on average, no visible local difference).
+The PNGs in ``data/stick_reference`` were drawn by the style at rendering VERSION 3,
+before the floor was read from shifted tables, the shadow blended by Pillow and blurred
+only where it has anything, and the figure drawn through Pillow's drawing core. The
+same clips, framing and frames drawn now must match them to within what no one can see
+(under half a grey level on average, no visible local difference).
 """
 
 from pathlib import Path
