@@ -2,6 +2,7 @@
 
     .venv/bin/python benchmarks/bench_render.py           # print the tables
     .venv/bin/python benchmarks/bench_render.py --write   # and update docs/BENCHMARKS.md
+    .venv/bin/python benchmarks/bench_render.py --cpu     # CPU per frame of each part
 
 The whole ``render`` command (48 stick clips of 60 frames) is timed against x264 alone
 on the same frames with the same settings, and against a lean and the seed papers'
@@ -448,6 +449,64 @@ def command_verdict(rows: dict) -> list[str]:
     ]
 
 
+def cpu_breakdown(size: int) -> str:
+    """Return a table of the CPU time per frame of each part of drawing and encoding.
+
+    The command's clips in this process, one after another: each part of the ``stick``
+    style is timed by wrapping it, the rest of drawing (the camera, the figure's patch
+    made large and halved) is what is left of the whole frame; then the same frames
+    through the command's writer (mp4 pipe, ffmpeg included) and posters.
+    """
+    from rendering.batch import _render_hashed
+    from rendering.styles import stick
+
+    motions = command_clips()
+    style = get_style("stick")
+    framing = Framing.from_motions(motions, pad=style.pad)
+    spent: dict[str, float] = {}
+
+    def timed_part(name, function):
+        def wrapper(*arguments):
+            start = time.process_time()
+            try:
+                return function(*arguments)
+            finally:
+                spent[name] = spent.get(name, 0.0) + time.process_time() - start
+        return wrapper
+
+    frames = sum(m.frames for m in motions)
+    with style(framing, size, size) as drawer:
+        for _ in drawer.frames(motions[0]):  # warm-up
+            pass
+        drawer._backdrop.image = timed_part("floor and sky (`Backdrop.image`)", drawer._backdrop.image)
+        drawer._shadow = timed_part("shadow mask (`_shadow`)", drawer._shadow)
+        drawer._draw_figure = timed_part("figure (`_draw_figure`)", drawer._draw_figure)
+        darken, stick._darken = stick._darken, timed_part("shadow blended in (`_darken`)", stick._darken)
+        try:
+            start = time.process_time()
+            for motion in motions:
+                for _ in drawer.frames(motion):
+                    pass
+            whole = time.process_time() - start
+        finally:
+            stick._darken = darken
+    with style(framing, size, size) as drawer, tempfile.TemporaryDirectory() as folder:
+        before = cpu_seconds()
+        for index, motion in enumerate(motions):
+            _render_hashed(drawer, index, motion, None, Path(folder), ("mp4",))
+        encoded = cpu_seconds() - before
+    rows = [(name, value) for name, value in spent.items()]
+    rows.append(("the rest: camera, the figure's patch made large and halved",
+                 whole - sum(spent.values())))
+    rows.append(("**drawing, whole frames**", whole))
+    rows.append(("**drawn, piped to ffmpeg (x264, its CPU included), padded, posters**", encoded))
+    lines = [f"CPU ms per frame, {frames} frames of the command's {len(motions)} clips at "
+             f"{size}×{size}, one process (`bench_render.py --cpu`):", "",
+             "| part | CPU ms per frame |", "|---|---:|"]
+    lines += [f"| {name} | {1000 * value / frames:.2f} |" for name, value in rows]
+    return "\n".join(lines)
+
+
 def write_docs(section: str) -> None:
     """Put ``section`` under the Rendering heading of docs/BENCHMARKS.md, leaving the rest."""
     text = DOCS.read_text() if DOCS.exists() else "# Benchmarks\n"
@@ -471,6 +530,8 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=3, help="turns of the command comparison")
     parser.add_argument("--only-command", action="store_true",
                         help="run only the whole-command comparison")
+    parser.add_argument("--cpu", action="store_true",
+                        help="print only the CPU per frame of each part of drawing and encoding")
     parser.add_argument("--matplotlib", choices=("lean", "heavy"), help=argparse.SUPPRESS)
     parser.add_argument("--motions", type=Path, help=argparse.SUPPRESS)
     options = parser.parse_args()
@@ -482,6 +543,9 @@ def main() -> None:
         with tempfile.TemporaryDirectory() as folder:
             for number, motion in enumerate(motions):
                 write(motion, Path(folder) / f"{number}.mp4", options.size)
+        return
+    if options.cpu:
+        print(cpu_breakdown(options.size))
         return
     if options.speed:
         print(json.dumps(measure_speed(options.speed, options.clips, options.size)))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from PIL import Image
 
 from rendering import palette
 from rendering.framing import Framing
@@ -53,19 +54,20 @@ class Backdrop:
         # redrawn per frame (the checker darkens by at most |FLOOR_DARK - FLOOR_LIGHT|),
         # through tables: of the box-filtered square wave, and of the darkening per
         # level of shade. A following camera redraws the floor every frame; this keeps it
-        # to a few integer operations per floor pixel.
+        # to two table reads and a few operations per floor pixel.
         light = sky * (1 - fade) + palette.FLOOR_LIGHT * fade
         darker = palette.FLOOR_LIGHT - palette.FLOOR_DARK
         self._base = np.rint(light).astype(np.uint8)
         rows = np.flatnonzero((fade[..., 0] * darker.max() >= 0.25).any(axis=1))
         self._rows = slice(int(rows.min()), int(rows.max()) + 1) if len(rows) else slice(0, 0)
         band = np.s_[self._rows]
-        self._u = (u[band] * _BINS + _OFFSET).astype(np.float32)
-        self._v = (v[band] * _BINS + _OFFSET).astype(np.float32)
-        self._rows_u = _width_rows(wu[band])
-        self._rows_v = _width_rows(wv[band])
-        self._fade = (fade[band][..., 0] * _SHADES).astype(np.float32)
-        self._darkening = np.rint(np.arange(_SHADES + 1)[:, None] / _SHADES * darker).astype(np.uint8)
+        # Each floor pixel's place in the table: its footprint's row and its position's
+        # column; a frame's shift of the camera then only moves where the table is read.
+        self._index_u = _index(u[band], wu[band])
+        self._index_v = _index(v[band], wv[band])
+        self._half_fade = (fade[band][..., 0] * (_SHADES / 2)).astype(np.float32)
+        darkening = np.rint(np.arange(_SHADES + 1)[:, None] / _SHADES * darker)
+        self._darkening = darkening.astype(np.uint8).tobytes()  # a palette, RGB per level
         self._still = None
 
     def image(self, target=None) -> np.ndarray:
@@ -80,36 +82,47 @@ class Backdrop:
 
     def _draw(self, du: float, dv: float) -> np.ndarray:
         image = self._base.copy()
-        if self._u.size:
-            wave_u = _WAVE.take(self._rows_u + _bin(self._u, du))
-            wave_v = _WAVE.take(self._rows_v + _bin(self._v, dv))
-            shade = (0.5 - 0.5 * wave_u * wave_v) * self._fade
-            image[self._rows] -= self._darkening.take(shade.astype(np.uint8), axis=0)
+        if self._index_u.size:
+            # checker * fade = (1 - wave_u * wave_v) * fade / 2, in place in one buffer.
+            shade = _WAVE[_shift(du):].take(self._index_u)
+            shade *= _WAVE[_shift(dv):].take(self._index_v)
+            shade *= self._half_fade
+            np.subtract(self._half_fade, shade, out=shade)
+            # The shade levels are a palette image whose colours are the darkenings:
+            # Pillow looks them up faster than numpy gathers three bytes a pixel.
+            levels = shade.astype(np.uint8)
+            darkening = Image.frombuffer("P", levels.shape[::-1], levels, "raw", "P", 0, 1)
+            darkening.putpalette(self._darkening)
+            image[self._rows] -= np.asarray(darkening.convert("RGB"))
         return image
 
 
 _SHADES = 255  # levels of the checker's darkening, each a row of a table
 _BINS = 256  # table columns per tile: positions to 1/256 of a tile
 _PERIOD = 2 * _BINS  # the square wave repeats every two tiles
-_OFFSET = 64 * _PERIOD  # keeps table positions positive, so truncation is a floor
 _WIDTHS = np.concatenate([[0.0], np.geomspace(1e-3, 4.0, 63)])  # footprints, in tiles
 
 
-def _width_rows(width: np.ndarray) -> np.ndarray:
-    """Return each footprint's table row offset (the nearest tabulated width)."""
+def _index(position: np.ndarray, width: np.ndarray) -> np.ndarray:
+    """Return each pixel's table index: its footprint's row, its position's column (bins).
+
+    Rows hold two periods, so a shift of up to one period is a start further along.
+    """
     index = np.clip(np.searchsorted(_WIDTHS, width), 1, len(_WIDTHS) - 1)
     nearer = np.where(width - _WIDTHS[index - 1] < _WIDTHS[index] - width, index - 1, index)
-    return (nearer * _PERIOD).astype(np.int32)
+    column = np.floor(position * _BINS).astype(np.int64) % _PERIOD
+    return (nearer * 2 * _PERIOD + column).astype(np.int32)
 
 
-def _bin(position: np.ndarray, shift: float) -> np.ndarray:
-    """Return table columns of positions (already in bins, offset) moved by ``shift`` tiles."""
-    return (position + np.float32(shift * _BINS)).astype(np.int32) & (_PERIOD - 1)
+def _shift(tiles: float) -> int:
+    """Return a shift of the camera, in tiles, as table columns (within one period)."""
+    return int(np.floor(tiles * _BINS)) % _PERIOD
 
 
 def _table() -> np.ndarray:
-    """Return the box-filtered square wave, a row per footprint width, a column per bin."""
-    x = (np.arange(_PERIOD) + 0.5) / _BINS
+    """Return the box-filtered square wave, a row per footprint width (two periods long),
+    a column per bin."""
+    x = (np.arange(2 * _PERIOD) + 0.5) / _BINS
     widths = np.maximum(_WIDTHS, 1e-4)[:, None]
     return _square_wave_mean(x[None, :], widths).astype(np.float32).reshape(-1)
 

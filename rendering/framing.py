@@ -220,10 +220,7 @@ class Framing:
         The light is above, a little left of and behind the camera, so shadows fall
         right and towards the viewer, apart from the feet when these float.
         """
-        right, _, forward = self._axes()
-        fall = 0.8 * right[:2] - 0.6 * forward[:2]
-        fall = np.append(fall / np.linalg.norm(fall) * SHADOW_SLANT, 0.0)
-        return placed * [1.0, 1.0, 0.0] + placed[..., 2:3] * fall
+        return placed * [1.0, 1.0, 0.0] + placed[..., 2:3] * _shadow_fall(self)
 
     def targets(self, motion: Motion, placed: np.ndarray) -> np.ndarray:
         """Return the look-at point of each frame, ``(T, 3)``."""
@@ -260,3 +257,13 @@ def _base_camera(framing: Framing, width: int, height: int) -> Camera:
     """Return a framing's camera at its own look-at (made once: clips move it per frame)."""
     return Camera.look_at(framing.target, framing.azimuth, framing.elevation, framing.distance,
                           framing.fov, width, height, orthographic=framing.orthographic)
+
+
+@lru_cache(maxsize=64)
+def _shadow_fall(framing: Framing) -> np.ndarray:
+    """Return how far a shadow falls per unit of height (made once: every frame asks)."""
+    right, _, forward = framing._axes()
+    fall = 0.8 * right[:2] - 0.6 * forward[:2]
+    fall = np.append(fall / np.linalg.norm(fall) * SHADOW_SLANT, 0.0)
+    fall.flags.writeable = False
+    return fall

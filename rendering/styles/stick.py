@@ -48,22 +48,16 @@ class Figure:
                 self.joint_radii[joint] = HEAD_RADIUS * height
 
 
-def _tones(colours: np.ndarray) -> list[list[tuple[int, int, int]]]:
-    """Return the (rim, body, highlight) colours of each base colour ``(N, 3)``."""
+def _tones(colours: np.ndarray) -> np.ndarray:
+    """Return the (rim, body, highlight) colours ``(N, 3, 3)`` of each base colour ``(N, 3)``."""
     shades = np.stack([colours * 0.66, colours, colours + (palette.WHITE - colours) * 0.5], axis=1)
-    return [[tuple(tone) for tone in part] for part in np.rint(shades).astype(int).tolist()]
+    return np.rint(shades).astype(int)
 
 
-def _disc(draw: ImageDraw.ImageDraw, centre, radius: float, fill) -> None:
-    x, y = centre
-    draw.ellipse((x - radius, y - radius, x + radius, y + radius), fill=fill)
-
-
-def _tube(draw: ImageDraw.ImageDraw, start, end, radius: float, fill, capped=True) -> None:
-    draw.line((start[0], start[1], end[0], end[1]), fill=fill, width=max(1, int(round(2 * radius))))
-    if capped:
-        _disc(draw, start, radius, fill)
-        _disc(draw, end, radius, fill)
+def _inks(tones: np.ndarray) -> list[list[int]]:
+    """Return Pillow's inks for RGB colours ``(..., 3)``: the packed pixel, opaque."""
+    packed = tones[..., 0] | tones[..., 1] << 8 | tones[..., 2] << 16 | 255 << 24
+    return packed.astype(np.uint32).view(np.int32).tolist()
 
 
 def _cover(pixels, radii, size) -> tuple[int, int, int, int] | None:
@@ -79,18 +73,18 @@ def _cover(pixels, radii, size) -> tuple[int, int, int, int] | None:
 
 
 def _darken(frame: np.ndarray, shadow) -> None:
-    """Lay the shadow colour over ``frame`` through a mask ``(mask, (left, top))``."""
+    """Lay the shadow colour over ``frame`` through a mask ``(mask image, (left, top))``."""
     if shadow is None:
         return
     mask, (left, top) = shadow
     height, width = frame.shape[:2]
-    right, bottom = min(left + mask.shape[1], width), min(top + mask.shape[0], height)
+    right, bottom = min(left + mask.width, width), min(top + mask.height, height)
     if right <= left or bottom <= top:
         return
-    alpha = mask[: bottom - top, : right - left, None].astype(np.uint16)
-    part = frame[top:bottom, left:right]
-    mixed = part * (255 - alpha) + np.array(palette.SHADOW, np.uint16) * alpha + 127
-    part[...] = (mixed // 255).astype(np.uint8)
+    part = Image.fromarray(frame[top:bottom, left:right])
+    part.paste(palette.SHADOW, (0, 0, right - left, bottom - top),
+               mask.crop((0, 0, right - left, bottom - top)))
+    frame[top:bottom, left:right] = np.asarray(part)
 
 
 @register_style("stick")
@@ -166,27 +160,45 @@ class StickStyle(Style):
         pixels = pixels - low
         a, b = figure.bones[:, 0], figure.bones[:, 1]
         bone_reach = (reach[a] + reach[b]) / 2
-        masks = []
+        mask = None
         for strength, spread, blur in layers:
-            mask = Image.new("L", tuple(high - low), 0)
-            draw = ImageDraw.Draw(mask)
+            # Each layer is drawn and blurred only where it has anything: the darker one
+            # often only around the feet. Blurring zeros gives zeros, so the box (the
+            # parts, the blur's reach and a margin) changes nothing.
+            sigma = max(0.5, blur * unit)
             levels = np.minimum(strength[a], strength[b]).astype(int)
-            radii = spread * figure.bone_radius * bone_reach
-            for start, end, radius, level in zip(pixels[a].tolist(), pixels[b].tolist(),
-                                                 radii.tolist(), levels.tolist()):
-                if level > 0:  # the joints' wider discs cover the ends
-                    _tube(draw, start, end, radius, level, capped=False)
+            drawn = levels > 0  # the joints' wider discs cover the ends
             order = np.argsort(strength)
-            radii = spread * figure.joint_radii[order] * reach[order]
-            for centre, radius, level in zip(pixels[order].tolist(), radii.tolist(),
-                                             strength[order].tolist()):
-                if level >= 1:
-                    _disc(draw, centre, radius, int(level))
-            masks.append(mask.filter(ImageFilter.GaussianBlur(max(0.5, blur * unit))))
-        mask = ImageChops.add(*masks)
+            order = order[strength[order] >= 1]
+            if not len(order):
+                continue
+            radii = (spread * figure.joint_radii[order] * reach[order])[:, None]
+            discs = np.concatenate([pixels[order] - radii, pixels[order] + radii], axis=1)
+            widths = np.maximum(1, np.rint(2 * spread * figure.bone_radius * bone_reach))
+            lines = np.concatenate([pixels[a], pixels[b]], axis=1)[drawn]
+            margin = np.ceil(4 * sigma) + 4 + (widths[drawn].max() if drawn.any() else 0)
+            corner = np.maximum(np.floor(discs[:, :2].min(axis=0) - margin), 0).astype(int)
+            far = np.minimum(np.ceil(discs[:, 2:].max(axis=0) + margin), high - low).astype(int)
+            if (far <= corner).any():
+                continue
+            layer = Image.new("L", tuple(far - corner), 0)
+            core = ImageDraw.Draw(layer).draw
+            shift = np.tile(corner, 2)
+            for line, level, width in zip((lines - shift).tolist(), levels[drawn].tolist(),
+                                          widths[drawn].astype(int).tolist()):
+                core.draw_lines(line, level, width)
+            for disc, level in zip((discs - shift).tolist(), strength[order].astype(int).tolist()):
+                core.draw_ellipse(disc, level, 1)
+            layer = layer.filter(ImageFilter.GaussianBlur(sigma))
+            if mask is None:
+                mask = Image.new("L", tuple(high - low), 0)
+            box = (*corner.tolist(), *far.tolist())
+            mask.paste(ImageChops.add(mask.crop(box), layer), box)
+        if mask is None:
+            return None
         grow = SHADOW_SHRINK // SUPERSAMPLE  # to the frame's own size
         mask = mask.resize((mask.width * grow, mask.height * grow), Image.BILINEAR)
-        return np.asarray(mask), tuple(int(v) * grow for v in low)
+        return mask, tuple(int(v) * grow for v in low)
 
     def _draw_figure(self, draw: ImageDraw.ImageDraw, pixels, depth, camera: Camera, figure):
         """Draw bones and joints far to near, each a tube or ball lit from the upper left."""
@@ -203,8 +215,7 @@ class StickStyle(Style):
         base = np.concatenate([figure.bone_colours, figure.joint_colours])
         base = base * (1.0 - 0.1 * tone[:, None])
         base = base + (palette.SKY_HORIZON - base) * (0.25 * np.maximum(tone, 0.0))[:, None]
-        base = np.clip(base, 0.0, 255.0)
-        tones = _tones(base)
+        tones = _tones(np.clip(base, 0.0, 255.0))
 
         along = end - start
         length = np.linalg.norm(along, axis=1, keepdims=True)
@@ -212,16 +223,18 @@ class StickStyle(Style):
         lit = (normal * LIGHT).sum(axis=1)
         light_offset = normal * lit[:, None]  # the light's component across the tube
 
-        # Every primitive's place and size at once, as plain floats for Pillow.
+        # Every primitive's place, size and colour at once, as plain numbers for Pillow's
+        # drawing core (its Python wrappers cost more than the drawing itself).
         r = bone_radii[:, None]
         body_shift, shine = light_offset * 0.2 * r, light_offset * 0.48 * r
-        bones_drawn = np.concatenate(
-            [start, end, start + body_shift, end + body_shift, start + shine, end + shine, r,
-             0.72 * r, 0.25 * r], axis=1).tolist()
+        lines = np.concatenate([start, end, start + body_shift, end + body_shift, start + shine,
+                                end + shine], axis=1).reshape(-1, 3, 4).tolist()
+        widths = np.maximum(1, np.rint(2 * r * [1.0, 0.72, 0.25])).astype(int).tolist()
         j = joint_radii[:, None]
-        joints_drawn = np.concatenate(
-            [pixels, pixels + LIGHT * 0.2 * j, pixels + LIGHT * 0.45 * j, j, 0.76 * j, 0.3 * j],
-            axis=1).tolist()
+        centres = np.stack([pixels, pixels + LIGHT * 0.2 * j, pixels + LIGHT * 0.45 * j], axis=1)
+        radii = (j * [1.0, 0.76, 0.3])[..., None]
+        discs = np.concatenate([centres - radii, centres + radii], axis=2).tolist()
+        inks = _inks(tones)
 
         n_bones = len(bones)
         near = NEAR * self.framing.distance
@@ -229,17 +242,12 @@ class StickStyle(Style):
                                depth > near])
         # Balls sit a little nearer than the tubes meeting at them, so they cap the ends.
         order = np.argsort(-np.concatenate([bone_depth, depth - figure.joint_radii]), kind="stable")
+        core = draw.draw
         for k in order[seen[order]].tolist():
-            rim, body, highlight = tones[k]
             if k < n_bones:
-                (x0, y0, x1, y1, bx0, by0, bx1, by1, hx0, hy0, hx1, hy1,
-                 radius, body_radius, shine_radius) = bones_drawn[k]
                 # No round caps: every bone ends in a joint's larger ball, drawn nearer.
-                _tube(draw, (x0, y0), (x1, y1), radius, rim, capped=False)
-                _tube(draw, (bx0, by0), (bx1, by1), body_radius, body, capped=False)
-                _tube(draw, (hx0, hy0), (hx1, hy1), shine_radius, highlight, capped=False)
+                for line, ink, width in zip(lines[k], inks[k], widths[k]):
+                    core.draw_lines(line, ink, width)
             else:
-                x, y, bx, by, hx, hy, radius, body_radius, shine_radius = joints_drawn[k - n_bones]
-                _disc(draw, (x, y), radius, rim)
-                _disc(draw, (bx, by), body_radius, body)
-                _disc(draw, (hx, hy), shine_radius, highlight)
+                for disc, ink in zip(discs[k - n_bones], inks[k]):
+                    core.draw_ellipse(disc, ink, 1)
