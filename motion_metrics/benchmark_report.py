@@ -349,6 +349,9 @@ def _shortfalls(result: dict) -> list[str]:
                 else "networks of the presets in the training tables (mostly the reduced `demo` "
                      "presets)" if "demo" in presets else "networks of the presets in the "
                      "training tables")
+    phases = ("250–300 in our `demo` presets" if result.get("iters") is None else
+              "here half of the iteration budget, as the training table's changes say, so that "
+              "sequence training gets the other half")
     facts = []
     for setting in result["settings"]:
         facts += _setting_facts(setting)
@@ -362,8 +365,8 @@ def _shortfalls(result: dict) -> list[str]:
         "trained full-size networks on GPUs for tens of thousands of iterations or more: "
         "Action2Motion reports 40,000 iterations with its Lie algebra representation and "
         "500,000 without (seed 000, appendix), and the GAN baselines pretrain a frame or pose "
-        "model for 10,000 iterations before sequence training starts (their code; 250–300 in "
-        "our `demo` presets). GANs in particular are far from equilibrium after so "
+        "model for 10,000 iterations before sequence training starts (their code; "
+        f"{phases}). GANs in particular are far from equilibrium after so "
         "short a training, so their numbers here say more about how fast a method starts to learn than "
         "about what it can reach. The data differ too: the papers held out S11, which our copy "
         "of Human3.6M lacks, so we test on S9 and train on one subject fewer; our 2D clips are "
