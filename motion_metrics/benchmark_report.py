@@ -291,7 +291,7 @@ def _metric_table(setting: dict, metrics: list[str], tables: list[PaperTable]) -
         lines.append(f"| `{method}` | " + " | ".join(cells) + " |")
     lines.append("")
     if marked:
-        lines += [f"† Ranks first here (lowest, highest accuracy, or closest to Real for → "
+        lines += [f"† Ranks first here by the mean over seeds (lowest, highest accuracy, or closest to Real for → "
                   f"metrics); {COND_GRU}.", ""]
     others = []
     for table in tables:
@@ -401,7 +401,7 @@ def _setting_facts(setting: dict) -> list[str]:
             paper_best = min(table.rows, key=lambda row: row.values[metric])
             real_value = (real.get(metric) or {}).get("mean")
             facts.append(
-                f"On {dataset} our best {NAMES[metric].split()[0]} is {scored[best]:.3f} "
+                f"On {dataset} our best {NAMES[metric].split()[0]} (mean over seeds) is {scored[best]:.3f} "
                 f"(`{best}`{_head_start(best)}), where {paper_best.label} reports {paper_best.values[metric]:g} "
                 f"({table.source})" + (f" and real held-out clips score {real_value:.3f} against "
                                        f"the training clips." if real_value is not None else ".")
@@ -466,8 +466,14 @@ def _order_sentence(methods: dict, table: PaperTable, metric: str) -> str:
     paper = [row.method for row in sorted(shared, key=lambda row: row.values[metric])]
     ours = sorted(paper, key=lambda name: _mean(methods[name], metric))
     label = NAMES[metric].split()[0]
+    rows = [(methods[name].get("metrics") or {}).get(metric) or {} for name in ours]
+    overlap = any(a.get("ci_seeds") is None or b.get("ci_seeds") is None
+                  or a["mean"] + a["ci_seeds"] >= b["mean"] - b["ci_seeds"]
+                  for a, b in zip(rows, rows[1:]))
+    caveat = (" (orders of the means over seeds; neighbours' intervals over seeds overlap, so "
+              "this run does not establish the order)" if overlap else "")
     if ours == paper:
         return (f"By {label} our order of the methods {table.source} reports is the paper's "
-                f"({' < '.join(ours)}).")
+                f"({' < '.join(ours)}){caveat}.")
     return (f"By {label} the order differs from {table.source}: ours {' < '.join(ours)}, "
-            f"the paper's {' < '.join(paper)}.")
+            f"the paper's {' < '.join(paper)}{caveat}.")
