@@ -1,15 +1,19 @@
-"""Train every method under a time budget and measure it as the seed papers did.
+"""Train every method under an equal budget, with several seeds, and measure it as the seed papers did.
 
 What ``manage.py benchmark_methods`` runs. For each data setting (:data:`SETTINGS`) the
 action classifier is trained on the training subjects and measured on the held-out
-ones; then each method trains for ``budget`` seconds of wall time, draws ``n`` motions
-per action and is evaluated (:func:`motion_metrics.evaluate.evaluate`) with the metrics of
-the papers whose tables the setting compares with (:mod:`motion_metrics.paper_numbers`).
+ones; then each method trains once per training seed, for ``iters`` iterations (the same
+for every method) or ``budget`` seconds of wall time, and each seed's model draws ``n``
+motions per action and is evaluated (:func:`motion_metrics.evaluate.evaluate`, the
+``bootstrap`` protocol) with the metrics of the papers whose tables the setting compares
+with (:mod:`motion_metrics.paper_numbers`). Per metric the results hold each seed's value
+with its interval over samples, and the mean over seeds with a t interval over seeds.
 
-Everything lands in ``work``: per setting the classifier, and per method its checkpoint,
-its samples (``.npz``) and a record (``.json``) of the seconds spent, iterations and
-evaluation. Checkpoints are written every ``checkpoint_every`` seconds, so an interrupted
-run resumes where it stopped, and a rerun with the same budget reuses all of it.
+Everything lands in ``work``: per setting the classifier, and per method and seed its
+checkpoint, its samples (``.npz``) and a record (``.json``) of the seconds spent,
+iterations and evaluation (``<method>-seed<k>.*``). Checkpoints are written every
+``checkpoint_every`` seconds, so an interrupted run resumes where it stopped, and a rerun
+with the same budget reuses all of it.
 """
 
 from __future__ import annotations
@@ -36,6 +40,7 @@ from generation.motion import MotionError
 from generation.recognition import ActionClassifier, ClassifierError, one_thread, train_classifier
 from generation.skeletons import get_skeleton
 from motion_metrics.evaluate import EvaluationError, evaluate
+from scipy import stats
 
 H36M_TRAIN = ("S1", "S5", "S6", "S7", "S8")
 H36M_TEST = ("S9",)  # the papers test on S11, which our copy of Human3.6M lacks
@@ -43,6 +48,7 @@ METRICS_2D = ("mmd_avg", "mmd_seq", "accuracy", "fid", "diversity", "multimodali
 METRICS_3D = ("fid", "accuracy", "diversity", "multimodality")
 # Training runs as one call per resume; this many iterations is never reached.
 UNBOUNDED = 10**9
+DEFAULT_SEEDS = (0, 1, 2)
 
 
 class BenchmarkError(ValueError):
@@ -119,31 +125,58 @@ RECIPES = {
 }
 
 
-def recipe_for(method: str, presets: dict[str, str] | None = None) -> Recipe:
-    """Return the recipe of ``method``; a preset named in ``presets`` replaces it (no changes)."""
+# Under an iteration budget, a first phase (pretraining a pose or frame model, or ODMO's
+# teacher forcing) takes a share of the iterations rather than its fixed count, so every
+# method reaches its second phase within the budget: the config field and its share.
+PHASES = {
+    "skeleton_gan": ("pretrain_iters", 0.5),
+    "c_skeleton_gan": ("pretrain_iters", 0.5),
+    "two_stage_gan": ("pose_iterations", 0.5),
+    "odmo": ("teacher_forcing_iters", 0.75),
+    "odmo_conv": ("teacher_forcing_iters", 0.75),
+}
+
+
+def recipe_for(method: str, presets: dict[str, str] | None = None,
+               iters: int | None = None) -> Recipe:
+    """Return the recipe of ``method``; a preset named in ``presets`` replaces it (no changes).
+
+    With an iteration budget ``iters``, a default recipe's first phase is shortened to its
+    share (:data:`PHASES`) of the budget where that is less than the preset's count.
+    """
     if presets and method in presets:
         return Recipe(presets[method])
-    return RECIPES.get(method, Recipe())
+    recipe = RECIPES.get(method, Recipe())
+    if iters is not None and method in PHASES:
+        name, share = PHASES[method]
+        current = recipe.changes.get(name, getattr(recipe.config(get_method(method)), name))
+        if iters * share < current:
+            recipe = Recipe(recipe.preset, {**recipe.changes, name: max(1, int(iters * share))})
+    return recipe
 
 
 class _BudgetSpent(Exception):
-    """Raised inside a training step once the time budget is spent."""
+    """Raised inside a training step once the time or iteration budget is spent."""
 
 
 @contextmanager
-def deadline(model: Method, seconds: float, on_step: Callable[[], None]):
-    """Make ``model``'s training steps raise :class:`_BudgetSpent` after ``seconds``.
+def deadline(model: Method, seconds: float | None, on_step: Callable[[], None],
+             iters: int | None = None):
+    """Make ``model``'s training steps raise :class:`_BudgetSpent` once the budget is spent.
 
-    :meth:`Method.fit` counts iterations, the budget is in seconds: rather than training
-    in chunks (each re-encodes the clips, which takes seconds for a2m), one ``fit`` runs
-    until a step finds the time up. The check happens before the step, when the model is
-    consistent (its iteration counter counts finished steps), so ``on_step`` may save it.
+    The budget is ``seconds`` from now, or ``iters`` iterations in all (the model's
+    iteration counter). Rather than training in chunks (each re-encodes the clips, which
+    takes seconds for a2m), one ``fit`` runs until a step finds the budget spent. The
+    check happens before the step, when the model is consistent (its iteration counter
+    counts finished steps), so ``on_step`` may save it. Methods trained in phases (a
+    pretrained pose or frame model) count the iterations of every phase.
     """
-    end = time.perf_counter() + seconds
+    end = None if seconds is None else time.perf_counter() + seconds
     step = model.train_step
 
     def timed_step(batch, generator):
-        if time.perf_counter() >= end:
+        if ((end is not None and time.perf_counter() >= end)
+                or (iters is not None and model.iteration >= iters)):
             raise _BudgetSpent
         on_step()
         return step(batch, generator)
@@ -180,20 +213,26 @@ def _plain(value):
     raise TypeError(f"{type(value).__name__} is not JSON serialisable")
 
 
-def train_within_budget(method: str, clips, actions: Sequence[str], budget: float,
+def train_within_budget(method: str, clips, actions: Sequence[str], budget: float | None,
                         folder: Path, recipe: Recipe, seed: int = 0,
                         checkpoint_every: float = 15.0,
-                        on_tick: Callable[[str], None] | None = None) -> tuple[Method, dict]:
-    """Train ``method`` on ``clips`` until ``budget`` seconds of training are spent in all.
+                        on_tick: Callable[[str], None] | None = None,
+                        iters: int | None = None) -> tuple[Method, dict]:
+    """Train ``method`` on ``clips`` for ``iters`` iterations, or ``budget`` seconds, in all.
 
-    The checkpoint ``folder/<method>.pt`` and the record ``folder/<method>.json`` (seconds,
-    CPU seconds, iterations) resume an interrupted run; a model whose record says the
-    budget is spent is loaded and returned as it is. Another recipe, config (a changed
-    default included), method version, seed or data starts afresh. Methods with their own ``fit`` (ODMO fits its modes there) get one call of it
-    with no iterations at the end, timed apart as ``finish_seconds``.
+    Give one of ``budget`` (seconds of wall time) and ``iters``. The checkpoint
+    ``folder/<method>-seed<seed>.pt`` and its record ``.json`` (seconds, CPU seconds,
+    iterations) resume an interrupted run; a model whose record says the budget is spent
+    is loaded and returned as it is. Another recipe, config (a changed default included),
+    method version, seed or data starts afresh. Methods with their own ``fit`` (ODMO fits
+    its modes there) get one call of it with no iterations at the end, timed apart as
+    ``finish_seconds``.
     """
+    if (budget is None) == (iters is None):
+        raise BenchmarkError("give either a time budget or a number of iterations, not both")
     cls = get_method(method)
-    checkpoint, record_path = folder / f"{method}.pt", folder / f"{method}.json"
+    stem = run_stem(method, seed)
+    checkpoint, record_path = folder / f"{stem}.pt", folder / f"{stem}.json"
     first = clips[0]
     # The full config and the method's version: a changed default or network retrains.
     signature = {"method": method, "version": cls.version, "preset": recipe.preset,
@@ -201,20 +240,27 @@ def train_within_budget(method: str, clips, actions: Sequence[str], budget: floa
                  "skeleton": first.skeleton, "frames": first.frames, "fps": first.fps,
                  "actions": list(actions), "clips": len(clips)}
     record = read_json(record_path)
-    if record.get("signature") == signature and checkpoint.is_file():
+    if (record.get("signature") == json.loads(json.dumps(signature, default=_plain))
+            and checkpoint.is_file() and (iters is None or record.get("iterations", 0) <= iters)):
         model = cls.load(checkpoint)
-    else:
+    else:  # another signature, or trained past the iterations asked: start afresh
         record = {"signature": signature, "seconds": 0.0, "cpu_seconds": 0.0, "iterations": 0,
                   "finished": False}
         model = cls(recipe.config(cls), first.skeleton, list(actions), first.fps, first.frames)
-    record["budget"] = budget
-    remaining = budget - record["seconds"]
-    record["reused"] = remaining <= 0 and record["finished"]
-    if remaining > 0:
+    record["budget"], record["iters"] = budget, iters
+    if iters is None:
+        remaining = budget - record["seconds"]
+        todo = remaining > 0
+    else:
+        remaining = None
+        todo = model.iteration < iters
+    record["reused"] = not todo and record["finished"]
+    if todo:
         record["finished"] = False
         wall, cpu = time.perf_counter(), time.process_time()
         spent, spent_cpu = record["seconds"], record["cpu_seconds"]
         last = {"save": wall, "tick": 0.0}
+        goal = f"{budget:g} s" if iters is None else f"{iters} it"
 
         def note():
             """Bring the record up to date with the time spent so far."""
@@ -230,10 +276,10 @@ def train_within_budget(method: str, clips, actions: Sequence[str], budget: floa
                 write_json(record_path, record)
                 last["save"] = now
             if on_tick and now - last["tick"] >= 1.0:
-                on_tick(f"{spent + now - wall:.0f}/{budget:g} s, {model.iteration} it")
+                on_tick(f"seed {seed}: {spent + now - wall:.0f} s, {model.iteration} it of {goal}")
                 last["tick"] = now
 
-        with deadline(model, remaining, on_step):
+        with deadline(model, remaining, on_step, iters):
             model.fit(clips, UNBOUNDED, seed=seed, progress=False)
         note()
         model.save(checkpoint)
@@ -249,6 +295,44 @@ def train_within_budget(method: str, clips, actions: Sequence[str], budget: floa
         write_json(record_path, record)
     record["parameters"] = model.n_parameters
     return model, record
+
+
+def run_stem(method: str, seed: int) -> str:
+    """Return the file name (without suffix) of ``method``'s run with training ``seed``."""
+    return f"{method}-seed{seed}"
+
+
+def t_interval(values: Sequence[float], level: float = 0.95) -> float | None:
+    """Return the half-width of the ``level`` t interval of the mean of ``values`` (None for fewer than 2)."""
+    values = np.asarray([v for v in values if v is not None and np.isfinite(v)], dtype=float)
+    if len(values) < 2:
+        return None
+    quantile = stats.t.ppf(0.5 + level / 2, len(values) - 1)
+    return float(quantile * values.std(ddof=1) / np.sqrt(len(values)))
+
+
+def combine_seeds(runs: Sequence[dict]) -> dict:
+    """Return per metric the mean over ``runs`` (one evaluation per seed) and both intervals.
+
+    ``ci_seeds`` is the half-width of the 95 % t interval over the seeds' means (``len -
+    1`` degrees of freedom); ``ci_samples`` is the mean of the seeds' own 95 % intervals
+    over samples (the evaluation protocol's), also kept per seed under ``seeds``.
+    """
+    names = [name for name in runs[0]["metrics"]] if runs else []
+    out = {}
+    for name in names:
+        rows = [run["metrics"].get(name) or {} for run in runs]
+        means = [row.get("mean") for row in rows]
+        finite = [m for m in means if m is not None and np.isfinite(m)]
+        cis = [row.get("ci") for row in rows if row.get("ci") is not None and np.isfinite(row["ci"])]
+        out[name] = {
+            "mean": float(np.mean(finite)) if finite else None,
+            "ci_seeds": t_interval(finite),
+            "ci_samples": float(np.mean(cis)) if cis else None,
+            "seeds": [{"seed": run["seed"], "mean": row.get("mean"), "ci": row.get("ci")}
+                      for run, row in zip(runs, rows)],
+        }
+    return out
 
 
 def per_class_accuracy(classifier: ActionClassifier, motions) -> dict[str, float]:
@@ -300,15 +384,17 @@ def machine() -> dict:
     }
 
 
-def run_benchmark(datasets: Sequence[str], budget: float, work: str | Path, *,
+def run_benchmark(datasets: Sequence[str], budget: float | None, work: str | Path, *,
+                  iters: int | None = None, seeds: Sequence[int] = DEFAULT_SEEDS,
                   methods: Sequence[str] | None = None, presets: dict[str, str] | None = None,
-                  repeats: int = 20, seed: int = 0, n: int = 100, subjects=None,
+                  repeats: int = 20, n: int = 100, subjects=None,
                   test_subjects=None, actions=None, classifier_iters: int = 500,
                   classifier_preset: str = "paper", data_root=None, checkpoint_every: float = 15.0,
                   progress: bool = True, log: Callable[[str], None] | None = None) -> dict:
     """Benchmark ``methods`` (default: all) on each dataset; return the results (JSON-ready).
 
-    Also written to ``work/results.json``; :func:`motion_metrics.benchmark_report.render`
+    Each method trains once per seed of ``seeds``, for ``iters`` iterations or ``budget``
+    seconds (give one); the classifier trains with the first seed. Also written to ``work/results.json``; :func:`motion_metrics.benchmark_report.render`
     turns them into Markdown.
     """
     methods = list(methods or list_methods())
@@ -316,18 +402,24 @@ def run_benchmark(datasets: Sequence[str], budget: float, work: str | Path, *,
     if unknown:
         raise BenchmarkError(f"unknown method {', '.join(map(repr, unknown))}; choose from "
                              f"{', '.join(list_methods())}")
-    if not budget > 0 or repeats < 1 or n < 2:
-        raise BenchmarkError(f"budget must be positive, repeats at least 1 and n at least 2; "
-                             f"got {budget}, {repeats}, {n}")
+    if (budget is None) == (iters is None):
+        raise BenchmarkError("give either a time budget (seconds) or iterations per method, not both")
+    if (budget is not None and not budget > 0) or (iters is not None and iters < 1):
+        raise BenchmarkError(f"the budget must be positive; got {budget if iters is None else iters}")
+    if repeats < 1 or n < 2:
+        raise BenchmarkError(f"repeats must be at least 1 and n at least 2; got {repeats}, {n}")
+    seeds = [int(seed) for seed in seeds]
+    if not seeds or len(set(seeds)) != len(seeds) or min(seeds) < 0:
+        raise BenchmarkError(f"seeds must be distinct non-negative integers; got {seeds}")
     work = Path(work)
     settings = [setting_for(name, subjects, test_subjects) for name in datasets]
     started = datetime.now(timezone.utc)
     clock = time.perf_counter()
     result = {"started": started.isoformat(timespec="seconds"), "machine": machine(),
-              "budget": budget, "repeats": repeats, "seed": seed, "n": n,
+              "budget": budget, "iters": iters, "seeds": seeds, "repeats": repeats, "n": n,
               "classifier_iters": classifier_iters, "classifier_preset": classifier_preset,
               "methods": methods, "settings": []}
-    bar = tqdm(total=len(settings) * (1 + len(methods)), desc="benchmark", unit="step",
+    bar = tqdm(total=len(settings) * (1 + len(methods) * len(seeds)), desc="benchmark", unit="step",
                disable=not progress, dynamic_ncols=True)
 
     def say(message: str) -> None:
@@ -339,7 +431,7 @@ def run_benchmark(datasets: Sequence[str], budget: float, work: str | Path, *,
         with one_thread():
             for setting in settings:
                 result["settings"].append(_run_setting(
-                    setting, methods, presets, budget, work / setting.dataset, repeats, seed, n,
+                    setting, methods, presets, budget, iters, work / setting.dataset, repeats, seeds, n,
                     actions, classifier_iters, classifier_preset, data_root, checkpoint_every,
                     bar, say))
     finally:
@@ -350,14 +442,14 @@ def run_benchmark(datasets: Sequence[str], budget: float, work: str | Path, *,
     return result
 
 
-def _run_setting(setting, methods, presets, budget, folder, repeats, seed, n, actions,
+def _run_setting(setting, methods, presets, budget, iters, folder, repeats, seeds, n, actions,
                  classifier_iters, classifier_preset, data_root, checkpoint_every, bar, say) -> dict:
     """Return one setting's results: data, classifier, Real column and every method."""
     name = setting.dataset
     bar.set_description(f"{name}: classifier")
     data = get_dataset(name, data_root)
     classifier, clf_record = prepare_classifier(setting, folder, classifier_iters, classifier_preset,
-                                                seed, data_root, actions)
+                                                seeds[0], data_root, actions)
     clips = data.clips(actions=classifier.actions)
     train, test = classifier.split.divide(clips)
     if not train or not test:
@@ -375,39 +467,72 @@ def _run_setting(setting, methods, presets, budget, folder, repeats, seed, n, ac
             "train_accuracy": classifier.train_accuracy,
             "per_class": per_class_accuracy(classifier, test),
         },
-        "real": None, "methods": {},
+        "real": None, "protocol": None, "methods": {},
     }
     bar.update(1)
     say(f"{name}: classifier ({classifier.iteration} iterations): accuracy "
         f"{classifier.test_accuracy:.3f} on {len(test)} held-out clips ({classifier.split.describe()})")
     for method in methods:
         bar.set_description(f"{name}: {method}")
-        entry = _run_method(method, setting, data, classifier, train, presets, budget, folder,
-                            repeats, seed, n, checkpoint_every, bar)
+        entry = _run_method(method, setting, data, classifier, train, presets, budget, iters,
+                            folder, repeats, seeds, n, checkpoint_every, bar)
         out["methods"][method] = entry
         if out["real"] is None and entry.get("real"):
             out["real"] = entry["real"]
-        bar.update(1)
+        if out["protocol"] is None and entry.get("protocol"):
+            out["protocol"] = entry["protocol"]
         say(_summary_line(name, method, entry))
     return out
 
 
-def _run_method(method, setting, data, classifier, train, presets, budget, folder, repeats,
-                seed, n, checkpoint_every, bar) -> dict:
-    """Train, sample and evaluate one method; errors are recorded, not raised."""
-    recipe = recipe_for(method, presets)
-    entry = {"recipe": recipe.describe()}
+def _run_method(method, setting, data, classifier, train, presets, budget, iters, folder,
+                repeats, seeds, n, checkpoint_every, bar) -> dict:
+    """Train, sample and evaluate one method once per seed; errors are recorded, not raised."""
+    recipe = recipe_for(method, presets, iters)
+    entry = {"recipe": recipe.describe(), "runs": []}
+    for seed in seeds:
+        bar.set_description(f"{setting.dataset}: {method} (seed {seed})")
+        entry["runs"].append(_run_seed(method, setting, data, classifier, train, recipe, budget,
+                                       iters, folder, repeats, seed, n, checkpoint_every, bar))
+        bar.update(1)
+    done = [run for run in entry["runs"] if run.get("metrics")]
+    errors = [f"seed {run['seed']}: {run['error']}" for run in entry["runs"] if run.get("error")]
+    if errors:
+        entry["errors"] = errors
+        if not done:
+            entry["error"] = errors[0].split(": ", 1)[1]
+    trained = [run for run in entry["runs"] if run.get("seconds") is not None]
+    for key in ("seconds", "cpu_seconds", "finish_seconds", "evaluate_seconds"):
+        values = [run.get(key) for run in entry["runs"] if run.get(key) is not None]
+        entry[key] = sum(values) if values else None
+    entry["iterations"] = [run["iterations"] for run in trained]
+    entry["parameters"] = trained[0]["parameters"] if trained else None
+    entry["reused"] = sum(bool(run.get("reused")) for run in trained)
+    if done:
+        entry["metrics"] = combine_seeds(done)
+        entry["real"] = done[0]["real"]
+        entry["protocol"] = done[0].get("protocol")
+        actions = done[0]["per_class"].keys()
+        entry["per_class"] = {action: float(np.mean([run["per_class"][action] for run in done]))
+                              for action in actions}
+    return entry
+
+
+def _run_seed(method, setting, data, classifier, train, recipe, budget, iters, folder, repeats,
+              seed, n, checkpoint_every, bar) -> dict:
+    """Train, sample and evaluate one method with one training seed."""
+    entry = {"seed": seed}
     try:
         model, record = train_within_budget(
             method, train, classifier.actions, budget, folder, recipe, seed, checkpoint_every,
-            on_tick=lambda text: bar.set_postfix_str(text, refresh=True))
+            on_tick=lambda text: bar.set_postfix_str(text, refresh=True), iters=iters)
     except (MethodError, ValueError, RuntimeError) as exc:
         entry["error"] = f"training failed: {exc}"
         return entry
     entry.update({key: record.get(key) for key in
                   ("seconds", "cpu_seconds", "iterations", "finish_seconds", "parameters",
                    "reused")})
-    bar.set_postfix_str("sampling and evaluating", refresh=True)
+    bar.set_postfix_str(f"seed {seed}: sampling and evaluating", refresh=True)
     signature = {"iteration": model.iteration, "n": n, "repeats": repeats, "seed": seed,
                  "metrics": list(setting.metrics), "classifier": classifier.iteration,
                  "split": classifier.split.to_dict()}
@@ -418,13 +543,14 @@ def _run_method(method, setting, data, classifier, train, presets, budget, folde
     try:
         start = time.perf_counter()
         motions = model.sample([action for action in classifier.actions for _ in range(n)], seed=seed)
-        npz.save(folder / f"{method}.npz", motions)
+        npz.save(folder / f"{run_stem(method, seed)}.npz", motions)
         values = evaluate(data, motions, classifier, setting.metrics, repeats, seed)
         found = {
             "metrics": {key: {"mean": row["mean"], "ci": row["ci"]}
                         for key, row in values["metrics"].items()},
             "real": {key: {"mean": row["real"]["mean"], "ci": row["real"]["ci"]}
                      for key, row in values["metrics"].items() if row["real"]},
+            "protocol": values.get("protocol", {}).get("name"),
             "per_class": per_class_accuracy(classifier, motions),
             "evaluate_seconds": time.perf_counter() - start,
         }
@@ -432,7 +558,7 @@ def _run_method(method, setting, data, classifier, train, presets, budget, folde
         entry["error"] = f"sampling or evaluation failed: {exc}"
         return entry
     record["evaluation"] = {"signature": signature, "values": found}
-    write_json(folder / f"{method}.json", record)
+    write_json(folder / f"{run_stem(method, seed)}.json", record)
     entry.update(found)
     return entry
 
@@ -440,7 +566,10 @@ def _run_method(method, setting, data, classifier, train, presets, budget, folde
 def _summary_line(dataset: str, method: str, entry: dict) -> str:
     if entry.get("error"):
         return f"{dataset} {method}: {entry['error']}"
-    values = ", ".join(f"{key} {row['mean']:.4g}" for key, row in entry["metrics"].items()
-                       if row["mean"] is not None)
-    return (f"{dataset} {method} [{entry['recipe']}]: {entry['iterations']} iterations in "
-            f"{entry['seconds']:.0f} s; {values}")
+    values = ", ".join(
+        f"{key} {row['mean']:.4g}" + (f" ± {row['ci_seeds']:.2g}" if row["ci_seeds"] is not None else "")
+        for key, row in entry["metrics"].items() if row["mean"] is not None)
+    seeds = len(entry["runs"])
+    return (f"{dataset} {method} [{entry['recipe']}]: {seeds} seeds, iterations "
+            f"{'/'.join(map(str, entry['iterations']))} in {entry['seconds']:.0f} s; "
+            f"mean over seeds {values}")

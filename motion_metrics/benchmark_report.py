@@ -1,14 +1,17 @@
 """Turn the results of :func:`motion_metrics.benchmark.run_benchmark` into ``docs/RESULTS.md``.
 
 Per data setting: how the data was split and the classifier trained, the methods'
-training within the budget, our numbers (mean ± 95 % CI) with the Real values beside
-and the papers' numbers in their own columns, and a paragraph on where and why we fall
-short of the papers.
+training within the budget (per seed), our numbers (the mean over training seeds with a
+95 % t interval over seeds, and beside it the 95 % interval over samples of the
+evaluation protocol, named per table) with the Real values beside and the papers'
+numbers in their own columns, and a paragraph on where and why we fall short of the
+papers.
 """
 
 from __future__ import annotations
 
 import math
+import shlex
 from datetime import datetime
 
 from motion_metrics.paper_numbers import TABLES, PaperTable
@@ -41,10 +44,28 @@ DESCRIPTIONS = {
 }
 
 
+PROTOCOLS = {
+    "bootstrap": ("one set of generated motions per seed, resampled with replacement within "
+                  "each action in every repeat; Real compares held-out with training clips"),
+    "a2m": ("Action2Motion's: a fresh set of generated motions per repeat; Real compares two "
+            "draws of the held-out clips"),
+}
+COND_GRU = ("`cond_gru` starts every motion from the first pose of a real training clip of its "
+            "action (drawn from a bank of such poses kept in its checkpoint; seed 000's baseline "
+            "needs a first pose), a head start the other methods lack")
+
+
+def _budget_text(result: dict) -> str:
+    if result.get("iters") is not None:
+        return f"{result['iters']:,} training iterations"
+    return f"{result['budget']:g} s of training wall time"
+
+
 def render(result: dict, command: str) -> str:
     """Return the Markdown of a benchmark run, produced by ``command``."""
     lines = ["# Results: our methods measured against the seed papers' tables", ""]
     lines += _provenance(result, command)
+    lines += _not_run(result, command)
     for setting in result["settings"]:
         lines += _setting(result, setting)
     lines += _shortfalls(result)
@@ -59,9 +80,11 @@ def _provenance(result: dict, command: str) -> list[str]:
     load = (f"; shared with other work (load average {loads[0]:.1f} at the start, "
             f"{loads[-1]:.1f} at the end)" if loads else "")
     entries = [entry for setting in result["settings"] for entry in setting["methods"].values()]
-    reused = sum(bool(entry.get("reused")) for entry in entries)
-    earlier = (f" ({reused} of the {len(entries)} trainings were reused from `--work`, where an "
+    reused = sum(int(entry.get("reused") or 0) for entry in entries)
+    trainings = sum(len(entry.get("runs") or []) for entry in entries)
+    earlier = (f" ({reused} of the {trainings} trainings were reused from `--work`, where an "
                f"earlier invocation with the same budget had finished them)" if reused else "")
+    seeds = result["seeds"]
     work = {
         "training": sum(entry.get("seconds") or 0 for entry in entries),
         "fitting ODMO's modes": sum(entry.get("finish_seconds") or 0 for entry in entries),
@@ -81,17 +104,44 @@ def _provenance(result: dict, command: str) -> list[str]:
         f"- Machine: {info['cores']} CPU cores ({info['cpu']}), {gpu}; Python {info['python']}, "
         f"torch {info['torch']}, one torch thread{load}.",
         f"- Work behind these numbers, summed over the invocations that made it: {summed}.",
-        f"- Budget: **{result['budget']:g} s of training wall time per method and setting** "
-        f"(one core), checkpointed and resumable; ODMO's mode fitting after training is timed "
-        f"apart. Presets as in the training tables (`demo`: the method's small configuration); "
-        f"their CPU seconds show how much of a core each method got on the shared machine.",
-        f"- Each method draws {result['n']} motions per action (seed {result['seed']}; seed 003 "
-        f"drew 100 per class); metrics are the mean ± 95 % CI over {result['repeats']} repeats "
-        f"(A2M's protocol, `motion_metrics/protocol.py`: motions and real clips drawn with "
-        f"replacement per repeat). **Real** compares held-out clips with training clips, as "
-        f"the papers' \"Real motions\" rows do.",
+        f"- Budget: **{_budget_text(result)} per method, setting and training seed** "
+        + ("(the same number for every method; the iterations of a pretraining phase count) "
+           if result.get("iters") is not None else "")
+        + f"on one torch thread, checkpointed and resumable; ODMO's mode fitting after training "
+        f"is timed apart. The preset of each method is stated per row of the training tables "
+        f"(`paper`: the paper's configuration; `demo`: the method's small configuration); "
+        f"their CPU seconds show how much of a core each method got on the shared machine. "
+        f"**The numbers depend on this budget**: more training changes them, and the order "
+        f"of the methods with them.",
+        f"- Training seeds {', '.join(map(str, seeds))}: each seed trains its own model, which "
+        f"draws {result['n']} motions per action with that seed (seed 003 drew 100 per class) "
+        f"and is evaluated over {result['repeats']} repeats seeded by it. Each of our cells is "
+        f"**the mean over the {len(seeds)} seeds' models ± the half-width of the 95 % t "
+        f"interval over seeds** (t with {len(seeds) - 1} degrees of freedom × standard "
+        f"deviation / √{len(seeds)}); the column after it, **± samples**, is the 95 % interval "
+        f"over samples of the evaluation protocol (`motion_metrics/protocol.py`, named above "
+        f"each table), averaged over the seeds. The interval over seeds includes the variation "
+        f"of training; the one over samples does not. **Real** (from the first seed's "
+        f"evaluation, with the protocol's interval) compares held-out clips with training "
+        f"clips, as the papers' \"Real motions\" rows do.",
         "",
     ]
+
+
+def _not_run(result: dict, command: str) -> list[str]:
+    """Return which Human3.6M settings this run left out, with the command that runs them."""
+    run = [setting["dataset"] for setting in result["settings"]]
+    missing = [name for name in ("h36m2d", "h36m") if name not in run]
+    if not missing or not any(name.startswith("h36m") for name in run):
+        return []
+    parts = shlex.split(command)
+    if "--dataset" in parts:
+        parts[parts.index("--dataset") + 1] = ",".join(missing)
+    if "--out" in parts:
+        parts[parts.index("--out") + 1] = "RESULTS_" + "_".join(missing) + ".md"
+    return [f"- Settings run: {', '.join(run)}. **Not run** at this budget on this machine: "
+            f"{', '.join(missing)}; the same budget for {'it' if len(missing) == 1 else 'them'} "
+            f"(into another file, with the same `--work`):", "", "```", shlex.join(parts), "```", ""]
 
 
 def _setting(result: dict, setting: dict) -> list[str]:
@@ -134,27 +184,63 @@ def _setting(result: dict, setting: dict) -> list[str]:
 
 
 def _training_table(setting: dict) -> list[str]:
-    lines = ["Training within the budget:", "",
+    lines = ["Training within the budget (values per training seed, in the order of the seeds):", "",
              "| method | preset | parameters | iterations | train (s, wall) | train (s, CPU) "
              "| after training (s) |",
              "|---|---|---:|---:|---:|---:|---:|"]
     for method, entry in setting["methods"].items():
-        if entry.get("seconds") is None:
+        runs = [run for run in entry.get("runs") or [] if run.get("seconds") is not None]
+        if not runs:
             lines.append(f"| `{method}` | {entry['recipe']} | | | | | |")
             continue
-        finish = entry.get("finish_seconds")
+        iterations = [run["iterations"] for run in runs]
+        counts = (f"{iterations[0]:,} × {len(runs)}" if len(set(iterations)) == 1
+                  else " / ".join(f"{value:,}" for value in iterations))
+        finish = [run.get("finish_seconds") for run in runs]
         lines.append(
-            f"| `{method}` | {entry['recipe']} | {entry['parameters']:,} | {entry['iterations']:,} | "
-            f"{entry['seconds']:.0f} | {entry['cpu_seconds']:.0f} | "
-            f"{'' if finish is None else f'{finish:.0f} (modes)'} |"
+            f"| `{method}` | {entry['recipe']} | {entry['parameters']:,} | {counts} | "
+            + " / ".join(f"{run['seconds']:.0f}" for run in runs) + " | "
+            + " / ".join(f"{run['cpu_seconds']:.0f}" for run in runs) + " | "
+            + ("" if all(value is None for value in finish) else
+               " / ".join("" if value is None else f"{value:.0f}" for value in finish) + " (modes)")
+            + " |"
         )
     return lines + [""]
 
 
-def _cell(row: dict | None, digits: int = 3) -> str:
+def _cell(row: dict | None, digits: int = 3, key: str = "ci_seeds") -> str:
     if not row or row.get("mean") is None or not math.isfinite(row["mean"]):
         return "–"
-    return f"{row['mean']:.{digits}f} ± {row['ci']:.{digits}f}"
+    ci = row.get(key)
+    return f"{row['mean']:.{digits}f}" + ("" if ci is None else f" ± {ci:.{digits}f}")
+
+
+def _spread(row: dict | None, digits: int = 3) -> str:
+    """Return the interval over samples of our row (or of Real) as ``± value``."""
+    if not row or row.get("mean") is None:
+        return ""
+    ci = row.get("ci_samples", row.get("ci"))
+    return "" if ci is None or not math.isfinite(ci) else f"± {ci:.{digits}f}"
+
+
+def _first(setting: dict, metric: str) -> str | None:
+    """Return the method whose mean ranks first by ``metric`` (closest to Real for → metrics)."""
+    scored = {name: _mean(entry, metric) for name, entry in setting["methods"].items()
+              if _mean(entry, metric) is not None}
+    if not scored:
+        return None
+    if metric in ("diversity", "multimodality"):
+        real = ((setting.get("real") or {}).get(metric) or {}).get("mean")
+        if real is None:
+            return None
+        score = {name: abs(value - real) for name, value in scored.items()}
+    elif metric == "accuracy":
+        score = {name: -value for name, value in scored.items()}
+    else:
+        score = scored
+    best = min(score, key=score.get)
+    ties = [name for name, value in score.items() if value == score[best]]
+    return best if len(ties) == 1 else None  # only a strict first
 
 
 def _paper_cell(table: PaperTable, method: str | None, metric: str) -> str:
@@ -169,24 +255,44 @@ def _metric_table(setting: dict, metrics: list[str], tables: list[PaperTable]) -
     """Return a table with, per metric, our column and one column per paper table reporting it."""
     columns = []
     for metric in metrics:
-        columns.append((metric, None))
+        columns += [(metric, None), (metric, "samples")]
         columns += [(metric, table) for table in tables if metric in table.metrics]
         if metric == "accuracy" and "004_table_2" in setting["tables"]:
             columns.append((metric, TABLES["004_table_2"]))
-    header = ["method"] + [NAMES.get(m, m) if t is None else SHORT.get(t.key, t.key) for m, t in columns]
-    lines = ["| " + " | ".join(header) + " |", "|---|" + "---:|" * len(columns)]
+    header = ["method"] + [NAMES.get(m, m) + " (± seeds, t)" if t is None else
+                           "± samples" if t == "samples" else SHORT.get(t.key, t.key)
+                           for m, t in columns]
+    name = setting.get("protocol") or "bootstrap"
+    lines = [f"Protocol: `{name}` ({PROTOCOLS.get(name, name)}).", "",
+             "| " + " | ".join(header) + " |", "|---|" + "---:|" * len(columns)]
     real = setting.get("real") or {}
-    cells = [_cell(real.get(m)) if t is None else _paper_cell(t, None, m) for m, t in columns]
+    cells = [_cell(real.get(m), key="none") if t is None else _spread(real.get(m)) if t == "samples"
+             else _paper_cell(t, None, m) for m, t in columns]
     lines.append("| **Real** (held-out vs training clips) | " + " | ".join(cells) + " |")
+    firsts = {metric: _first(setting, metric) for metric in metrics}
+    marked = False
     for method, entry in setting["methods"].items():
         ours = entry.get("metrics") or {}
-        if entry.get("error"):
-            cells = [entry["error"].split(":")[0] if t is None else _paper_cell(t, method, m)
-                     for m, t in columns]
-        else:
-            cells = [_cell(ours.get(m)) if t is None else _paper_cell(t, method, m) for m, t in columns]
+        cells = []
+        for m, t in columns:
+            if t is None:
+                if entry.get("error"):
+                    cells.append(entry["error"].split(":")[0])
+                    continue
+                cell = _cell(ours.get(m))
+                if method == "cond_gru" and firsts.get(m) == "cond_gru":
+                    cell += " †"
+                    marked = True
+                cells.append(cell)
+            elif t == "samples":
+                cells.append("" if entry.get("error") else _spread(ours.get(m)))
+            else:
+                cells.append(_paper_cell(t, method, m))
         lines.append(f"| `{method}` | " + " | ".join(cells) + " |")
     lines.append("")
+    if marked:
+        lines += [f"† Ranks first here by the mean over seeds (lowest, highest accuracy, or closest to Real for → "
+                  f"metrics); {COND_GRU}.", ""]
     others = []
     for table in tables:
         missing = [row for row in table.rows if row.method is None]
@@ -233,32 +339,35 @@ def _mean(entry: dict, metric: str) -> float | None:
 def _shortfalls(result: dict) -> list[str]:
     """Return the closing section: where our numbers fall short of the papers', and why."""
     lines = ["## Where we fall short, and why", ""]
-    iterations = [entry["iterations"] for setting in result["settings"]
-                  for entry in setting["methods"].values() if entry.get("iterations")]
+    iterations = [value for setting in result["settings"]
+                  for entry in setting["methods"].values() for value in entry.get("iterations") or []]
     span = f"{min(iterations):,}–{max(iterations):,}" if iterations else "few"
+    same = bool(iterations) and min(iterations) == max(iterations)
     presets = {entry["recipe"].split(" ")[0] for setting in result["settings"]
                for entry in setting["methods"].values()}
     networks = ("reduced (`demo` preset) networks with batches of 32" if presets == {"demo"}
-                else "networks of the presets in the training tables")
+                else "networks of the presets in the training tables (mostly the reduced `demo` "
+                     "presets)" if "demo" in presets else "networks of the presets in the "
+                     "training tables")
+    phases = ("250–300 in our `demo` presets" if result.get("iters") is None else
+              "here half of the iteration budget, as the training table's changes say, so that "
+              "sequence training gets the other half")
     facts = []
     for setting in result["settings"]:
         facts += _setting_facts(setting)
     if any("cond_gru" in setting["methods"] for setting in result["settings"]):
-        facts.append(
-            "`cond_gru` starts every motion from a real training pose (seed 000's baseline needs "
-            "a first pose), a head start under FID and MMD that the other methods lack."
-        )
+        facts.append(COND_GRU[0].upper() + COND_GRU[1:] + "; this matters most under FID and MMD.")
     if facts:
         lines += [" ".join(facts), ""]
     lines.append(
-        f"The main reason is training. Each method had {result['budget']:g} s on one CPU core, "
-        f"{span} iterations of {networks}, where the papers "
+        f"The main reason is training. Each method had {_budget_text(result)} per seed on one "
+        f"CPU core{'' if same else f', {span} iterations'} of {networks}, where the papers "
         "trained full-size networks on GPUs for tens of thousands of iterations or more: "
         "Action2Motion reports 40,000 iterations with its Lie algebra representation and "
         "500,000 without (seed 000, appendix), and the GAN baselines pretrain a frame or pose "
-        "model for 10,000 iterations before sequence training starts (their code; 250–300 in "
-        "our `demo` presets). GANs in particular are far from equilibrium after a "
-        "minute, so their numbers here say more about how fast a method starts to learn than "
+        "model for 10,000 iterations before sequence training starts (their code; "
+        f"{phases}). GANs in particular are far from equilibrium after so "
+        "short a training, so their numbers here say more about how fast a method starts to learn than "
         "about what it can reach. The data differ too: the papers held out S11, which our copy "
         "of Human3.6M lacks, so we test on S9 and train on one subject fewer; our 2D clips are "
         "resampled from 25 fps rather than taken every 3rd frame of 50 Hz; and the accuracy and "
@@ -292,8 +401,8 @@ def _setting_facts(setting: dict) -> list[str]:
             paper_best = min(table.rows, key=lambda row: row.values[metric])
             real_value = (real.get(metric) or {}).get("mean")
             facts.append(
-                f"On {dataset} our best {NAMES[metric].split()[0]} is {scored[best]:.3f} "
-                f"(`{best}`), where {paper_best.label} reports {paper_best.values[metric]:g} "
+                f"On {dataset} our best {NAMES[metric].split()[0]} (mean over seeds) is {scored[best]:.3f} "
+                f"(`{best}`{_head_start(best)}), where {paper_best.label} reports {paper_best.values[metric]:g} "
                 f"({table.source})" + (f" and real held-out clips score {real_value:.3f} against "
                                        f"the training clips." if real_value is not None else ".")
             )
@@ -316,7 +425,7 @@ def _setting_facts(setting: dict) -> list[str]:
             best = min(scored, key=scored.get)
             paper = table.row("a2m").values["fid"] / table.real.values["fid"]
             facts.append(
-                f"On {dataset} our best FID is {scored[best]:.3g} (`{best}`), "
+                f"On {dataset} our best FID is {scored[best]:.3g} (`{best}`{_head_start(best)}), "
                 f"{scored[best] / real_fid:.1f}× the Real value of {real_fid:.3g}; Action2Motion's "
                 f"FID on HumanAct12 is {paper:.0f}× its Real value."
             )
@@ -336,11 +445,16 @@ def _setting_facts(setting: dict) -> list[str]:
     if accuracy:
         best = max(accuracy, key=accuracy.get)
         facts.append(
-            f"The most recognisable samples on {dataset} are `{best}`'s, at "
+            f"The most recognisable samples on {dataset} are `{best}`'s{_head_start(best)}, at "
             f"{accuracy[best]:.3f} accuracy against {setting['classifier']['test_accuracy']:.3f} "
             f"for real held-out clips."
         )
     return [fact for fact in facts if fact]
+
+
+def _head_start(method: str) -> str:
+    """Return a note for ``method`` ranking first: cond_gru starts from real poses."""
+    return ", which starts from real first poses" if method == "cond_gru" else ""
 
 
 def _order_sentence(methods: dict, table: PaperTable, metric: str) -> str:
@@ -352,8 +466,14 @@ def _order_sentence(methods: dict, table: PaperTable, metric: str) -> str:
     paper = [row.method for row in sorted(shared, key=lambda row: row.values[metric])]
     ours = sorted(paper, key=lambda name: _mean(methods[name], metric))
     label = NAMES[metric].split()[0]
+    rows = [(methods[name].get("metrics") or {}).get(metric) or {} for name in ours]
+    overlap = any(a.get("ci_seeds") is None or b.get("ci_seeds") is None
+                  or a["mean"] + a["ci_seeds"] >= b["mean"] - b["ci_seeds"]
+                  for a, b in zip(rows, rows[1:]))
+    caveat = (" (orders of the means over seeds; neighbours' intervals over seeds overlap, so "
+              "this run does not establish the order)" if overlap else "")
     if ours == paper:
         return (f"By {label} our order of the methods {table.source} reports is the paper's "
-                f"({' < '.join(ours)}).")
+                f"({' < '.join(ours)}){caveat}.")
     return (f"By {label} the order differs from {table.source}: ours {' < '.join(ours)}, "
-            f"the paper's {' < '.join(paper)}.")
+            f"the paper's {' < '.join(paper)}{caveat}.")

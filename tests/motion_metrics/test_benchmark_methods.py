@@ -9,13 +9,13 @@ from django.core.management import call_command
 from generation.datasets import get_dataset
 from generation.formats import npz
 from generation.methods import get_method
-from motion_metrics.benchmark import Recipe, train_within_budget
+from motion_metrics.benchmark import Recipe, recipe_for, train_within_budget
 from motion_metrics.paper_numbers import A2M_TABLE_1, SA_GCN_TABLE_2
 from tests.conftest import make_motion
 
 torch.set_num_threads(1)
 
-TINY = ["--budget", "1", "--repeats", "2", "--n", "3", "--classifier-iters", "5",
+TINY = ["--iters", "3", "--repeats", "2", "--n", "3", "--classifier-iters", "5",
         "--classifier-preset", "tiny"]
 
 
@@ -33,21 +33,63 @@ def test_paper_numbers_are_the_tables():
         assert len(classes) == 10 and abs(np.mean(classes) - row.values["accuracy"]) < 0.006
 
 
-def test_command_writes_results_beside_a2m_and_reuses_its_work(tmp_path):
+def test_command_trains_three_seeds_for_equal_iterations_and_reuses_its_work(tmp_path):
     text = benchmark(tmp_path, "--dataset", "demo", "--methods", "cond_gru,a2m_xyz",
                      "--presets", "cond_gru=tiny,a2m_xyz=tiny")
-    assert "python manage.py benchmark_methods --dataset demo --budget 1" in text
+    assert "python manage.py benchmark_methods --dataset demo --iters 3 --seeds 0,1,2" in text
     assert "no GPU" in text and "Where we fall short" in text
+    assert "3 training iterations per method, setting and training seed" in text
+    assert "95 % t interval over seeds" in text and "Protocol: `bootstrap`" in text
+    header = next(line for line in text.splitlines() if line.startswith("| method | FID"))
+    assert header.split(" | ")[1:4] == ["FID ↓ (± seeds, t)", "± samples", "A2M (HumanAct12)"]
     assert "| **Real** (held-out vs training clips) |" in text and "0.092 ± 0.007" in text
     row = next(line for line in text.splitlines() if line.startswith("| `cond_gru` |") and "±" in line)
-    assert "40.61 ± 0.144" in row and len(row.split("|")) == 11  # 4 metrics, ours and A2M's
-    record = json.loads((tmp_path / "work" / "demo" / "cond_gru.json").read_text())
-    assert record["finished"] and record["seconds"] >= 1 and record["iterations"] > 0
-    checkpoint = tmp_path / "work" / "demo" / "cond_gru.pt"
+    assert "40.61 ± 0.144" in row and len(row.split("|")) == 15  # 4 metrics: ours, ± samples, A2M's
+    assert "| `cond_gru` | tiny |" in text and "| 3 × 3 |" in text  # per row: preset, iterations × seeds
+    results = json.loads((tmp_path / "work" / "results.json").read_text())
+    entry = results["settings"][0]["methods"]["cond_gru"]
+    assert [run["seed"] for run in entry["runs"]] == [0, 1, 2] and entry["iterations"] == [3, 3, 3]
+    fid = entry["metrics"]["fid"]
+    means = [run["mean"] for run in fid["seeds"]]
+    assert len(set(means)) == 3 and np.isclose(fid["mean"], np.mean(means))  # three models
+    assert np.isclose(fid["ci_seeds"], 4.302653 * np.std(means, ddof=1) / np.sqrt(3), rtol=1e-5)
+    assert np.isclose(fid["ci_samples"], np.mean([run["ci"] for run in fid["seeds"]]))
+    assert f"{fid['mean']:.3f} ± {fid['ci_seeds']:.3f}" in row and f"± {fid['ci_samples']:.3f}" in row
+    for seed in (0, 1, 2):
+        record = json.loads((tmp_path / "work" / "demo" / f"cond_gru-seed{seed}.json").read_text())
+        assert record["finished"] and record["iterations"] == 3 and record["signature"]["seed"] == seed
+    checkpoint = tmp_path / "work" / "demo" / "cond_gru-seed2.pt"
     written = checkpoint.stat().st_mtime_ns
-    assert benchmark(tmp_path, "--dataset", "demo", "--methods", "cond_gru,a2m_xyz",
-                     "--presets", "cond_gru=tiny,a2m_xyz=tiny").count("`cond_gru`") >= 2
-    assert checkpoint.stat().st_mtime_ns == written  # the same budget reuses the checkpoint
+    again = benchmark(tmp_path, "--dataset", "demo", "--methods", "cond_gru,a2m_xyz",
+                      "--presets", "cond_gru=tiny,a2m_xyz=tiny")
+    assert "6 of the 6 trainings were reused" in again
+    assert checkpoint.stat().st_mtime_ns == written  # the same budget and seed reuse the checkpoint
+
+
+def test_cond_gru_ranking_first_is_marked_as_starting_from_real_poses():
+    from motion_metrics.benchmark_report import _metric_table
+
+    def entry(fid):
+        return {"metrics": {"fid": {"mean": fid, "ci_seeds": 0.1, "ci_samples": 0.05}}}
+
+    setting = {"tables": [], "protocol": "bootstrap", "real": {"fid": {"mean": 1.0, "ci": 0.02}},
+               "methods": {"cond_gru": entry(2.0), "a2m": entry(3.0)}}
+    text = "\n".join(_metric_table(setting, ["fid"], []))
+    assert "| `cond_gru` | 2.000 ± 0.100 † | ± 0.050 |" in text and "first pose of a real training clip" in text
+    assert "| **Real** (held-out vs training clips) | 1.000 | ± 0.020 |" in text
+    setting["methods"]["a2m"] = entry(1.5)
+    assert "†" not in "\n".join(_metric_table(setting, ["fid"], []))
+
+
+def test_command_rejects_a_single_seed_and_both_budgets(tmp_path):
+    import pytest
+    from django.core.management import CommandError
+
+    with pytest.raises(CommandError, match="--seeds '0'.*at least 2"):
+        benchmark(tmp_path, "--dataset", "demo", "--methods", "cond_gru", "--seeds", "0")
+    with pytest.raises(CommandError, match="not allowed with argument"):
+        call_command("benchmark_methods", "--dataset", "demo", "--iters", "3", "--budget", "1",
+                     "--out", str(tmp_path / "r.md"), verbosity=0)
 
 
 def test_command_on_h36m2d_compares_with_seeds_003_and_004(tmp_path, h36m_root):
@@ -55,12 +97,42 @@ def test_command_on_h36m2d_compares_with_seeds_003_and_004(tmp_path, h36m_root):
                      "--methods", "skeleton_vae,sa_gcn", "--presets", "skeleton_vae=tiny,sa_gcn=tiny",
                      "--subjects", "S1")
     assert "S11" in text and "held-out subjects S9" in text
+    assert "Settings run: h36m2d. **Not run**" in text
+    assert "benchmark_methods --dataset h36m --iters 3 --seeds 0,1,2" in text
     header = next(line for line in text.splitlines() if line.startswith("| method | MMD_avg"))
-    assert header.split(" | ")[1:] == ["MMD_avg ↓", "004 T1", "003 T1", "MMD_seq ↓", "004 T1",
-                                       "003 T1", "accuracy ↑", "004 T2 |"]
+    assert header.split(" | ")[1:] == ["MMD_avg ↓ (± seeds, t)", "± samples", "004 T1", "003 T1",
+                                       "MMD_seq ↓ (± seeds, t)", "± samples", "004 T1", "003 T1",
+                                       "accuracy ↑ (± seeds, t)", "± samples", "004 T2 |"]
     sa_gcn = next(line for line in text.splitlines() if line.startswith("| `sa_gcn` |") and "0.146" in line)
-    assert "0.134" in sa_gcn and "0.593" in sa_gcn and sa_gcn.count("±") == 3
+    assert "0.134" in sa_gcn and "0.593" in sa_gcn and sa_gcn.count("±") == 6
     assert "| SA-GCN (004 T2) | 0.42 |" in text and "FID ↓" in text
+
+
+def test_training_stops_at_equal_iterations_and_resumes_to_more(tmp_path):
+    clips = get_dataset("demo").clips(frames=12, max_per_take=1, actions=["walk", "run"])
+    recipe = Recipe("tiny")
+    model, first = train_within_budget("cond_gru", clips, ["walk", "run"], None, tmp_path, recipe,
+                                       seed=1, iters=4)
+    assert model.iteration == first["iterations"] == 4 and (tmp_path / "cond_gru-seed1.pt").is_file()
+    model, again = train_within_budget("cond_gru", clips, ["walk", "run"], None, tmp_path, recipe,
+                                       seed=1, iters=4)
+    assert again["reused"] and model.iteration == 4
+    model, more = train_within_budget("cond_gru", clips, ["walk", "run"], None, tmp_path, recipe,
+                                      seed=1, iters=7)
+    assert model.iteration == more["iterations"] == 7 and not more["reused"]
+    model, fewer = train_within_budget("cond_gru", clips, ["walk", "run"], None, tmp_path, recipe,
+                                       seed=1, iters=4)
+    assert model.iteration == fewer["iterations"] == 4  # past the target: trained afresh
+
+
+def test_iteration_budget_shortens_first_phases_of_default_recipes():
+    assert recipe_for("skeleton_gan", None, 80).describe() == "demo (pretrain_iters=40)"
+    assert recipe_for("two_stage_gan", None, 80).changes == {"pose_iterations": 40}
+    assert recipe_for("odmo", None, 100).changes == {"teacher_forcing_iters": 75}
+    assert recipe_for("odmo", None, 1000).changes == {"teacher_forcing_iters": 300}
+    assert recipe_for("skeleton_gan", None, None).changes == {}
+    assert recipe_for("skeleton_gan", {"skeleton_gan": "demo"}, 80).changes == {}
+    assert recipe_for("a2m", None, 80) == Recipe()
 
 
 def test_training_resumes_to_a_larger_budget(tmp_path):
@@ -78,7 +150,7 @@ def test_training_restarts_when_the_config_or_version_changed(tmp_path):
     clips = get_dataset("demo").clips(frames=12, max_per_take=1, actions=["walk", "run"])
     recipe = Recipe("tiny")
     model, first = train_within_budget("cond_gru", clips, ["walk", "run"], 0.2, tmp_path, recipe)
-    record_path = tmp_path / "cond_gru.json"
+    record_path = tmp_path / "cond_gru-seed0.json"
     record = json.loads(record_path.read_text())
     assert record["signature"]["version"] == 1 and "config" in record["signature"]
     for stale in ({"version": 0}, {"config": {**record["signature"]["config"], "hidden": 1}}):

@@ -14,23 +14,33 @@ from motion_metrics.benchmark_report import render
 
 class Command(BaseCommand):
     help = (
-        "Train every method for a time budget on each dataset, evaluate it with the seed "
-        "papers' metrics and write a Markdown report of our numbers beside the papers' "
-        "(default docs/RESULTS.md). Checkpoints in --work let a stopped run resume."
+        "Train every method with several seeds for an equal number of iterations (or a time "
+        "budget) on each dataset, evaluate each seed's model with the seed papers' metrics and "
+        "write a Markdown report of the means over seeds, with intervals over seeds and over "
+        "samples, beside the papers' numbers (default docs/RESULTS.md). Checkpoints in --work "
+        "let a stopped run resume."
     )
 
     def add_arguments(self, parser):
         parser.add_argument("--dataset", default="h36m2d,h36m",
                             help="Comma-separated datasets: h36m2d (seeds 003/004), h36m (A2M's "
                                  "metrics), demo (default: h36m2d,h36m).")
-        parser.add_argument("--budget", type=float, required=True,
-                            help="Seconds of training wall time per method and dataset.")
+        budget = parser.add_mutually_exclusive_group(required=True)
+        budget.add_argument("--iters", type=int,
+                            help="Training iterations per method, dataset and seed (the same for "
+                                 "every method; phases of pretraining count).")
+        budget.add_argument("--budget", type=float,
+                            help="Instead of --iters: seconds of training wall time per method, "
+                                 "dataset and seed.")
+        parser.add_argument("--seeds", default="0,1,2",
+                            help="Comma-separated training seeds, at least 2 for an interval over "
+                                 "seeds (default: 0,1,2). Each seed's model samples and is "
+                                 "evaluated with that seed; the classifier trains with the first.")
         parser.add_argument("--methods", help=f"Comma-separated, from: {', '.join(list_methods())} "
                                               f"(default: all).")
         parser.add_argument("--presets", metavar="METHOD=PRESET,...",
                             help="Config presets replacing the default recipe (demo) of some methods.")
         parser.add_argument("--repeats", type=int, default=20, help="Repeats for the 95 %% CI (A2M: 20).")
-        parser.add_argument("--seed", type=int, default=0, help="Seed of training, sampling and repeats.")
         parser.add_argument("--n", type=int, default=100, help="Motions per action (seed 003: 100).")
         parser.add_argument("--subjects", help="Training subjects (default for h36m*: S1,S5,S6,S7,S8).")
         parser.add_argument("--test-subjects", help="Held-out subjects (default for h36m*: S9).")
@@ -45,8 +55,18 @@ class Command(BaseCommand):
         parser.add_argument("--out", default="docs/RESULTS.md", help="Markdown file to write.")
 
     def handle(self, *args, **options):
-        if options["budget"] <= 0:
+        if options["budget"] is not None and options["budget"] <= 0:
             raise CommandError(f"--budget must be positive; got {options['budget']}")
+        if options["iters"] is not None and options["iters"] < 1:
+            raise CommandError(f"--iters must be at least 1; got {options['iters']}")
+        try:
+            seeds = [int(seed) for seed in split_names(options["seeds"])]
+        except ValueError:
+            raise CommandError(f"--seeds {options['seeds']!r}: write comma-separated integers, "
+                               f"e.g. 0,1,2") from None
+        if len(seeds) < 2 or len(set(seeds)) != len(seeds) or min(seeds) < 0:
+            raise CommandError(f"--seeds {options['seeds']!r}: give at least 2 distinct "
+                               f"non-negative seeds (an interval over seeds needs 2), e.g. 0,1,2")
         work = Path(options["work"] or Path(settings.VAR_DIR) / "benchmark")
         try:
             presets = dict(item.split("=", 1) for item in split_names(options["presets"]))
@@ -55,8 +75,9 @@ class Command(BaseCommand):
         try:
             result = run_benchmark(
                 split_names(options["dataset"]), options["budget"], work,
+                iters=options["iters"], seeds=seeds,
                 methods=split_names(options["methods"]) or None, presets=presets,
-                repeats=options["repeats"], seed=options["seed"], n=options["n"],
+                repeats=options["repeats"], n=options["n"],
                 subjects=split_names(options["subjects"]) or None,
                 test_subjects=split_names(options["test_subjects"]) or None,
                 actions=split_names(options["actions"]) or None,
@@ -77,12 +98,16 @@ class Command(BaseCommand):
 
 def command_line(options: dict, work: Path) -> str:
     """Return the command that reproduces this run (every choice spelled out)."""
-    parts = ["python", "manage.py", "benchmark_methods", "--dataset", options["dataset"],
-             "--budget", f"{options['budget']:g}"]
+    parts = ["python", "manage.py", "benchmark_methods", "--dataset", options["dataset"]]
+    if options["iters"] is not None:
+        parts += ["--iters", str(options["iters"])]
+    else:
+        parts += ["--budget", f"{options['budget']:g}"]
+    parts += ["--seeds", ",".join(str(int(seed)) for seed in split_names(options["seeds"]))]
     for flag in ("methods", "presets", "subjects", "test_subjects", "actions", "data_root"):
         if options[flag]:
             parts += [f"--{flag.replace('_', '-')}", options[flag]]
-    parts += ["--repeats", str(options["repeats"]), "--seed", str(options["seed"]),
+    parts += ["--repeats", str(options["repeats"]),
               "--n", str(options["n"]), "--classifier-iters", str(options["classifier_iters"]),
               "--classifier-preset", options["classifier_preset"], "--out", options["out"],
               "--work", str(work)]
