@@ -133,3 +133,13 @@ def test_a_hung_cache_does_not_hold_up_entry(hung_redis, clips, media_root):
         # The limit fails open when the cache does not answer: everyone still gets in.
         statuses = [Client().get(f"/s/{study.slug}/").status_code for _ in range(3)]
     assert statuses == [302] * 3
+
+
+def test_tokens_never_start_as_a_spreadsheet_formula(monkeypatch):
+    """A token starting with "-" would be written to the CSV export as "'-..." (a formula
+    neutralised) and no longer read back as itself: such draws are drawn again."""
+    from studyapp.survey import models
+
+    draws = iter(["-d8opZFlI_z2lmBZ6uhYaA", "_x8opZFlI_z2lmBZ6uhYaA", "Qd8opZFlI_z2lmBZ6uhYaA"])
+    monkeypatch.setattr(models.secrets, "token_urlsafe", lambda n: next(draws))
+    assert models.new_token() == "Qd8opZFlI_z2lmBZ6uhYaA"
