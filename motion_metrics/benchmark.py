@@ -36,6 +36,7 @@ from generation.datasets import get_dataset
 from generation.datasets.base import DATASETS
 from generation.formats import npz
 from generation.methods import Method, MethodError, get_method, list_methods
+from generation import recognition
 from generation.motion import MotionError
 from generation.recognition import ActionClassifier, ClassifierError, one_thread, train_classifier
 from generation.skeletons import get_skeleton
@@ -352,7 +353,9 @@ def prepare_classifier(setting: Setting, folder: Path, iters: int, preset: str, 
     path, record_path = folder / "classifier.pt", folder / "classifier.json"
     signature = {"dataset": setting.dataset, "train": setting.train_subjects,
                  "test": setting.test_subjects, "iters": iters, "preset": preset, "seed": seed,
-                 "actions": actions}
+                 "actions": actions,
+                 "early_stopping": {"patience": recognition.PATIENCE, "every": recognition.EVAL_EVERY,
+                                    "validation": recognition.VALIDATION_FRACTION}}
     record = read_json(record_path)
     if record.get("signature") == json.loads(json.dumps(signature)) and path.is_file():
         return ActionClassifier.load(path), record
@@ -466,6 +469,11 @@ def _run_setting(setting, methods, presets, budget, iters, folder, repeats, seed
             "seconds": clf_record.get("seconds"), "test_accuracy": classifier.test_accuracy,
             "train_accuracy": classifier.train_accuracy,
             "per_class": per_class_accuracy(classifier, test),
+            "best_iteration": classifier.best_iteration,
+            "validation_accuracy": classifier.validation_accuracy,
+            "n_validation": classifier.n_validation, "n_fit": classifier.n_train,
+            "stopped_early": classifier.stopped_early,
+            "confusion": classifier.confusion(test, "held-out clips").tolist(),
         },
         "real": None, "protocol": None, "methods": {},
     }

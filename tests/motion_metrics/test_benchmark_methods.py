@@ -43,6 +43,7 @@ def test_command_trains_three_seeds_for_equal_iterations_and_reuses_its_work(tmp
     header = next(line for line in text.splitlines() if line.startswith("| method | FID"))
     assert header.split(" | ")[1:4] == ["FID ↓ (± seeds, t)", "± samples", "A2M (HumanAct12)"]
     assert "| **Real** (held-out vs training clips) |" in text and "0.092 ± 0.007" in text
+    assert "Classifier confusion on the held-out clips" in text and "the state of iteration 5 is kept" in text
     row = next(line for line in text.splitlines() if line.startswith("| `cond_gru` |") and "±" in line)
     assert "40.61 ± 0.144" in row and len(row.split("|")) == 15  # 4 metrics: ours, ± samples, A2M's
     assert "| `cond_gru` | tiny |" in text and "| 3 × 3 |" in text  # per row: preset, iterations × seeds

@@ -73,6 +73,9 @@ def test_train_classifier_reports_and_stores_held_out_accuracy(trained):
     assert model.frames == FRAMES and model.dataset == "demo"
     assert model.test_accuracy is not None and model.n_test > 0
     assert f"test accuracy {model.test_accuracy:.3f} on {model.n_test} held-out clips" in printed
+    assert f"kept iteration {model.best_iteration}: validation accuracy" in printed
+    assert "held-out confusion matrix" in printed and model.confusion_text() in printed
+    assert sum(map(sum, model.test_confusion)) == model.n_test
 
 
 def test_evaluate_writes_every_metric_with_mean_and_ci(classifier, real_motions, odmo_checkpoint,
