@@ -50,6 +50,8 @@ METRICS_3D = ("fid", "accuracy", "diversity", "multimodality")
 # Training runs as one call per resume; this many iterations is never reached.
 UNBOUNDED = 10**9
 DEFAULT_SEEDS = (0, 1, 2)
+# How MMD_avg / MMD_seq are measured (motion_metrics.protocol.MMD_PROTOCOLS); tables name it.
+MMD_PROTOCOL = "heldout"
 
 
 class BenchmarkError(ValueError):
@@ -475,7 +477,7 @@ def _run_setting(setting, methods, presets, budget, iters, folder, repeats, seed
             "stopped_early": classifier.stopped_early,
             "confusion": classifier.confusion(test, "held-out clips").tolist(),
         },
-        "real": None, "protocol": None, "methods": {},
+        "real": None, "protocol": None, "mmd_protocol": MMD_PROTOCOL, "methods": {},
     }
     bar.update(1)
     say(f"{name}: classifier ({classifier.iteration} iterations): accuracy "
@@ -552,7 +554,8 @@ def _run_seed(method, setting, data, classifier, train, recipe, budget, iters, f
         start = time.perf_counter()
         motions = model.sample([action for action in classifier.actions for _ in range(n)], seed=seed)
         npz.save(folder / f"{run_stem(method, seed)}.npz", motions)
-        values = evaluate(data, motions, classifier, setting.metrics, repeats, seed)
+        values = evaluate(data, motions, classifier, setting.metrics, repeats, seed,
+                          mmd_protocol=MMD_PROTOCOL)
         found = {
             "metrics": {key: {"mean": row["mean"], "ci": row["ci"]}
                         for key, row in values["metrics"].items()},

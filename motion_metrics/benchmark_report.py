@@ -15,6 +15,7 @@ import shlex
 from datetime import datetime
 
 from motion_metrics.paper_numbers import TABLES, PaperTable
+from motion_metrics.protocol import MMD_PROTOCOLS
 
 NAMES = {"mmd_avg": "MMD_avg ↓", "mmd_seq": "MMD_seq ↓", "accuracy": "accuracy ↑",
          "fid": "FID ↓", "diversity": "diversity →", "multimodality": "multimodality →"}
@@ -270,7 +271,10 @@ def _metric_table(setting: dict, metrics: list[str], tables: list[PaperTable]) -
                            "± samples" if t == "samples" else SHORT.get(t.key, t.key)
                            for m, t in columns]
     name = setting.get("protocol") or "bootstrap"
-    lines = [f"Protocol: `{name}` ({PROTOCOLS.get(name, name)}).", "",
+    mmd = setting.get("mmd_protocol") or "heldout"
+    mmd_text = (f" MMD protocol: `{mmd}` ({MMD_PROTOCOLS.get(mmd, mmd)})."
+                if any(m.startswith("mmd_") for m in metrics) else "")
+    lines = [f"Protocol: `{name}` ({PROTOCOLS.get(name, name)}).{mmd_text}", "",
              "| " + " | ".join(header) + " |", "|---|" + "---:|" * len(columns)]
     real = setting.get("real") or {}
     cells = [_cell(real.get(m), key="none") if t is None else _spread(real.get(m)) if t == "samples"

@@ -107,6 +107,7 @@ def test_command_on_h36m2d_compares_with_seeds_003_and_004(tmp_path, h36m_root):
     sa_gcn = next(line for line in text.splitlines() if line.startswith("| `sa_gcn` |") and "0.146" in line)
     assert "0.134" in sa_gcn and "0.593" in sa_gcn and sa_gcn.count("±") == 6
     assert "| SA-GCN (004 T2) | 0.42 |" in text and "FID ↓" in text
+    assert "MMD protocol: `heldout` (distinct drawn motions against every held-out clip" in text
 
 
 def test_training_stops_at_equal_iterations_and_resumes_to_more(tmp_path):
