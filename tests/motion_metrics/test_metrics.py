@@ -337,8 +337,17 @@ def test_paper_mmd_compares_equal_counts_of_standardised_generated_and_training_
     idx, ref = np.concatenate(idx), np.concatenate(ref)
     flat = train.joints.reshape(-1, 9)
     norm = lambda s: (s.joints.reshape(len(s.joints), 5, 9) - flat.mean(0)) / flat.std(0)  # noqa: E731
-    expected = M.mmd_seq(norm(train)[ref], norm(far)[idx], train.labels[ref], far.labels[idx])
-    assert away["mmd_seq"]["values"][0] == pytest.approx(expected)
+    x, y = norm(far)[idx].reshape(12, -1), norm(train)[ref].reshape(12, -1)
+    expected = []
+    for rows in (slice(0, 6), slice(6, 12)):  # paired: the cross term leaves out k(x_i, y_i)
+        squared = []
+        for b in M.BANDWIDTHS:
+            k = lambda a, c: np.exp(-M.sq_dists(a, c) / b)  # noqa: E731
+            kxx, kyy, kxy = k(x[rows], x[rows]), k(y[rows], y[rows]), k(x[rows], y[rows])
+            off = ~np.eye(6, dtype=bool)
+            squared.append(kxx[off].mean() + kyy[off].mean() - 2 * kxy[off].mean())
+        expected.append(np.sqrt(max(max(squared), 0.0)))
+    assert away["mmd_seq"]["values"][0] == pytest.approx(np.mean(expected))
     # Standardised coordinates: scaling and moving every set alike changes nothing.
     moved = [protocol.MotionSet(s.joints * 10.0 + 3.0, s.labels) for s in (far, train, test)]
     again = protocol.paper_mmd(*moved, repeats=3, seed=0)
@@ -347,3 +356,9 @@ def test_paper_mmd_compares_equal_counts_of_standardised_generated_and_training_
         assert np.allclose(again[name]["real"]["values"], away[name]["real"]["values"])
     with pytest.raises(M.MetricError, match="training clips have fewer than 2 motions of action 0, 1"):
         protocol.paper_mmd(far, make(1, 4), test)
+
+
+def test_paired_mmd_needs_sets_of_equal_size():
+    x, y = gaussian_features(5, 3, 1), gaussian_features(4, 3, 2)
+    with pytest.raises(M.MetricError, match="paired MMD needs sets of equal size; got 5 and 4"):
+        M.mmd_per_bandwidth(M.sq_dists(x), M.sq_dists(y), M.sq_dists(x, y), paired=True)
