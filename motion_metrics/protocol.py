@@ -20,7 +20,10 @@ MMD, APD, n-APD and mode homogeneity use the distinct motions of a draw (duplica
 would bias these pairwise estimates) and compare them with every real clip of the
 action (seed 003: "real test sequences of action class j"). Per-action values are
 averaged over the actions drawn; an action with fewer than 2 distinct motions in a
-draw is left out of that repeat's average.
+draw is left out of that repeat's average. That is the ``heldout`` MMD protocol;
+:func:`paper_mmd` measures MMD_avg and MMD_seq by the ``paper`` one instead (equal,
+paired draws of generated motions and training clips in standardised coordinates), and
+results name which under ``mmd_protocol``.
 
 Mode homogeneity (seed 001, Sec. 4.3.1) is measured on *real* clips grouped by the
 modes a model finds in its latent space: it reads the ``modes`` of the real test clips
