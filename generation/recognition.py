@@ -10,11 +10,17 @@ Poses enter as joint positions relative to the root in each frame, plus the root
 from its first position on the floor (height kept), each value standardised by the
 training clips' mean and standard deviation, which travel with the checkpoint together
 with the config, actions, skeleton, clip length and frame rate, and the held-out split
-with the accuracy measured on it.
+with the accuracy and confusion matrix measured on it.
+
+Training runs up to a number of iterations with early stopping: a seeded share of the
+training takes is set aside for validation, the network is measured on it every few
+iterations, training stops once it has not improved for ``patience`` measurements, and
+the best measured state is kept (never the held-out clips: they only report).
 """
 
 from __future__ import annotations
 
+import copy
 import math
 import os
 from contextlib import contextmanager
@@ -37,6 +43,9 @@ CHECKPOINT_FORMAT = 1
 KIND = "action_classifier"
 TEST_FRACTION = 0.2  # held-out share of subjects, or of takes without subjects
 INFERENCE_BATCH = 512
+VALIDATION_FRACTION = 0.2  # share of each action's training takes that validates
+EVAL_EVERY = 50  # iterations between validation measurements
+PATIENCE = 10  # measurements without improvement before training stops
 
 
 @contextmanager
@@ -175,13 +184,31 @@ def make_split(dataset, clips: Sequence[Motion], test_subjects=None, subjects=No
             f"dataset {dataset.name!r} has no subjects; drop --subjects and --test-subjects "
             f"(a seeded {TEST_FRACTION:.0%} of its takes is held out)"
         )
+    return Split(test_takes=tuple(_hold_out_takes(clips, TEST_FRACTION, seed)))
+
+
+def _hold_out_takes(clips: Sequence[Motion], fraction: float, seed: int) -> list[str]:
+    """Return a seeded ``fraction`` of each action's takes (at least one of two or more)."""
     rng = np.random.default_rng(seed)
     held_out = []
     for action in sorted({clip.action for clip in clips}):
         takes = sorted({_take_key(clip) for clip in clips if clip.action == action})
-        count = max(1, round(TEST_FRACTION * len(takes))) if len(takes) > 1 else 0
+        count = max(1, round(fraction * len(takes))) if len(takes) > 1 else 0
         held_out.extend(takes[i] for i in sorted(rng.choice(len(takes), size=count, replace=False)))
-    return Split(test_takes=tuple(held_out))
+    return held_out
+
+
+def validation_split(clips: Sequence[Motion], fraction: float = VALIDATION_FRACTION,
+                     seed: int = 0) -> tuple[list[Motion], list[Motion]]:
+    """Divide training clips into clips to fit and clips to validate on, by whole takes.
+
+    A seeded ``fraction`` of each action's takes validates (at least one when the action
+    has two or more), so no take feeds both sides.
+    """
+    if not 0 < fraction < 1:
+        raise ClassifierError(f"the validation share must be between 0 and 1; got {fraction!r}")
+    held = set(_hold_out_takes(clips, fraction, seed + 1))
+    return ([c for c in clips if _take_key(c) not in held], [c for c in clips if _take_key(c) in held])
 
 
 class ActionClassifier:
@@ -209,6 +236,14 @@ class ActionClassifier:
         self.test_accuracy: float | None = None
         self.train_accuracy: float | None = None
         self.n_train = self.n_test = 0
+        self.test_confusion: list[list[int]] | None = None
+        # Early stopping (fit with validation clips): the kept iteration and its measurement.
+        self.best_iteration: int | None = None
+        self.validation_accuracy: float | None = None
+        self.validation_loss: float | None = None
+        self.stopped_early = False
+        self.history: list[dict] = []
+        self.n_validation = 0
         self._build(0)
 
     def __repr__(self):
@@ -298,14 +333,27 @@ class ActionClassifier:
 
     # Training.
 
-    def fit(self, clips: Sequence[Motion], iters: int, seed: int = 0, progress: bool = True) -> float:
-        """Train for ``iters`` iterations on ``clips`` with cross-entropy; return the last loss.
+    def fit(self, clips: Sequence[Motion], iters: int, seed: int = 0, progress: bool = True,
+            validation: Sequence[Motion] | None = None, patience: int | None = None,
+            eval_every: int = EVAL_EVERY) -> float:
+        """Train for up to ``iters`` iterations on ``clips`` with cross-entropy; return the last loss.
 
         A fresh classifier takes its input statistics from ``clips`` and is initialised from
         ``seed``; iteration ``i`` draws its batch from a generator seeded by ``(seed, i)``.
+
+        With ``validation`` clips, the network is measured on them every ``eval_every``
+        iterations and after the last; the best measurement (higher accuracy, then lower
+        loss) is kept and its state restored at the end. With ``patience``, training stops
+        after that many measurements in a row without improvement.
         """
         if int(iters) != iters or iters < 0:
             raise ClassifierError(f"iters must be a non-negative integer; got {iters!r}")
+        if int(eval_every) != eval_every or eval_every < 1:
+            raise ClassifierError(f"eval_every must be a positive integer; got {eval_every!r}")
+        if patience is not None and (int(patience) != patience or patience < 1):
+            raise ClassifierError(f"patience must be a positive integer or None; got {patience!r}")
+        if patience is not None and not validation:
+            raise ClassifierError("early stopping (patience) needs validation clips; none given")
         clips = list(clips)
         if not clips:
             raise ClassifierError("no training clips; check the dataset, subjects and actions")
@@ -321,19 +369,51 @@ class ActionClassifier:
         self.seed = int(seed)
         inputs = self.encode(clips, "training clips")
         loss_fn = nn.CrossEntropyLoss()
+        if validation:
+            validation = list(validation)
+            check = (self.encode(validation, "validation clips"),
+                     torch.from_numpy(self.labels_of(validation)))
+            self.n_validation = len(validation)
+            self.history, self.stopped_early = [], False
+        best, best_state, waited = None, None, 0
         bar = tqdm(total=int(iters), desc=f"classifier {self.skeleton}", unit="it",
                    disable=not progress, dynamic_ncols=True)
         self.network.train()
         try:
             with one_thread():
-                for _ in range(int(iters)):
+                for step in range(1, int(iters) + 1):
                     hits = self._step(inputs, labels, loss_fn)
                     bar.set_postfix({"loss": f"{self.loss:.4g}", "acc": f"{hits:.2f}"}, refresh=False)
                     bar.update(1)
+                    if not validation or (step % int(eval_every) and step != int(iters)):
+                        continue
+                    accuracy, loss = self._measure(*check, loss_fn)
+                    self.history.append({"iteration": self.iteration, "accuracy": accuracy, "loss": loss})
+                    if best is None or (accuracy, -loss) > best:
+                        best, waited = (accuracy, -loss), 0
+                        best_state = copy.deepcopy(self.network.state_dict())
+                        self.best_iteration = self.iteration
+                        self.validation_accuracy, self.validation_loss = accuracy, loss
+                    else:
+                        waited += 1
+                        if patience is not None and waited >= patience:
+                            self.stopped_early = step < int(iters)
+                            break
         finally:
             bar.close()
+            if best_state is not None:
+                self.network.load_state_dict(best_state)
             self.network.eval()
         return self.loss if self.loss is not None else float("nan")
+
+    def _measure(self, inputs: torch.Tensor, labels: torch.Tensor, loss_fn) -> tuple[float, float]:
+        """Return the accuracy and mean loss on ``inputs``, then go back to training mode."""
+        self.network.eval()
+        with torch.no_grad():
+            logits = torch.cat([self.network(inputs[start:start + INFERENCE_BATCH])
+                                for start in range(0, len(inputs), INFERENCE_BATCH)])
+        self.network.train()
+        return float((logits.argmax(1) == labels).float().mean()), float(loss_fn(logits, labels))
 
     def _step(self, inputs: torch.Tensor, labels: torch.Tensor, loss_fn) -> float:
         """Run one optimisation step on a seeded batch; return the batch accuracy."""
@@ -387,6 +467,25 @@ class ActionClassifier:
             raise ClassifierError(f"no {what} to measure accuracy on")
         return float(np.mean(self.predict(motions, what) == self.labels_of(motions)))
 
+    def confusion(self, motions: Sequence[Motion], what: str = "motions") -> np.ndarray:
+        """Return counts ``(A, A)``: row = true action, column = predicted (order of :attr:`actions`)."""
+        motions = list(motions)
+        if not motions:
+            raise ClassifierError(f"no {what} to measure a confusion matrix on")
+        counts = np.zeros((len(self.actions), len(self.actions)), dtype=np.int64)
+        np.add.at(counts, (self.labels_of(motions), self.predict(motions, what)), 1)
+        return counts
+
+    def confusion_text(self) -> str:
+        """Return the held-out confusion matrix as aligned text (rows true, columns predicted)."""
+        if self.test_confusion is None:
+            return "(no held-out confusion matrix)"
+        width = max(max(len(a) for a in self.actions), 6)
+        lines = [" " * width + "  " + " ".join(f"{a[:width]:>{width}}" for a in self.actions)]
+        for action, row in zip(self.actions, self.test_confusion):
+            lines.append(f"{action:>{width}}  " + " ".join(f"{n:>{width}d}" for n in row))
+        return "\n".join(lines)
+
     # Checkpoints.
 
     def to_checkpoint(self) -> dict:
@@ -410,6 +509,13 @@ class ActionClassifier:
             "train_accuracy": self.train_accuracy,
             "n_train": self.n_train,
             "n_test": self.n_test,
+            "test_confusion": self.test_confusion,
+            "best_iteration": self.best_iteration,
+            "validation_accuracy": self.validation_accuracy,
+            "validation_loss": self.validation_loss,
+            "stopped_early": self.stopped_early,
+            "history": self.history,
+            "n_validation": self.n_validation,
         }
 
     def save(self, path: str | Path) -> Path:
@@ -463,6 +569,13 @@ class ActionClassifier:
         model.test_accuracy = checkpoint.get("test_accuracy")
         model.train_accuracy = checkpoint.get("train_accuracy")
         model.n_train, model.n_test = checkpoint.get("n_train", 0), checkpoint.get("n_test", 0)
+        model.test_confusion = checkpoint.get("test_confusion")
+        model.best_iteration = checkpoint.get("best_iteration")
+        model.validation_accuracy = checkpoint.get("validation_accuracy")
+        model.validation_loss = checkpoint.get("validation_loss")
+        model.stopped_early = bool(checkpoint.get("stopped_early", False))
+        model.history = list(checkpoint.get("history") or [])
+        model.n_validation = checkpoint.get("n_validation", 0)
         model.network.eval()
         return model
 
@@ -470,10 +583,17 @@ class ActionClassifier:
 def train_classifier(dataset: str, out: str | Path, *, data_root=None, subjects=None,
                      test_subjects=None, actions=None, frames: int | None = None,
                      fps: float | None = None, iters: int = 2000, preset: str = "paper",
-                     seed: int = 0, progress: bool = True) -> ActionClassifier:
+                     seed: int = 0, progress: bool = True, patience: int | None = PATIENCE,
+                     eval_every: int = EVAL_EVERY,
+                     validation: float = VALIDATION_FRACTION) -> ActionClassifier:
     """Train a classifier on ``dataset``'s training clips, measure it on held-out clips, save to ``out``.
 
-    See :func:`make_split` for what is held out. What ``manage.py train_classifier`` runs.
+    See :func:`make_split` for what is held out. A seeded ``validation`` share of the
+    training takes (:func:`validation_split`) drives early stopping: up to ``iters``
+    iterations, measured every ``eval_every``, stopping after ``patience`` measurements
+    without improvement (``None``: run all ``iters``), keeping the best state. The
+    held-out accuracy and confusion matrix are stored in the checkpoint. What
+    ``manage.py train_classifier`` runs.
     """
     data = get_dataset(dataset, data_root)
     actions = choose(actions, data.actions(), "action", f"dataset {dataset!r}")
@@ -490,11 +610,22 @@ def train_classifier(dataset: str, out: str | Path, *, data_root=None, subjects=
     missing = sorted(set(actions) - {clip.action for clip in train})
     if missing:
         raise DatasetError(f"no training clips of {', '.join(missing)}; pick other --subjects or actions")
+    fitting, checking = validation_split(train, validation, seed)
+    if not checking:
+        raise DatasetError(
+            f"dataset {dataset!r} has no action with two training takes to validate on; "
+            f"add training --subjects or --actions"
+        )
+    missing = sorted(set(actions) - {clip.action for clip in fitting})
+    if missing:
+        raise DatasetError(f"no clips of {', '.join(missing)} left to fit after the validation share")
     model = ActionClassifier(ClassifierConfig.preset(preset), data.skeleton, actions, clips[0].fps, frames)
-    model.fit(train, iters, seed=seed, progress=progress)
+    model.fit(fitting, iters, seed=seed, progress=progress, validation=checking, patience=patience,
+              eval_every=eval_every)
     model.dataset, model.split = data.name, split
-    model.n_train, model.n_test = len(train), len(test)
-    model.train_accuracy = model.accuracy(train, "training clips")
+    model.n_train, model.n_test = len(fitting), len(test)
+    model.train_accuracy = model.accuracy(fitting, "training clips")
     model.test_accuracy = model.accuracy(test, "held-out clips")
+    model.test_confusion = model.confusion(test, "held-out clips").tolist()
     model.save(out)
     return model

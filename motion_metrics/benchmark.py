@@ -36,6 +36,7 @@ from generation.datasets import get_dataset
 from generation.datasets.base import DATASETS
 from generation.formats import npz
 from generation.methods import Method, MethodError, get_method, list_methods
+from generation import recognition
 from generation.motion import MotionError
 from generation.recognition import ActionClassifier, ClassifierError, one_thread, train_classifier
 from generation.skeletons import get_skeleton
@@ -49,6 +50,8 @@ METRICS_3D = ("fid", "accuracy", "diversity", "multimodality")
 # Training runs as one call per resume; this many iterations is never reached.
 UNBOUNDED = 10**9
 DEFAULT_SEEDS = (0, 1, 2)
+# How MMD_avg / MMD_seq are measured (motion_metrics.protocol.MMD_PROTOCOLS); tables name it.
+MMD_PROTOCOL = "heldout"
 
 
 class BenchmarkError(ValueError):
@@ -352,7 +355,9 @@ def prepare_classifier(setting: Setting, folder: Path, iters: int, preset: str, 
     path, record_path = folder / "classifier.pt", folder / "classifier.json"
     signature = {"dataset": setting.dataset, "train": setting.train_subjects,
                  "test": setting.test_subjects, "iters": iters, "preset": preset, "seed": seed,
-                 "actions": actions}
+                 "actions": actions,
+                 "early_stopping": {"patience": recognition.PATIENCE, "every": recognition.EVAL_EVERY,
+                                    "validation": recognition.VALIDATION_FRACTION}}
     record = read_json(record_path)
     if record.get("signature") == json.loads(json.dumps(signature)) and path.is_file():
         return ActionClassifier.load(path), record
@@ -466,8 +471,13 @@ def _run_setting(setting, methods, presets, budget, iters, folder, repeats, seed
             "seconds": clf_record.get("seconds"), "test_accuracy": classifier.test_accuracy,
             "train_accuracy": classifier.train_accuracy,
             "per_class": per_class_accuracy(classifier, test),
+            "best_iteration": classifier.best_iteration,
+            "validation_accuracy": classifier.validation_accuracy,
+            "n_validation": classifier.n_validation, "n_fit": classifier.n_train,
+            "stopped_early": classifier.stopped_early,
+            "confusion": classifier.confusion(test, "held-out clips").tolist(),
         },
-        "real": None, "protocol": None, "methods": {},
+        "real": None, "protocol": None, "mmd_protocol": MMD_PROTOCOL, "methods": {},
     }
     bar.update(1)
     say(f"{name}: classifier ({classifier.iteration} iterations): accuracy "
@@ -544,7 +554,8 @@ def _run_seed(method, setting, data, classifier, train, recipe, budget, iters, f
         start = time.perf_counter()
         motions = model.sample([action for action in classifier.actions for _ in range(n)], seed=seed)
         npz.save(folder / f"{run_stem(method, seed)}.npz", motions)
-        values = evaluate(data, motions, classifier, setting.metrics, repeats, seed)
+        values = evaluate(data, motions, classifier, setting.metrics, repeats, seed,
+                          mmd_protocol=MMD_PROTOCOL)
         found = {
             "metrics": {key: {"mean": row["mean"], "ci": row["ci"]}
                         for key, row in values["metrics"].items()},

@@ -15,6 +15,7 @@ import shlex
 from datetime import datetime
 
 from motion_metrics.paper_numbers import TABLES, PaperTable
+from motion_metrics.protocol import MMD_PROTOCOLS
 
 NAMES = {"mmd_avg": "MMD_avg ↓", "mmd_seq": "MMD_seq ↓", "accuracy": "accuracy ↑",
          "fid": "FID ↓", "diversity": "diversity →", "multimodality": "multimodality →"}
@@ -167,10 +168,17 @@ def _setting(result: dict, setting: dict) -> list[str]:
         f"training clips; its own "
         f"accuracy on the held-out clips is **{clf['test_accuracy']:.3f}** (on the training "
         f"clips {clf['train_accuracy']:.3f})."
+        + (f" Early stopping: {clf['n_validation']} clips of a seeded share of the training "
+           f"takes validate (it fits the other {clf['n_fit']}); the state of iteration "
+           f"{clf['best_iteration']} is kept (validation accuracy "
+           f"{clf['validation_accuracy']:.3f})"
+           + (", training stopped on patience." if clf.get("stopped_early") else ".")
+           if clf.get("best_iteration") is not None else "")
         + (" Seed 004's classifier has its video discriminator's architecture, so accuracies "
            "compare in tendency only." if "004_table_2" in setting["tables"] else "")
     )
     lines.append("")
+    lines += _confusion_table(setting)
     lines += _training_table(setting)
     main = [m for m in setting["metrics"] if any(m in t.metrics for t in tables)]
     extra = [m for m in setting["metrics"] if m not in main]
@@ -263,7 +271,10 @@ def _metric_table(setting: dict, metrics: list[str], tables: list[PaperTable]) -
                            "± samples" if t == "samples" else SHORT.get(t.key, t.key)
                            for m, t in columns]
     name = setting.get("protocol") or "bootstrap"
-    lines = [f"Protocol: `{name}` ({PROTOCOLS.get(name, name)}).", "",
+    mmd = setting.get("mmd_protocol") or "heldout"
+    mmd_text = (f" MMD protocol: `{mmd}` ({MMD_PROTOCOLS.get(mmd, mmd)})."
+                if any(m.startswith("mmd_") for m in metrics) else "")
+    lines = [f"Protocol: `{name}` ({PROTOCOLS.get(name, name)}).{mmd_text}", "",
              "| " + " | ".join(header) + " |", "|---|" + "---:|" * len(columns)]
     real = setting.get("real") or {}
     cells = [_cell(real.get(m), key="none") if t is None else _spread(real.get(m)) if t == "samples"
@@ -305,6 +316,20 @@ def _metric_table(setting: dict, metrics: list[str], tables: list[PaperTable]) -
             NAMES[m].split(" ")[0] for m in metrics if any(m in t.metrics for t in tables)) + "): "
             + ". ".join(others) + ".", ""]
     return lines
+
+
+def _confusion_table(setting: dict) -> list[str]:
+    """Return the classifier's held-out confusion matrix (rows true, columns predicted), if recorded."""
+    confusion = setting["classifier"].get("confusion")
+    if not confusion:
+        return []
+    actions = setting["actions"]
+    lines = ["Classifier confusion on the held-out clips (rows: true action, columns: predicted):",
+             "", "| true \\ predicted | " + " | ".join(actions) + " |",
+             "|---|" + "---:|" * len(actions)]
+    for action, row in zip(actions, confusion):
+        lines.append(f"| {action} | " + " | ".join(str(n) for n in row) + " |")
+    return lines + [""]
 
 
 def _per_class_table(setting: dict, table: PaperTable) -> list[str]:

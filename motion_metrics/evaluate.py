@@ -59,7 +59,8 @@ PROTOCOLS = {
 def evaluate(dataset: Dataset | str, motions: Sequence[Motion], classifier: ActionClassifier | None = None,
              metrics: Sequence[str] | None = None, repeats: int = 20, seed: int = 0, *,
              real_modes=None, end_targets=None, data_root=None, diversity_pairs: int = 200,
-             multimodality_pairs: int = 20, bandwidths=BANDWIDTHS) -> dict:
+             multimodality_pairs: int = 20, bandwidths=BANDWIDTHS,
+             mmd_protocol: str = "heldout") -> dict:
     """Return every metric's mean, 95 % CI and per-repeat values, with the Real values beside.
 
     The ``bootstrap`` protocol: ``motions`` are resampled in each repeat, and Real compares
@@ -70,11 +71,15 @@ def evaluate(dataset: Dataset | str, motions: Sequence[Motion], classifier: Acti
     001, Sec. 4.3.1). ``end_targets`` ``(N, D)`` (the root end point each motion was asked
     to reach, relative to its start) enable dist_e. Metrics needing what is absent (a
     classifier, modes, targets) are listed under ``skipped`` with the reason.
+    ``mmd_protocol`` is how MMD_avg and MMD_seq are measured (``MMD_PROTOCOLS``):
+    ``heldout`` (the default, the protocol's draws against the held-out clips) or
+    ``paper`` (:func:`motion_metrics.protocol.paper_mmd`: against the training clips,
+    standardised, equal counts); the result names it under ``mmd_protocol``.
     """
     return _evaluate(dataset, list(motions), classifier, metrics, repeats, seed, "bootstrap",
                      real_modes=real_modes, end_targets=end_targets, data_root=data_root,
                      diversity_pairs=diversity_pairs, multimodality_pairs=multimodality_pairs,
-                     bandwidths=bandwidths)
+                     bandwidths=bandwidths, mmd_protocol=mmd_protocol)
 
 
 def evaluate_model(dataset: Dataset | str, model, classifier: ActionClassifier | None = None,
@@ -118,8 +123,14 @@ def evaluate_model(dataset: Dataset | str, model, classifier: ActionClassifier |
 
 def _evaluate(dataset, motions: list[Motion], classifier, metrics, repeats, seed, protocol_name,
               *, more=None, real_modes, end_targets, data_root, diversity_pairs, multimodality_pairs,
-              bandwidths) -> dict:
+              bandwidths, mmd_protocol="heldout") -> dict:
     """Evaluate one set of motions (``bootstrap``), or ``motions`` then ``more(r)`` per repeat ``r``."""
+    if mmd_protocol not in protocol.MMD_PROTOCOLS:
+        raise EvaluationError(f"unknown MMD protocol {mmd_protocol!r}; choose one of: "
+                              f"{', '.join(sorted(protocol.MMD_PROTOCOLS))}")
+    if mmd_protocol == "paper" and more is not None:
+        raise EvaluationError("the paper MMD protocol measures one set of motions; "
+                              "use it with the bootstrap protocol (--motions), not a2m")
     data = get_dataset(dataset, data_root) if isinstance(dataset, str) else dataset
     try:
         metrics = protocol.check_metrics(metrics)
@@ -165,10 +176,15 @@ def _evaluate(dataset, motions: list[Motion], classifier, metrics, repeats, seed
         result = protocol.run(generated, sets["test"], sets["train"], metrics, repeats, seed,
                               diversity_pairs, multimodality_pairs, bandwidths,
                               real_reference="test" if more is not None else "train")
+        mmd = [name for name in ("mmd_avg", "mmd_seq") if name in result["metrics"]]
+        if mmd_protocol == "paper" and mmd:
+            result["metrics"].update(protocol.paper_mmd(sets["generated"], sets["train"], sets["test"],
+                                                        mmd, repeats, seed, bandwidths))
     except MetricError as exc:
         raise EvaluationError(str(exc)) from None
     result["protocol"] = {"name": protocol_name, "description": PROTOCOLS[protocol_name],
                           **result["protocol"]}
+    result["mmd_protocol"] = {"name": mmd_protocol, "description": protocol.MMD_PROTOCOLS[mmd_protocol]}
     return {
         "dataset": data.name,
         "skeleton": data.skeleton,

@@ -145,23 +145,28 @@ def multimodality(feats, labels, n_pairs: int = 20, rng=None) -> float:
 
 # MMD (seeds 003 and 004): Gaussian kernel, unbiased estimate, maximum over bandwidths.
 
-def mmd_per_bandwidth(d_xx, d_yy, d_xy, bandwidths=BANDWIDTHS) -> np.ndarray:
+def mmd_per_bandwidth(d_xx, d_yy, d_xy, bandwidths=BANDWIDTHS, paired: bool = False) -> np.ndarray:
     """Return MMD_u for each bandwidth ``(B,)`` from squared distances within and across two sets.
 
     ``MMD_u^2 = mean_{i != j} k(x_i, x_j) + mean_{i != j} k(y_i, y_j) - 2 mean k(x_i, y_j)``
     (Gretton et al. 2012), ``k = exp(-d^2 / b)``; negative estimates count as 0 and the
-    square root is returned, as the seeds report MMD, not its square.
+    square root is returned, as the seeds report MMD, not its square. ``paired`` (sets of
+    equal size, ``x_i`` paired with ``y_i``): the cross term leaves out the pairs too,
+    ``mean_{i != j} k(x_i, y_j)``, Gretton's U-statistic on pairs ``(x_i, y_i)``.
     """
     m, n = d_xx.shape[0], d_yy.shape[0]
     if m < 2 or n < 2:
         raise MetricError(f"MMD needs at least 2 motions in each set; got {m} and {n}")
+    if paired and m != n:
+        raise MetricError(f"paired MMD needs sets of equal size; got {m} and {n}")
     values = []
     for bandwidth in np.asarray(bandwidths, dtype=np.float64):
         kxx, kyy, kxy = (np.exp(np.maximum(-d / bandwidth, FLOAT64_EXP_FLOOR)) for d in (d_xx, d_yy, d_xy))
         sxx = kxx.sum() - np.trace(kxx)
         syy = kyy.sum() - np.trace(kyy)
-        sxy = kxy.sum()
-        values.append(sxx / (m * (m - 1)) + syy / (n * (n - 1)) - 2.0 * sxy / (m * n))
+        sxy = kxy.sum() - (np.trace(kxy) if paired else 0.0)
+        values.append(sxx / (m * (m - 1)) + syy / (n * (n - 1))
+                      - 2.0 * sxy / (m * (m - 1) if paired else m * n))
     return np.sqrt(np.maximum(values, 0.0))
 
 

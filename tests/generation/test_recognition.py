@@ -106,3 +106,42 @@ def test_train_classifier_measures_held_out_accuracy(tmp_path):
     loaded = ActionClassifier.load(tmp_path / "clf.pt")
     assert loaded.dataset == "demo" and loaded.split == model.split
     assert 0.0 <= loaded.test_accuracy <= 1.0 and loaded.n_test > 0 and loaded.n_train > loaded.n_test
+    confusion = np.array(loaded.test_confusion)
+    assert confusion.shape == (2, 2) and confusion.sum() == loaded.n_test
+    assert confusion.trace() / loaded.n_test == pytest.approx(loaded.test_accuracy)
+    assert loaded.best_iteration == model.best_iteration <= 5 and loaded.n_validation > 0
+    assert loaded.history == model.history and loaded.history[-1]["iteration"] == 5
+
+
+def test_early_stopping_keeps_the_best_validation_state_and_stops_on_patience(clips):
+    from generation.recognition import validation_split
+
+    fitting, checking = validation_split(clips, seed=0)
+    assert fitting and checking
+    take = lambda c: (c.action, c.meta.get("subject"), c.meta.get("take"))  # noqa: E731
+    assert not {take(c) for c in fitting} & {take(c) for c in checking}
+    model = ActionClassifier(ClassifierConfig.preset("tiny"), "h36m17", ACTIONS, 25.0, FRAMES)
+    model.fit(fitting, 400, seed=0, progress=False, validation=checking, patience=2, eval_every=2)
+    history = model.history
+    scores = [(h["accuracy"], -h["loss"]) for h in history]
+    best = max(range(len(scores)), key=lambda i: scores[i])
+    assert history[best]["iteration"] == model.best_iteration
+    assert model.validation_accuracy == history[best]["accuracy"]
+    # Stopped after 2 measurements in a row without improvement on the best one.
+    assert model.stopped_early and model.iteration < 400
+    assert len(history) - 1 - best == 2
+    # The restored network is the best measured one.
+    assert model.accuracy(checking) == pytest.approx(model.validation_accuracy)
+    # Deterministic: the same run gives the same history.
+    again = ActionClassifier(ClassifierConfig.preset("tiny"), "h36m17", ACTIONS, 25.0, FRAMES)
+    again.fit(fitting, 400, seed=0, progress=False, validation=checking, patience=2, eval_every=2)
+    assert again.history == history and again.best_iteration == model.best_iteration
+    with pytest.raises(ClassifierError, match="validation clips"):
+        again.fit(fitting, 2, patience=2)
+
+
+def test_confusion_counts_true_rows_against_predicted_columns(classifier, clips):
+    counts = classifier.confusion(clips)
+    assert counts.shape == (3, 3) and counts.sum() == len(clips)
+    assert counts.trace() / counts.sum() == pytest.approx(classifier.accuracy(clips))
+    assert list(counts.sum(1)) == [sum(c.action == a for c in clips) for a in ACTIONS]

@@ -43,6 +43,7 @@ def test_command_trains_three_seeds_for_equal_iterations_and_reuses_its_work(tmp
     header = next(line for line in text.splitlines() if line.startswith("| method | FID"))
     assert header.split(" | ")[1:4] == ["FID ↓ (± seeds, t)", "± samples", "A2M (HumanAct12)"]
     assert "| **Real** (held-out vs training clips) |" in text and "0.092 ± 0.007" in text
+    assert "Classifier confusion on the held-out clips" in text and "the state of iteration 5 is kept" in text
     row = next(line for line in text.splitlines() if line.startswith("| `cond_gru` |") and "±" in line)
     assert "40.61 ± 0.144" in row and len(row.split("|")) == 15  # 4 metrics: ours, ± samples, A2M's
     assert "| `cond_gru` | tiny |" in text and "| 3 × 3 |" in text  # per row: preset, iterations × seeds
@@ -106,6 +107,7 @@ def test_command_on_h36m2d_compares_with_seeds_003_and_004(tmp_path, h36m_root):
     sa_gcn = next(line for line in text.splitlines() if line.startswith("| `sa_gcn` |") and "0.146" in line)
     assert "0.134" in sa_gcn and "0.593" in sa_gcn and sa_gcn.count("±") == 6
     assert "| SA-GCN (004 T2) | 0.42 |" in text and "FID ↓" in text
+    assert "MMD protocol: `heldout` (distinct drawn motions against every held-out clip" in text
 
 
 def test_training_stops_at_equal_iterations_and_resumes_to_more(tmp_path):

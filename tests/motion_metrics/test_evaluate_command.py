@@ -73,6 +73,9 @@ def test_train_classifier_reports_and_stores_held_out_accuracy(trained):
     assert model.frames == FRAMES and model.dataset == "demo"
     assert model.test_accuracy is not None and model.n_test > 0
     assert f"test accuracy {model.test_accuracy:.3f} on {model.n_test} held-out clips" in printed
+    assert f"kept iteration {model.best_iteration}: validation accuracy" in printed
+    assert "held-out confusion matrix" in printed and model.confusion_text() in printed
+    assert sum(map(sum, model.test_confusion)) == model.n_test
 
 
 def test_evaluate_writes_every_metric_with_mean_and_ci(classifier, real_motions, odmo_checkpoint,
@@ -91,6 +94,26 @@ def test_evaluate_writes_every_metric_with_mean_and_ci(classifier, real_motions,
     assert result["protocol"]["name"] == "bootstrap"
     printed = capsys.readouterr().out
     assert "mmd_avg" in printed and "±" in printed and str(out) in printed
+    assert result["mmd_protocol"]["name"] == "heldout" and "mmd_seq [heldout]" in printed
+
+
+def test_paper_mmd_protocol_replaces_mmd_and_names_itself(real_motions, workdir, capsys):
+    out = workdir / "paper.json"
+    call_command("evaluate", "--dataset", "demo", "--motions", str(real_motions), "--metrics",
+                 "mmd_avg,mmd_seq,apd", "--repeats", "2", "--mmd-protocol", "paper", "--json", str(out))
+    result = json.loads(out.read_text())
+    assert result["mmd_protocol"]["name"] == "paper"
+    assert "training clips" in result["mmd_protocol"]["description"]
+    for name in ("mmd_avg", "mmd_seq"):
+        row = result["metrics"][name]
+        assert row["mmd_protocol"] == "paper" and len(row["values"]) == 2
+        assert isinstance(row["mean"], float) and isinstance(row["real"]["mean"], float)
+    assert "mmd_protocol" not in result["metrics"]["apd"]
+    printed = capsys.readouterr().out
+    assert "MMD protocol paper:" in printed and "mmd_avg [paper]" in printed
+    with pytest.raises(CommandError, match="--mmd-protocol paper measures one set"):
+        call_command("evaluate", "--dataset", "demo", "--protocol", "a2m", "--checkpoint",
+                     str(real_motions), "--mmd-protocol", "paper", "--json", str(out))
 
 
 def test_mode_homogeneity_groups_the_real_test_clips_by_the_models_modes(real_motions, odmo_checkpoint,

@@ -310,3 +310,55 @@ def test_protocol_needs_real_clips_of_every_action():
     generated, test, train = motion_set(10, 0, classes=3), motion_set(10, 1), motion_set(10, 2)
     with pytest.raises(M.MetricError, match="no motions of action 2"):
         protocol.run(generated, test, train, ["mmd_seq"], repeats=1)
+
+
+def test_paper_mmd_compares_equal_counts_of_standardised_generated_and_training_motions():
+    def make(n_per_action, seed, shift=0.0):
+        labels = np.repeat([0, 1], n_per_action)
+        return protocol.MotionSet(sequences(len(labels), seed=seed, shift=shift), labels)
+
+    train, test = make(8, 0), make(5, 1)
+    close, far = make(6, 2), make(6, 3, shift=2.0)
+    near = protocol.paper_mmd(close, train, test, repeats=3, seed=0)
+    away = protocol.paper_mmd(far, train, test, repeats=3, seed=0)
+    assert set(near) == {"mmd_avg", "mmd_seq"} and near["mmd_seq"]["mmd_protocol"] == "paper"
+    for name in ("mmd_avg", "mmd_seq"):
+        assert len(near[name]["values"]) == 3 and near[name]["mean"] < away[name]["mean"]
+        assert near[name]["real"]["mean"] == away[name]["real"]["mean"]  # Real ignores the motions
+    # Repeat 0 by hand: per action, 6 generated and 6 of the 8 training clips, without replacement,
+    # every coordinate standardised by the training clips.
+    rng = np.random.default_rng([0, 0, 2])
+    idx, ref = [], []
+    for action in (0, 1):
+        idx.append(rng.choice(np.flatnonzero(far.labels == action), 6, replace=False))
+        ref.append(rng.choice(np.flatnonzero(train.labels == action), 6, replace=False))
+        rng.choice(np.flatnonzero(test.labels == action), 5, replace=False)
+        rng.choice(np.flatnonzero(train.labels == action), 5, replace=False)
+    idx, ref = np.concatenate(idx), np.concatenate(ref)
+    flat = train.joints.reshape(-1, 9)
+    norm = lambda s: (s.joints.reshape(len(s.joints), 5, 9) - flat.mean(0)) / flat.std(0)  # noqa: E731
+    x, y = norm(far)[idx].reshape(12, -1), norm(train)[ref].reshape(12, -1)
+    expected = []
+    for rows in (slice(0, 6), slice(6, 12)):  # paired: the cross term leaves out k(x_i, y_i)
+        squared = []
+        for b in M.BANDWIDTHS:
+            k = lambda a, c: np.exp(-M.sq_dists(a, c) / b)  # noqa: E731
+            kxx, kyy, kxy = k(x[rows], x[rows]), k(y[rows], y[rows]), k(x[rows], y[rows])
+            off = ~np.eye(6, dtype=bool)
+            squared.append(kxx[off].mean() + kyy[off].mean() - 2 * kxy[off].mean())
+        expected.append(np.sqrt(max(max(squared), 0.0)))
+    assert away["mmd_seq"]["values"][0] == pytest.approx(np.mean(expected))
+    # Standardised coordinates: scaling and moving every set alike changes nothing.
+    moved = [protocol.MotionSet(s.joints * 10.0 + 3.0, s.labels) for s in (far, train, test)]
+    again = protocol.paper_mmd(*moved, repeats=3, seed=0)
+    for name in ("mmd_avg", "mmd_seq"):
+        assert np.allclose(again[name]["values"], away[name]["values"])
+        assert np.allclose(again[name]["real"]["values"], away[name]["real"]["values"])
+    with pytest.raises(M.MetricError, match="training clips have fewer than 2 motions of action 0, 1"):
+        protocol.paper_mmd(far, make(1, 4), test)
+
+
+def test_paired_mmd_needs_sets_of_equal_size():
+    x, y = gaussian_features(5, 3, 1), gaussian_features(4, 3, 2)
+    with pytest.raises(M.MetricError, match="paired MMD needs sets of equal size; got 5 and 4"):
+        M.mmd_per_bandwidth(M.sq_dists(x), M.sq_dists(y), M.sq_dists(x, y), paired=True)

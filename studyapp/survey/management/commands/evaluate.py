@@ -46,6 +46,11 @@ class Command(BaseCommand):
         parser.add_argument("--metrics", help=f"Comma-separated, from: {', '.join(METRICS)} (default: all).")
         parser.add_argument("--repeats", type=int, default=20, help="Repeats for the 95 %% CI (A2M: 20).")
         parser.add_argument("--seed", type=int, default=0, help="Seed of the repeats' draws.")
+        parser.add_argument("--mmd-protocol", choices=("heldout", "paper"), default="heldout",
+                            help="How MMD_avg/MMD_seq are measured: heldout (default: the repeats' "
+                                 "draws against every held-out clip of the action, raw coordinates) "
+                                 "or paper (against the training clips, coordinates standardised by "
+                                 "them, equal counts per action); the output names it.")
         parser.add_argument("--json", required=True, help="File to write the results to.")
 
     def handle(self, *args, **options):
@@ -61,6 +66,9 @@ class Command(BaseCommand):
                                "repeat: pass --checkpoint and no --motions")
         if not a2m and not options["motions"]:
             raise CommandError("pass --motions F.npz (or --protocol a2m --checkpoint CKPT)")
+        if a2m and options["mmd_protocol"] == "paper":
+            raise CommandError("--mmd-protocol paper measures one set of motions: use it with "
+                               "--motions (the bootstrap protocol), not --protocol a2m")
         if a2m and options["n"] < 1:
             raise CommandError(f"--n must be at least 1; got {options['n']}")
         source = options["checkpoint"] if a2m else options["motions"]
@@ -80,7 +88,7 @@ class Command(BaseCommand):
                 result = evaluate(
                     dataset, motions, classifier, metrics, options["repeats"], options["seed"],
                     real_modes=self._real_modes(options["checkpoint"], dataset),
-                    end_targets=extras.get("end_targets"),
+                    end_targets=extras.get("end_targets"), mmd_protocol=options["mmd_protocol"],
                 )
         except (npz.FormatError, CheckpointError) as exc:
             raise CommandError(str(exc)) from None
@@ -113,11 +121,13 @@ class Command(BaseCommand):
             f"({result['real']['split']}: {result['real']['n_test']} test, "
             f"{result['real']['n_train']} train clips); {result['repeats']} repeats, 95 % CI",
             f"protocol {result['protocol']['name']}: {result['protocol']['description']}",
+            f"MMD protocol {result['mmd_protocol']['name']}: {result['mmd_protocol']['description']}",
             f"{'metric':<18}{'motions':>24}{'real':>24}",
         ]
         for name, row in result["metrics"].items():
             arrow = " (lower is better)" if name in LOWER_IS_BETTER else ""
-            lines.append(f"{name:<18}{_cell(row):>24}{_cell(row['real']):>24}{arrow}")
+            label = f"{name} [{result['mmd_protocol']['name']}]" if name.startswith("mmd_") else name
+            lines.append(f"{label:<18}{_cell(row):>24}{_cell(row['real']):>24}{arrow}")
         for name, reason in result["skipped"].items():
             hint = (": pass --classifier" if "classifier" in reason
                     else ": pass --checkpoint" if "mode of each real" in reason else "")

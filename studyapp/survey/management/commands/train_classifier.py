@@ -1,7 +1,14 @@
 from django.core.management.base import BaseCommand, CommandError
 
 from generation.datasets import DatasetError
-from generation.recognition import ClassifierConfig, ClassifierError, train_classifier
+from generation.recognition import (
+    EVAL_EVERY,
+    PATIENCE,
+    VALIDATION_FRACTION,
+    ClassifierConfig,
+    ClassifierError,
+    train_classifier,
+)
 from generation.sampling import SamplingError
 
 
@@ -24,7 +31,15 @@ class Command(BaseCommand):
         parser.add_argument("--actions", help="Comma-separated actions (default: all).")
         parser.add_argument("--frames", type=int, help="Clip length (default: the dataset's).")
         parser.add_argument("--fps", type=float, help="Frame rate (default: the dataset's).")
-        parser.add_argument("--iters", type=int, default=2000, help="Training iterations.")
+        parser.add_argument("--iters", type=int, default=2000,
+                            help="Most training iterations (early stopping may end sooner).")
+        parser.add_argument("--patience", type=int, default=PATIENCE,
+                            help="Stop after this many validation measurements without "
+                                 "improvement; 0 runs all --iters (the best state is kept either way).")
+        parser.add_argument("--eval-every", type=int, default=EVAL_EVERY,
+                            help="Iterations between validation measurements.")
+        parser.add_argument("--validation", type=float, default=VALIDATION_FRACTION,
+                            help="Share of each action's training takes set aside to validate on.")
         parser.add_argument("--preset", default="paper",
                             help=f"Config preset: {', '.join(sorted(ClassifierConfig.PRESETS))} "
                                  f"(paper: A2M's 2-layer GRU of 128; tiny: tests).")
@@ -35,13 +50,20 @@ class Command(BaseCommand):
     def handle(self, *args, **options):
         if options["iters"] < 1:
             raise CommandError(f"--iters must be at least 1; got {options['iters']}")
+        if options["patience"] < 0:
+            raise CommandError(f"--patience must be 0 (off) or more; got {options['patience']}")
+        if options["eval_every"] < 1:
+            raise CommandError(f"--eval-every must be at least 1; got {options['eval_every']}")
+        if not 0 < options["validation"] < 1:
+            raise CommandError(f"--validation must be between 0 and 1; got {options['validation']}")
         try:
             model = train_classifier(
                 options["dataset"], options["out"], data_root=options["data_root"],
                 subjects=options["subjects"], test_subjects=options["test_subjects"],
                 actions=options["actions"], frames=options["frames"], fps=options["fps"],
                 iters=options["iters"], preset=options["preset"], seed=options["seed"],
-                progress=options["verbosity"] >= 1,
+                progress=options["verbosity"] >= 1, patience=options["patience"] or None,
+                eval_every=options["eval_every"], validation=options["validation"],
             )
         except KeyError as exc:
             raise CommandError(exc.args[0]) from None
@@ -54,3 +76,10 @@ class Command(BaseCommand):
             f"{model.n_test} held-out clips ({model.split.describe()}), train accuracy "
             f"{model.train_accuracy:.3f} on {model.n_train}"
         )
+        self.stdout.write(
+            f"kept iteration {model.best_iteration}: validation accuracy "
+            f"{model.validation_accuracy:.3f} on {model.n_validation} clips"
+            + (" (stopped early on patience)" if model.stopped_early else "")
+        )
+        self.stdout.write("held-out confusion matrix (rows: true action, columns: predicted):")
+        self.stdout.write(model.confusion_text())
