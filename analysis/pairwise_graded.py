@@ -43,7 +43,7 @@ import pandas as pd
 from analysis import stats, worth
 from analysis.counts import ranked_sources, source_counts
 from analysis.formatting import bootstrap_text, number, p_text
-from analysis.pairwise import comparisons_answered
+from analysis.pairwise import _matrix_plot, comparisons_answered
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
 
 SCALE = ("left_much", "left", "left_slightly", "no_preference", "right_slightly", "right",
@@ -523,14 +523,5 @@ def _interval_plot(sources):
         from analysis.figures import interval_figure
 
         return interval_figure(sources, "ordinal source effect (logit)", reference=0.0)
-
-    return draw
-
-
-def _matrix_plot(matrix):
-    def draw():
-        from analysis.figures import win_matrix_figure
-
-        return win_matrix_figure(matrix)
 
     return draw
