@@ -14,7 +14,9 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def manage(*args, **env):
-    environ = {k: v for k, v in os.environ.items() if not k.startswith(("DJANGO_", "STUDY_"))}
+    # A fresh shell: none of this suite's settings (the PostgreSQL run's DATABASE_URL too).
+    environ = {k: v for k, v in os.environ.items()
+               if not k.startswith(("DJANGO_", "STUDY_")) and k != "DATABASE_URL"}
     environ.update(env)
     return subprocess.run([sys.executable, "manage.py", *args], cwd=ROOT, env=environ,
                           capture_output=True, text=True, timeout=120)
