@@ -277,7 +277,7 @@ def write_correlation_report(result: Correlation, out, title: str = "Human score
                              "objective metrics", details: list[str] | None = None) -> list[Path]:
     """Write ``correlations.csv|.md|.tex``, ``sources.csv|.md|.tex``, one scatter per
     metric (``scatter_<metric>.png|.svg``) and ``report.html`` under ``out``; return the paths."""
-    from analysis.report import PAGE, _png_base64, write_table
+    from analysis.report import PAGE, png_base64, write_table
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -320,7 +320,7 @@ def write_correlation_report(result: Correlation, out, title: str = "Human score
         name = f"scatter_{metric}"
         written += save_figure(fig, out / f"{name}.png", svg=True)
         body.append(f"<figure><img alt='{esc(metric)}' src='data:image/png;base64,"
-                    f"{_png_base64(fig)}'><figcaption>Human score against {esc(metric)} "
+                    f"{png_base64(fig)}'><figcaption>Human score against {esc(metric)} "
                     f"(<a href='{name}.svg'>SVG</a>, <a href='{name}.png'>PNG</a>)"
                     f"</figcaption></figure>")
     body.append("<h2>Tables</h2>")

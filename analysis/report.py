@@ -41,7 +41,7 @@ def write_report(result, out, title: str | None = None) -> list[Path]:
     for plot in result.analysis.plots:
         fig = plot.draw()
         written += save_figure(fig, out / f"{plot.name}.png", svg=True)
-        figures.append((plot, _png_base64(fig)))
+        figures.append((plot, png_base64(fig)))
     page = out / "report.html"
     page.write_text(render_html(result, figures, title))
     written.append(page)
@@ -123,7 +123,7 @@ def render_html(result, figures, title: str | None = None) -> str:
     return PAGE.format(title=esc(heading), body="\n".join(body))
 
 
-def _png_base64(fig) -> str:
+def png_base64(fig) -> str:
     buffer = io.BytesIO()
     with matplotlib.rc_context(STYLE):
         fig.savefig(buffer, format="png", dpi=110, bbox_inches="tight")
