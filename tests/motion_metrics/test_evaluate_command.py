@@ -109,6 +109,7 @@ def test_paper_mmd_protocol_replaces_mmd_and_names_itself(real_motions, workdir,
         assert row["mmd_protocol"] == "paper" and len(row["values"]) == 2
         assert isinstance(row["mean"], float) and isinstance(row["real"]["mean"], float)
     assert "mmd_protocol" not in result["metrics"]["apd"]
+    assert list(result["metrics"]) == ["mmd_avg", "mmd_seq", "apd"]  # in the order asked
     printed = capsys.readouterr().out
     assert "MMD protocol paper:" in printed and "mmd_avg [paper]" in printed
     with pytest.raises(CommandError, match="--mmd-protocol paper measures one set"):
