@@ -18,7 +18,8 @@ from motion_metrics.protocol import MMD_PROTOCOLS
 class Command(BaseCommand):
     help = (
         "Train every method with several seeds for an equal number of iterations (or a time "
-        "budget) on each dataset, evaluate each seed's model with the seed papers' metrics and "
+        "budget) on each dataset, evaluate each seed's model (its last checkpoint, or with "
+        "--select best-mmd-seq the one of lowest MMD_seq) with the seed papers' metrics and "
         "write a Markdown report of the means over seeds, with intervals over seeds and over "
         "samples, beside the papers' numbers (default docs/RESULTS.md). Checkpoints in --work "
         "let a stopped run resume."
