@@ -9,11 +9,19 @@ motions per action and is evaluated (:func:`motion_metrics.evaluate.evaluate`, t
 with (:mod:`motion_metrics.paper_numbers`). Per metric the results hold each seed's value
 with its interval over samples, and the mean over seeds with a t interval over seeds.
 
+The checkpoint evaluated is the last of each training or, with ``selection``
+best-mmd-seq (:class:`Selection`), the one with the lowest MMD_seq against the training
+clips among candidates kept every ``every`` iterations of the same budget, as seeds
+003/004 chose theirs. MMD_avg and MMD_seq are measured by ``mmd_protocol``
+(:data:`motion_metrics.protocol.MMD_PROTOCOLS`), which the results name.
+
 Everything lands in ``work``: per setting the classifier, and per method and seed its
 checkpoint, its samples (``.npz``) and a record (``.json``) of the seconds spent,
-iterations and evaluation (``<method>-seed<k>.*``). Checkpoints are written every
+iterations, selection and evaluation (``<method>-seed<k>.*``; under best-mmd-seq
+``<method>-seed<k>-best-mmd-seq-every<N>-n<M>.*``, with the candidates in a folder of
+that name, so the two selections never share a cache). Checkpoints are written every
 ``checkpoint_every`` seconds, so an interrupted run resumes where it stopped, and a rerun
-with the same budget reuses all of it.
+with the same budget and selection reuses all of it.
 """
 
 from __future__ import annotations
@@ -21,6 +29,7 @@ from __future__ import annotations
 import json
 import os
 import platform
+import shutil
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
@@ -40,7 +49,8 @@ from generation import recognition
 from generation.motion import MotionError
 from generation.recognition import ActionClassifier, ClassifierError, one_thread, train_classifier
 from generation.skeletons import get_skeleton
-from motion_metrics.evaluate import EvaluationError, evaluate
+from motion_metrics.evaluate import EvaluationError, evaluate, training_mmd
+from motion_metrics.protocol import MMD_PROTOCOLS
 from scipy import stats
 
 H36M_TRAIN = ("S1", "S5", "S6", "S7", "S8")
@@ -50,12 +60,75 @@ METRICS_3D = ("fid", "accuracy", "diversity", "multimodality")
 # Training runs as one call per resume; this many iterations is never reached.
 UNBOUNDED = 10**9
 DEFAULT_SEEDS = (0, 1, 2)
-# How MMD_avg / MMD_seq are measured (motion_metrics.protocol.MMD_PROTOCOLS); tables name it.
+# How MMD_avg / MMD_seq are measured by default (motion_metrics.protocol.MMD_PROTOCOLS); tables name it.
 MMD_PROTOCOL = "heldout"
+# Which checkpoint of a training is evaluated (benchmark_methods --select).
+SELECTIONS = {
+    "last": "the last checkpoint of each training",
+    "best-mmd-seq": "of candidate checkpoints kept every N iterations of the same budget (and the "
+                    "last), the one with the lowest MMD_seq against the training clips by the paper "
+                    "MMD protocol, as seeds 003/004 select theirs",
+}
+# Scoring a candidate: motions per action (default), repeats of the paper protocol, and the
+# offset of the sampling seed from the training seed, so that a candidate is chosen on
+# other motions than the ones its evaluation then draws (with the training seed).
+SELECT_N = 50
+SELECT_REPEATS = 3
+SELECT_SEED_OFFSET = 1_000_000
 
 
 class BenchmarkError(ValueError):
     """A benchmark cannot run as asked (unknown dataset or method, no clips, bad budget)."""
+
+
+@dataclass(frozen=True)
+class Selection:
+    """Which checkpoint of each training is evaluated: the last, or the best by MMD_seq.
+
+    ``best-mmd-seq`` keeps a candidate every ``every`` iterations (and the last) and
+    scores each by MMD_seq of ``n`` motions per action against the training clips
+    (:func:`candidate_score`).
+    """
+
+    rule: str = "last"
+    every: int | None = None
+    n: int = SELECT_N
+
+    def __post_init__(self):
+        if self.rule not in SELECTIONS:
+            raise BenchmarkError(f"unknown checkpoint selection {self.rule!r}; choose from "
+                                 f"{', '.join(SELECTIONS)}")
+        if not self.best:
+            if self.every is not None:
+                raise BenchmarkError("candidates every N iterations go with the best-mmd-seq "
+                                     "selection, not with last")
+            return
+        if self.every is None or int(self.every) != self.every or self.every < 1:
+            raise BenchmarkError(f"best-mmd-seq needs candidates every N >= 1 iterations; "
+                                 f"got {self.every!r}")
+        if int(self.n) != self.n or self.n < 2:
+            raise BenchmarkError(f"best-mmd-seq scores at least 2 motions per action; got {self.n!r}")
+
+    @property
+    def best(self) -> bool:
+        return self.rule == "best-mmd-seq"
+
+    def key(self) -> str:
+        """Return what the file names of this selection's runs add (nothing for the last)."""
+        return f"-best-mmd-seq-every{self.every}-n{self.n}" if self.best else ""
+
+    def to_dict(self) -> dict:
+        if not self.best:
+            return {"rule": self.rule}
+        return {"rule": self.rule, "every": self.every, "n": self.n, "repeats": SELECT_REPEATS,
+                "seed_offset": SELECT_SEED_OFFSET}
+
+    def candidates(self, final: int) -> list[int]:
+        """Return the iterations scored for a training that ended at ``final``."""
+        return sorted({*range(self.every, final, self.every), final}) if self.best else [final]
+
+
+LAST = Selection()
 
 
 @dataclass(frozen=True)
@@ -220,7 +293,8 @@ def train_within_budget(method: str, clips, actions: Sequence[str], budget: floa
                         folder: Path, recipe: Recipe, seed: int = 0,
                         checkpoint_every: float = 15.0,
                         on_tick: Callable[[str], None] | None = None,
-                        iters: int | None = None) -> tuple[Method, dict]:
+                        iters: int | None = None,
+                        selection: Selection = LAST) -> tuple[Method, dict]:
     """Train ``method`` on ``clips`` for ``iters`` iterations, or ``budget`` seconds, in all.
 
     Give one of ``budget`` (seconds of wall time) and ``iters``. The checkpoint
@@ -229,12 +303,14 @@ def train_within_budget(method: str, clips, actions: Sequence[str], budget: floa
     is loaded and returned as it is. Another recipe, config (a changed default included),
     method version, seed or data starts afresh. Methods with their own ``fit`` (ODMO fits
     its modes there) get one call of it with no iterations at the end, timed apart as
-    ``finish_seconds``.
+    ``finish_seconds``. A ``selection`` of best-mmd-seq trains under its own file names
+    (:func:`run_stem`) and keeps a candidate checkpoint (unfinished) every
+    ``selection.every`` iterations in the folder :func:`candidate_path` names.
     """
     if (budget is None) == (iters is None):
         raise BenchmarkError("give either a time budget or a number of iterations, not both")
     cls = get_method(method)
-    stem = run_stem(method, seed)
+    stem = run_stem(method, seed, selection)
     checkpoint, record_path = folder / f"{stem}.pt", folder / f"{stem}.json"
     first = clips[0]
     # The full config and the method's version: a changed default or network retrains.
@@ -242,6 +318,8 @@ def train_within_budget(method: str, clips, actions: Sequence[str], budget: floa
                  "changes": recipe.changes, "config": recipe.config(cls).to_dict(), "seed": seed,
                  "skeleton": first.skeleton, "frames": first.frames, "fps": first.fps,
                  "actions": list(actions), "clips": len(clips)}
+    if selection.best:  # (the last's signature is as it was before selections, so old work counts)
+        signature["selection"] = selection.to_dict()
     record = read_json(record_path)
     if (record.get("signature") == json.loads(json.dumps(signature, default=_plain))
             and checkpoint.is_file() and (iters is None or record.get("iterations", 0) <= iters)):
@@ -250,6 +328,15 @@ def train_within_budget(method: str, clips, actions: Sequence[str], budget: floa
         record = {"signature": signature, "seconds": 0.0, "cpu_seconds": 0.0, "iterations": 0,
                   "finished": False}
         model = cls(recipe.config(cls), first.skeleton, list(actions), first.fps, first.frames)
+        shutil.rmtree(candidate_path(folder, stem, 0).parent, ignore_errors=True)
+
+    def keep_candidate():
+        """Keep the model as a candidate if its iteration is one (and none is kept yet)."""
+        if selection.best and model.iteration and model.iteration % selection.every == 0:
+            path = candidate_path(folder, stem, model.iteration)
+            if not path.is_file():
+                model.save(path)
+
     record["budget"], record["iters"] = budget, iters
     if iters is None:
         remaining = budget - record["seconds"]
@@ -272,6 +359,7 @@ def train_within_budget(method: str, clips, actions: Sequence[str], budget: floa
             record["iterations"] = model.iteration
 
         def on_step():
+            keep_candidate()
             now = time.perf_counter()
             if now - last["save"] >= checkpoint_every:
                 note()
@@ -285,6 +373,7 @@ def train_within_budget(method: str, clips, actions: Sequence[str], budget: floa
         with deadline(model, remaining, on_step, iters):
             model.fit(clips, UNBOUNDED, seed=seed, progress=False)
         note()
+        keep_candidate()
         model.save(checkpoint)
         write_json(record_path, record)
     if not record["finished"]:
@@ -300,9 +389,72 @@ def train_within_budget(method: str, clips, actions: Sequence[str], budget: floa
     return model, record
 
 
-def run_stem(method: str, seed: int) -> str:
-    """Return the file name (without suffix) of ``method``'s run with training ``seed``."""
-    return f"{method}-seed{seed}"
+def run_stem(method: str, seed: int, selection: Selection = LAST) -> str:
+    """Return the file name (without suffix) of ``method``'s run with training ``seed`` (and ``selection``)."""
+    return f"{method}-seed{seed}{selection.key()}"
+
+
+def candidate_path(folder: Path, stem: str, iteration: int) -> Path:
+    """Return where the run ``stem`` keeps its candidate checkpoint of ``iteration``."""
+    return folder / f"{stem}.candidates" / f"it{iteration}.pt"
+
+
+def candidate_score(model: Method, train: Sequence, n: int, seed: int) -> float:
+    """Return MMD_seq of ``n`` motions per action of ``model`` against the training clips ``train``.
+
+    The paper MMD protocol (:func:`motion_metrics.evaluate.training_mmd`, coordinates
+    standardised by the training clips, equal paired counts), over :data:`SELECT_REPEATS`
+    repeats; the motions are sampled with ``seed`` + :data:`SELECT_SEED_OFFSET`.
+    """
+    motions = model.sample([action for action in model.actions for _ in range(n)],
+                           seed=seed + SELECT_SEED_OFFSET)
+    return training_mmd(motions, train, "mmd_seq", SELECT_REPEATS, seed)
+
+
+def select_checkpoint(model: Method, record: dict, folder: Path, clips, selection: Selection,
+                      on_tick: Callable[[str], None] | None = None) -> tuple[Method, dict]:
+    """Return the candidate of ``model``'s training with the lowest MMD_seq, and the selection's record.
+
+    ``model`` is the finished last checkpoint of a run of :func:`train_within_budget`
+    under ``selection`` (its ``record``, which keeps the scores, so a rerun scores only
+    new candidates). Each other candidate is loaded, finished as the last was (ODMO fits
+    its modes) and scored by :func:`candidate_score`; a candidate that cannot sample
+    (diverged) is not chosen. Once all are scored, only the best of the candidates kept
+    every ``selection.every`` iterations stays on disk, for a later, longer run.
+    """
+    seed = record["signature"]["seed"]
+    stem = run_stem(record["signature"]["method"], seed, selection)
+    finish = type(model).fit is not Method.fit
+    final = model.iteration
+    state = record.setdefault("selection", {"scores": {}, "seconds": 0.0})
+    scores = state["scores"]  # iteration (as text: JSON keys) -> MMD_seq, or None
+    start = time.perf_counter()
+    for iteration in selection.candidates(final):
+        if str(iteration) in scores:
+            continue
+        if on_tick:
+            on_tick(f"seed {seed}: scoring the checkpoint of iteration {iteration}")
+        path = candidate_path(folder, stem, iteration)
+        candidate = model if iteration == final else type(model).load(path)
+        if candidate is not model and finish:
+            candidate.fit(clips, 0, seed=seed, progress=False)  # finished as the last one was
+        try:
+            scores[str(iteration)] = candidate_score(candidate, clips, selection.n, seed)
+        except (MethodError, EvaluationError, MotionError):
+            scores[str(iteration)] = None
+        if iteration % selection.every == 0 and (finish or not path.is_file()):
+            candidate.save(path)  # finished, should a longer run choose it
+        state["seconds"] += time.perf_counter() - start
+        start = time.perf_counter()
+        write_json(folder / f"{stem}.json", record)
+    scored = {it: scores[str(it)] for it in selection.candidates(final) if scores[str(it)] is not None}
+    chosen = state["chosen"] = min(scored, key=scored.get) if scored else final
+    kept = min((it for it in scored if it % selection.every == 0), key=scored.get, default=None)
+    for iteration in selection.candidates(final):
+        if iteration % selection.every == 0 and iteration != kept:
+            candidate_path(folder, stem, iteration).unlink(missing_ok=True)
+    write_json(folder / f"{stem}.json", record)
+    return (model if chosen == final else type(model).load(candidate_path(folder, stem, chosen))), state
 
 
 def t_interval(values: Sequence[float], level: float = 0.95) -> float | None:
@@ -395,12 +547,15 @@ def run_benchmark(datasets: Sequence[str], budget: float | None, work: str | Pat
                   repeats: int = 20, n: int = 100, subjects=None,
                   test_subjects=None, actions=None, classifier_iters: int = 500,
                   classifier_preset: str = "paper", data_root=None, checkpoint_every: float = 15.0,
+                  mmd_protocol: str = MMD_PROTOCOL, selection: Selection = LAST,
                   progress: bool = True, log: Callable[[str], None] | None = None) -> dict:
     """Benchmark ``methods`` (default: all) on each dataset; return the results (JSON-ready).
 
     Each method trains once per seed of ``seeds``, for ``iters`` iterations or ``budget``
-    seconds (give one); the classifier trains with the first seed. Also written to ``work/results.json``; :func:`motion_metrics.benchmark_report.render`
-    turns them into Markdown.
+    seconds (give one); the classifier trains with the first seed. ``selection`` says
+    which checkpoint of each training is evaluated, ``mmd_protocol`` how MMD_avg and
+    MMD_seq are measured. Also written to ``work/results.json``;
+    :func:`motion_metrics.benchmark_report.render` turns them into Markdown.
     """
     methods = list(methods or list_methods())
     unknown = [name for name in methods if name not in list_methods()]
@@ -416,6 +571,12 @@ def run_benchmark(datasets: Sequence[str], budget: float | None, work: str | Pat
     seeds = [int(seed) for seed in seeds]
     if not seeds or len(set(seeds)) != len(seeds) or min(seeds) < 0:
         raise BenchmarkError(f"seeds must be distinct non-negative integers; got {seeds}")
+    if mmd_protocol not in MMD_PROTOCOLS:
+        raise BenchmarkError(f"unknown MMD protocol {mmd_protocol!r}; choose from "
+                             f"{', '.join(sorted(MMD_PROTOCOLS))}")
+    if selection.best and iters is not None and selection.every > iters:
+        raise BenchmarkError(f"candidates every {selection.every} iterations leave none but the "
+                             f"last within {iters} iterations; take at most {iters}")
     work = Path(work)
     settings = [setting_for(name, subjects, test_subjects) for name in datasets]
     started = datetime.now(timezone.utc)
@@ -423,6 +584,7 @@ def run_benchmark(datasets: Sequence[str], budget: float | None, work: str | Pat
     result = {"started": started.isoformat(timespec="seconds"), "machine": machine(),
               "budget": budget, "iters": iters, "seeds": seeds, "repeats": repeats, "n": n,
               "classifier_iters": classifier_iters, "classifier_preset": classifier_preset,
+              "mmd_protocol": mmd_protocol, "selection": selection.to_dict(),
               "methods": methods, "settings": []}
     bar = tqdm(total=len(settings) * (1 + len(methods) * len(seeds)), desc="benchmark", unit="step",
                disable=not progress, dynamic_ncols=True)
@@ -438,7 +600,7 @@ def run_benchmark(datasets: Sequence[str], budget: float | None, work: str | Pat
                 result["settings"].append(_run_setting(
                     setting, methods, presets, budget, iters, work / setting.dataset, repeats, seeds, n,
                     actions, classifier_iters, classifier_preset, data_root, checkpoint_every,
-                    bar, say))
+                    bar, say, mmd_protocol=mmd_protocol, selection=selection))
     finally:
         bar.close()
     result["wall_seconds"] = time.perf_counter() - clock
@@ -448,7 +610,8 @@ def run_benchmark(datasets: Sequence[str], budget: float | None, work: str | Pat
 
 
 def _run_setting(setting, methods, presets, budget, iters, folder, repeats, seeds, n, actions,
-                 classifier_iters, classifier_preset, data_root, checkpoint_every, bar, say) -> dict:
+                 classifier_iters, classifier_preset, data_root, checkpoint_every, bar, say, *,
+                 mmd_protocol, selection) -> dict:
     """Return one setting's results: data, classifier, Real column and every method."""
     name = setting.dataset
     bar.set_description(f"{name}: classifier")
@@ -477,7 +640,8 @@ def _run_setting(setting, methods, presets, budget, iters, folder, repeats, seed
             "stopped_early": classifier.stopped_early,
             "confusion": classifier.confusion(test, "held-out clips").tolist(),
         },
-        "real": None, "protocol": None, "mmd_protocol": MMD_PROTOCOL, "methods": {},
+        "real": None, "protocol": None, "mmd_protocol": mmd_protocol,
+        "selection": selection.to_dict(), "methods": {},
     }
     bar.update(1)
     say(f"{name}: classifier ({classifier.iteration} iterations): accuracy "
@@ -485,7 +649,8 @@ def _run_setting(setting, methods, presets, budget, iters, folder, repeats, seed
     for method in methods:
         bar.set_description(f"{name}: {method}")
         entry = _run_method(method, setting, data, classifier, train, presets, budget, iters,
-                            folder, repeats, seeds, n, checkpoint_every, bar)
+                            folder, repeats, seeds, n, checkpoint_every, bar,
+                            mmd_protocol=mmd_protocol, selection=selection)
         out["methods"][method] = entry
         if out["real"] is None and entry.get("real"):
             out["real"] = entry["real"]
@@ -496,14 +661,15 @@ def _run_setting(setting, methods, presets, budget, iters, folder, repeats, seed
 
 
 def _run_method(method, setting, data, classifier, train, presets, budget, iters, folder,
-                repeats, seeds, n, checkpoint_every, bar) -> dict:
+                repeats, seeds, n, checkpoint_every, bar, *, mmd_protocol, selection) -> dict:
     """Train, sample and evaluate one method once per seed; errors are recorded, not raised."""
     recipe = recipe_for(method, presets, iters)
     entry = {"recipe": recipe.describe(), "runs": []}
     for seed in seeds:
         bar.set_description(f"{setting.dataset}: {method} (seed {seed})")
         entry["runs"].append(_run_seed(method, setting, data, classifier, train, recipe, budget,
-                                       iters, folder, repeats, seed, n, checkpoint_every, bar))
+                                       iters, folder, repeats, seed, n, checkpoint_every, bar,
+                                       mmd_protocol=mmd_protocol, selection=selection))
         bar.update(1)
     done = [run for run in entry["runs"] if run.get("metrics")]
     errors = [f"seed {run['seed']}: {run['error']}" for run in entry["runs"] if run.get("error")]
@@ -512,10 +678,12 @@ def _run_method(method, setting, data, classifier, train, presets, budget, iters
         if not done:
             entry["error"] = errors[0].split(": ", 1)[1]
     trained = [run for run in entry["runs"] if run.get("seconds") is not None]
-    for key in ("seconds", "cpu_seconds", "finish_seconds", "evaluate_seconds"):
+    for key in ("seconds", "cpu_seconds", "finish_seconds", "select_seconds", "evaluate_seconds"):
         values = [run.get(key) for run in entry["runs"] if run.get(key) is not None]
         entry[key] = sum(values) if values else None
     entry["iterations"] = [run["iterations"] for run in trained]
+    if selection.best:
+        entry["chosen"] = [run.get("chosen") for run in trained]
     entry["parameters"] = trained[0]["parameters"] if trained else None
     entry["reused"] = sum(bool(run.get("reused")) for run in trained)
     if done:
@@ -529,23 +697,36 @@ def _run_method(method, setting, data, classifier, train, presets, budget, iters
 
 
 def _run_seed(method, setting, data, classifier, train, recipe, budget, iters, folder, repeats,
-              seed, n, checkpoint_every, bar) -> dict:
-    """Train, sample and evaluate one method with one training seed."""
+              seed, n, checkpoint_every, bar, *, mmd_protocol, selection) -> dict:
+    """Train, select a checkpoint of, sample and evaluate one method with one training seed."""
     entry = {"seed": seed}
+    stem = run_stem(method, seed, selection)
+
+    def tick(text):
+        bar.set_postfix_str(text, refresh=True)
+
     try:
         model, record = train_within_budget(
             method, train, classifier.actions, budget, folder, recipe, seed, checkpoint_every,
-            on_tick=lambda text: bar.set_postfix_str(text, refresh=True), iters=iters)
+            on_tick=tick, iters=iters, selection=selection)
     except (MethodError, ValueError, RuntimeError) as exc:
         entry["error"] = f"training failed: {exc}"
         return entry
     entry.update({key: record.get(key) for key in
                   ("seconds", "cpu_seconds", "iterations", "finish_seconds", "parameters",
                    "reused")})
-    bar.set_postfix_str(f"seed {seed}: sampling and evaluating", refresh=True)
+    if selection.best:
+        try:
+            model, chosen = select_checkpoint(model, record, folder, train, selection, tick)
+        except (MethodError, ValueError, RuntimeError) as exc:
+            entry["error"] = f"checkpoint selection failed: {exc}"
+            return entry
+        entry.update({"chosen": chosen["chosen"], "select_seconds": chosen["seconds"],
+                      "scores": chosen["scores"]})
+    tick(f"seed {seed}: sampling and evaluating")
     signature = {"iteration": model.iteration, "n": n, "repeats": repeats, "seed": seed,
                  "metrics": list(setting.metrics), "classifier": classifier.iteration,
-                 "split": classifier.split.to_dict()}
+                 "split": classifier.split.to_dict(), "mmd_protocol": mmd_protocol}
     cached = record.get("evaluation")
     if cached and cached.get("signature") == json.loads(json.dumps(signature)):
         entry.update(cached["values"])
@@ -553,9 +734,9 @@ def _run_seed(method, setting, data, classifier, train, recipe, budget, iters, f
     try:
         start = time.perf_counter()
         motions = model.sample([action for action in classifier.actions for _ in range(n)], seed=seed)
-        npz.save(folder / f"{run_stem(method, seed)}.npz", motions)
+        npz.save(folder / f"{stem}.npz", motions)
         values = evaluate(data, motions, classifier, setting.metrics, repeats, seed,
-                          mmd_protocol=MMD_PROTOCOL)
+                          mmd_protocol=mmd_protocol)
         found = {
             "metrics": {key: {"mean": row["mean"], "ci": row["ci"]}
                         for key, row in values["metrics"].items()},
@@ -569,7 +750,7 @@ def _run_seed(method, setting, data, classifier, train, recipe, budget, iters, f
         entry["error"] = f"sampling or evaluation failed: {exc}"
         return entry
     record["evaluation"] = {"signature": signature, "values": found}
-    write_json(folder / f"{run_stem(method, seed)}.json", record)
+    write_json(folder / f"{stem}.json", record)
     entry.update(found)
     return entry
 
@@ -581,6 +762,8 @@ def _summary_line(dataset: str, method: str, entry: dict) -> str:
         f"{key} {row['mean']:.4g}" + (f" ± {row['ci_seeds']:.2g}" if row["ci_seeds"] is not None else "")
         for key, row in entry["metrics"].items() if row["mean"] is not None)
     seeds = len(entry["runs"])
+    chosen = (f" (evaluated: {'/'.join(map(str, entry['chosen']))}, by MMD_seq)"
+              if entry.get("chosen") else "")
     return (f"{dataset} {method} [{entry['recipe']}]: {seeds} seeds, iterations "
-            f"{'/'.join(map(str, entry['iterations']))} in {entry['seconds']:.0f} s; "
+            f"{'/'.join(map(str, entry['iterations']))}{chosen} in {entry['seconds']:.0f} s; "
             f"mean over seeds {values}")

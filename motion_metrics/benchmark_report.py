@@ -89,6 +89,7 @@ def _provenance(result: dict, command: str) -> list[str]:
     work = {
         "training": sum(entry.get("seconds") or 0 for entry in entries),
         "fitting ODMO's modes": sum(entry.get("finish_seconds") or 0 for entry in entries),
+        "checkpoint selection": sum(entry.get("select_seconds") or 0 for entry in entries),
         "sampling and evaluation": sum(entry.get("evaluate_seconds") or 0 for entry in entries),
         "classifier training": sum(setting["classifier"].get("seconds") or 0
                                    for setting in result["settings"]),
@@ -125,8 +126,25 @@ def _provenance(result: dict, command: str) -> list[str]:
         f"of training; the one over samples does not. **Real** (from the first seed's "
         f"evaluation, with the protocol's interval) compares held-out clips with training "
         f"clips, as the papers' \"Real motions\" rows do.",
+        f"- {_selection_text(result.get('selection'))}",
         "",
     ]
+
+
+def _selection_text(selection: dict | None, short: bool = False) -> str:
+    """Return which checkpoint of each training was evaluated, as a sentence (``short``: above a table)."""
+    if not selection or selection.get("rule", "last") == "last":
+        return "Checkpoints: the last of each training (`--select last`)."
+    if short:
+        return (f"Checkpoints: per seed, the lowest MMD_seq (`paper` MMD protocol, against the "
+                f"training clips) of candidates every {selection['every']:,} iterations and the "
+                f"last (`--select best-mmd-seq`).")
+    return (f"Checkpoints: per method and seed, of the candidates kept every {selection['every']:,} "
+            f"iterations within the budget and the last, the one with the lowest MMD_seq against "
+            f"the training clips by the `paper` MMD protocol (`--select best-mmd-seq`, as seeds "
+            f"003/004 chose theirs; {selection['n']} motions per action sampled with another seed "
+            f"than the evaluated ones, {selection['repeats']} repeats); the training tables give "
+            f"the iteration evaluated.")
 
 
 def _not_run(result: dict, command: str) -> list[str]:
@@ -192,21 +210,23 @@ def _setting(result: dict, setting: dict) -> list[str]:
 
 
 def _training_table(setting: dict) -> list[str]:
+    best = (setting.get("selection") or {}).get("rule") == "best-mmd-seq"
     lines = ["Training within the budget (values per training seed, in the order of the seeds):", "",
-             "| method | preset | parameters | iterations | train (s, wall) | train (s, CPU) "
-             "| after training (s) |",
-             "|---|---|---:|---:|---:|---:|---:|"]
+             "| method | preset | parameters | iterations | "
+             + ("evaluated (lowest MMD_seq) | " if best else "")
+             + "train (s, wall) | train (s, CPU) | after training (s) |",
+             "|---|---|---:|---:|" + ("---:|" if best else "") + "---:|---:|---:|"]
     for method, entry in setting["methods"].items():
         runs = [run for run in entry.get("runs") or [] if run.get("seconds") is not None]
         if not runs:
-            lines.append(f"| `{method}` | {entry['recipe']} | | | | | |")
+            lines.append(f"| `{method}` | {entry['recipe']} | | | | | |" + (" |" if best else ""))
             continue
-        iterations = [run["iterations"] for run in runs]
-        counts = (f"{iterations[0]:,} × {len(runs)}" if len(set(iterations)) == 1
-                  else " / ".join(f"{value:,}" for value in iterations))
+        chosen = (" / ".join("–" if run.get("chosen") is None else f"{run['chosen']:,}" for run in runs)
+                  + " | ") if best else ""
         finish = [run.get("finish_seconds") for run in runs]
         lines.append(
-            f"| `{method}` | {entry['recipe']} | {entry['parameters']:,} | {counts} | "
+            f"| `{method}` | {entry['recipe']} | {entry['parameters']:,} | "
+            f"{_per_seed_counts([run['iterations'] for run in runs])} | {chosen}"
             + " / ".join(f"{run['seconds']:.0f}" for run in runs) + " | "
             + " / ".join(f"{run['cpu_seconds']:.0f}" for run in runs) + " | "
             + ("" if all(value is None for value in finish) else
@@ -214,6 +234,13 @@ def _training_table(setting: dict) -> list[str]:
             + " |"
         )
     return lines + [""]
+
+
+def _per_seed_counts(values: list[int]) -> str:
+    """Return per-seed iteration counts: ``N × seeds`` when all are equal."""
+    if len(set(values)) == 1:
+        return f"{values[0]:,} × {len(values)}"
+    return " / ".join(f"{value:,}" for value in values)
 
 
 def _cell(row: dict | None, digits: int = 3, key: str = "ci_seeds") -> str:
@@ -274,7 +301,8 @@ def _metric_table(setting: dict, metrics: list[str], tables: list[PaperTable]) -
     mmd = setting.get("mmd_protocol") or "heldout"
     mmd_text = (f" MMD protocol: `{mmd}` ({MMD_PROTOCOLS.get(mmd, mmd)})."
                 if any(m.startswith("mmd_") for m in metrics) else "")
-    lines = [f"Protocol: `{name}` ({PROTOCOLS.get(name, name)}).{mmd_text}", "",
+    chosen = " " + _selection_text(setting.get("selection"), short=True)
+    lines = [f"Protocol: `{name}` ({PROTOCOLS.get(name, name)}).{mmd_text}{chosen}", "",
              "| " + " | ".join(header) + " |", "|---|" + "---:|" * len(columns)]
     real = setting.get("real") or {}
     cells = [_cell(real.get(m), key="none") if t is None else _spread(real.get(m)) if t == "samples"
@@ -434,11 +462,14 @@ def _setting_facts(setting: dict) -> list[str]:
         real_avg = (real.get("mmd_avg") or {}).get("mean")
         floor = min(row.values["mmd_avg"] for row in table.rows)
         if real_avg is not None and real_avg > floor:
+            why = (" even by the papers' MMD protocol (`paper`): the data, split and sample counts "
+                   "still differ from theirs, as said below"
+                   if setting.get("mmd_protocol") == "paper" else
+                   ": our MMD protocol (which motions and real clips each repeat draws and "
+                   "compares) is not the papers'")
             facts.append(
                 f"Real held-out clips themselves score above the paper's best method ({real_avg:.3f} "
-                f"against {floor:g}), so absolute values do not carry over: our MMD protocol "
-                f"(which motions and real clips each repeat draws and compares) is not the "
-                f"papers'."
+                f"against {floor:g}), so absolute values do not carry over{why}."
             )
         facts.append(_order_sentence(methods, table, "mmd_avg"))
     if "000_table_1" in setting["tables"]:

@@ -366,9 +366,10 @@ MMD_PROTOCOLS = {
 }
 
 
-def paper_mmd(generated: MotionSet, train: MotionSet, test: MotionSet, metrics=("mmd_avg", "mmd_seq"),
+def paper_mmd(generated: MotionSet, train: MotionSet, test: MotionSet | None,
+              metrics=("mmd_avg", "mmd_seq"),
               repeats: int = 20, seed: int = 0, bandwidths=M.BANDWIDTHS) -> dict:
-    """Return MMD_avg / MMD_seq summaries (with Real) by the ``paper`` protocol.
+    """Return MMD_avg / MMD_seq summaries (with Real, given held-out clips) by the ``paper`` protocol.
 
     Each repeat ``r`` (generator seeded by ``(seed, r, 2)``), for each action of the
     generated motions, draws ``n`` generated motions and ``n`` training clips without
@@ -378,8 +379,10 @@ def paper_mmd(generated: MotionSet, train: MotionSet, test: MotionSet, metrics=(
     mean and standard deviation of the training clips (over clips and frames), as its
     data are. Seed 003's appendix calls the real side "real test sequences", while
     SA-GCN's evaluation draws them from its training set: this is the latter. The Real column compares ``n`` held-out clips
-    with ``n`` training clips drawn the same way (``n`` the smallest of the three counts).
-    Returns ``{name: {"mean", "ci", "std", "values", "real", "mmd_protocol"}}``.
+    with ``n`` training clips drawn the same way (``n`` the smallest of the three counts);
+    without ``test`` there is no Real column (``real`` is ``None``), as when the score
+    selects a checkpoint. Returns ``{name: {"mean", "ci", "std", "values", "real",
+    "mmd_protocol"}}``.
     """
     names = [name for name in check_metrics(list(metrics)) if name in ("mmd_avg", "mmd_seq")]
     if int(repeats) != repeats or repeats < 1:
@@ -395,9 +398,11 @@ def paper_mmd(generated: MotionSet, train: MotionSet, test: MotionSet, metrics=(
                                 f"clips' {train.joints.shape}; use clips of the same length and skeleton")
         return (joints - mean) / std
 
-    gen, ref, real = normalised(generated), normalised(train), normalised(test)
+    gen, ref = normalised(generated), normalised(train)
+    real = None if test is None else normalised(test)
     actions = np.unique(generated.labels)
-    for name, labels in (("training", train.labels), ("held-out", test.labels)):
+    sides = [("training", train.labels)] + ([] if test is None else [("held-out", test.labels)])
+    for name, labels in sides:
         absent = [str(a) for a in actions if np.sum(labels == a) < 2]
         if absent:
             raise M.MetricError(f"the {name} clips have fewer than 2 motions of action "
@@ -417,12 +422,15 @@ def paper_mmd(generated: MotionSet, train: MotionSet, test: MotionSet, metrics=(
         picks = {"gen": [], "gen_ref": [], "real": [], "real_ref": []}
         for action in actions:
             pools = {key: np.flatnonzero(labels == action) for key, labels in
-                     (("gen", generated.labels), ("train", train.labels), ("test", test.labels))}
+                     (("gen", generated.labels), ("train", train.labels))}
             n = min(len(pools["gen"]), len(pools["train"]))
             if n >= 2:
                 picks["gen"].append(rng.choice(pools["gen"], n, replace=False))
                 picks["gen_ref"].append(rng.choice(pools["train"], n, replace=False))
-            n = min(len(pools["gen"]), len(pools["train"]), len(pools["test"]))
+            if test is None:
+                continue
+            pools["test"] = np.flatnonzero(test.labels == action)
+            n = min(n, len(pools["test"]))
             if n >= 2:
                 picks["real"].append(rng.choice(pools["test"], n, replace=False))
                 picks["real_ref"].append(rng.choice(pools["train"], n, replace=False))
@@ -432,5 +440,6 @@ def paper_mmd(generated: MotionSet, train: MotionSet, test: MotionSet, metrics=(
             for name in names:
                 out[name][r] = np.mean([paired_mmd(name, cand[idx], ref[ref_idx])
                                         for idx, ref_idx in zip(picks[key], picks[key + "_ref"])])
-    return {name: {**_summary(values[name]), "real": _summary(real_values[name]),
+    return {name: {**_summary(values[name]),
+                   "real": None if test is None else _summary(real_values[name]),
                    "mmd_protocol": "paper"} for name in names}

@@ -3,13 +3,16 @@
 import json
 
 import numpy as np
+import pytest
 import torch
-from django.core.management import call_command
+from django.core.management import CommandError, call_command
 
 from generation.datasets import get_dataset
 from generation.formats import npz
 from generation.methods import get_method
+from motion_metrics import benchmark as bench
 from motion_metrics.benchmark import Recipe, recipe_for, train_within_budget
+from motion_metrics.benchmark_report import _metric_table, _training_table
 from motion_metrics.paper_numbers import A2M_TABLE_1, SA_GCN_TABLE_2
 from tests.conftest import make_motion
 
@@ -19,11 +22,15 @@ TINY = ["--iters", "3", "--repeats", "2", "--n", "3", "--classifier-iters", "5",
         "--classifier-preset", "tiny"]
 
 
-def benchmark(tmp_path, *args):
+def benchmark(tmp_path, *args, iters=3):
     out = tmp_path / "RESULTS.md"
-    call_command("benchmark_methods", *args, *TINY, "--work", str(tmp_path / "work"),
-                 "--out", str(out), verbosity=0)
+    call_command("benchmark_methods", *args, *TINY, "--iters", str(iters),
+                 "--work", str(tmp_path / "work"), "--out", str(out), verbosity=0)
     return out.read_text()
+
+
+def record(tmp_path, stem, dataset="demo"):
+    return json.loads((tmp_path / "work" / dataset / f"{stem}.json").read_text())
 
 
 def test_paper_numbers_are_the_tables():
@@ -37,6 +44,8 @@ def test_command_trains_three_seeds_for_equal_iterations_and_reuses_its_work(tmp
     text = benchmark(tmp_path, "--dataset", "demo", "--methods", "cond_gru,a2m_xyz",
                      "--presets", "cond_gru=tiny,a2m_xyz=tiny")
     assert "python manage.py benchmark_methods --dataset demo --iters 3 --seeds 0,1,2" in text
+    assert "--classifier-preset tiny --mmd-protocol heldout --select last --out" in text
+    assert text.count("Checkpoints: the last of each training (`--select last`).") == 2  # and the table
     assert "no GPU" in text and "Where we fall short" in text
     assert "3 training iterations per method, setting and training seed" in text
     assert "95 % t interval over seeds" in text and "Protocol: `bootstrap`" in text
@@ -83,9 +92,6 @@ def test_cond_gru_ranking_first_is_marked_as_starting_from_real_poses():
 
 
 def test_command_rejects_a_single_seed_and_both_budgets(tmp_path):
-    import pytest
-    from django.core.management import CommandError
-
     with pytest.raises(CommandError, match="--seeds '0'.*at least 2"):
         benchmark(tmp_path, "--dataset", "demo", "--methods", "cond_gru", "--seeds", "0")
     with pytest.raises(CommandError, match="not allowed with argument"):
@@ -94,12 +100,16 @@ def test_command_rejects_a_single_seed_and_both_budgets(tmp_path):
 
 
 def test_command_on_h36m2d_compares_with_seeds_003_and_004(tmp_path, h36m_root):
+    """The papers' way on real data: MMD by the paper protocol, the checkpoint of best MMD_seq."""
     text = benchmark(tmp_path, "--dataset", "h36m2d", "--data-root", str(h36m_root),
                      "--methods", "skeleton_vae,sa_gcn", "--presets", "skeleton_vae=tiny,sa_gcn=tiny",
-                     "--subjects", "S1")
+                     "--subjects", "S1", "--mmd-protocol", "paper", "--select", "best-mmd-seq",
+                     "--select-every", "1", "--select-n", "3")
     assert "S11" in text and "held-out subjects S9" in text
     assert "Settings run: h36m2d. **Not run**" in text
     assert "benchmark_methods --dataset h36m --iters 3 --seeds 0,1,2" in text
+    assert ("--mmd-protocol paper --select best-mmd-seq --select-every 1 --select-n 3 --out RESULTS_h36m.md"
+            in text)  # the command for the setting not run keeps them
     header = next(line for line in text.splitlines() if line.startswith("| method | MMD_avg"))
     assert header.split(" | ")[1:] == ["MMD_avg ↓ (± seeds, t)", "± samples", "004 T1", "003 T1",
                                        "MMD_seq ↓ (± seeds, t)", "± samples", "004 T1", "003 T1",
@@ -107,7 +117,115 @@ def test_command_on_h36m2d_compares_with_seeds_003_and_004(tmp_path, h36m_root):
     sa_gcn = next(line for line in text.splitlines() if line.startswith("| `sa_gcn` |") and "0.146" in line)
     assert "0.134" in sa_gcn and "0.593" in sa_gcn and sa_gcn.count("±") == 6
     assert "| SA-GCN (004 T2) | 0.42 |" in text and "FID ↓" in text
-    assert "MMD protocol: `heldout` (distinct drawn motions against every held-out clip" in text
+    mmd_line = next(line for line in text.splitlines() if line.startswith("Protocol:") and "MMD" in line)
+    assert "MMD protocol: `paper` (per action, equal numbers of generated motions and training" in mmd_line
+    assert "lowest MMD_seq (`paper` MMD protocol, against the training clips) of candidates every 1" in mmd_line
+    assert "| method | preset | parameters | iterations | evaluated (lowest MMD_seq) |" in text
+    results = json.loads((tmp_path / "work" / "results.json").read_text())
+    assert results["mmd_protocol"] == "paper" and results["selection"]["every"] == 1
+    entry = results["settings"][0]["methods"]["sa_gcn"]
+    for run, chosen in zip(entry["runs"], entry["chosen"]):
+        scores = {int(it): value for it, value in run["scores"].items()}
+        assert set(scores) == {1, 2, 3} and chosen == min(scores, key=scores.get)
+        saved = record(tmp_path, f"sa_gcn-seed{run['seed']}-best-mmd-seq-every1-n3", "h36m2d")
+        assert saved["evaluation"]["signature"]["iteration"] == chosen
+        assert saved["evaluation"]["signature"]["mmd_protocol"] == "paper"
+    row = next(line for line in text.splitlines() if line.startswith("| `sa_gcn` | tiny |"))
+    assert " / ".join(map(str, entry["chosen"])) + " |" in row
+
+
+def test_best_mmd_seq_evaluates_the_lowest_scoring_candidate_and_reruns_reuse_it(tmp_path, monkeypatch):
+    best = {0: 2, 1: 3}  # the iteration whose checkpoint scores lowest, per seed
+    calls = []
+
+    def score(model, train, n, seed):
+        calls.append((seed, model.iteration))
+        return abs(model.iteration - best[seed]) + 0.5
+
+    monkeypatch.setattr(bench, "candidate_score", score)
+    args = ("--dataset", "demo", "--methods", "cond_gru", "--presets", "cond_gru=tiny", "--seeds", "0,1")
+    picked = (*args, "--select", "best-mmd-seq", "--select-every", "1")
+    text = benchmark(tmp_path, *picked)
+    assert sorted(calls) == [(0, 1), (0, 2), (0, 3), (1, 1), (1, 2), (1, 3)]
+    assert "--select best-mmd-seq --select-every 1 --select-n 50 --out" in text
+    assert "| `cond_gru` | tiny | 5,091 | 3 × 2 | 2 / 3 |" in text
+    folder = tmp_path / "work" / "demo"
+    for seed in (0, 1):
+        stem = f"cond_gru-seed{seed}-best-mmd-seq-every1-n50"
+        saved = record(tmp_path, stem)
+        assert saved["iterations"] == 3 and saved["selection"]["chosen"] == best[seed]
+        assert saved["evaluation"]["signature"]["iteration"] == best[seed]  # the chosen one is evaluated
+        with np.load(folder / f"{stem}.npz") as data:
+            assert len(data["joints"]) == 3 * 8
+        # Only the best candidate stays beside the last checkpoint (for a longer run to compare with).
+        assert [p.name for p in (folder / f"{stem}.candidates").iterdir()] == [f"it{best[seed]}.pt"]
+    kept = folder / "cond_gru-seed0-best-mmd-seq-every1-n50.candidates" / "it2.pt"
+    written = kept.stat().st_mtime_ns
+    calls.clear()
+    again = benchmark(tmp_path, *picked)
+    assert calls == [] and "2 of the 2 trainings were reused" in again and "| 3 × 2 | 2 / 3 |" in again
+    assert kept.stat().st_mtime_ns == written
+    last = benchmark(tmp_path, *args)  # another selection: its own runs, not the best ones
+    assert "trainings were reused" not in last and "evaluated (lowest MMD_seq)" not in last
+    assert record(tmp_path, "cond_gru-seed0")["evaluation"]["signature"]["iteration"] == 3
+    assert calls == [] and "| 3 × 2 | 2 / 3 |" in benchmark(tmp_path, *picked)
+    longer = benchmark(tmp_path, *picked, iters=4)  # resumes; scores only the new candidate
+    assert sorted(calls) == [(0, 4), (1, 4)] and "| 4 × 2 | 2 / 3 |" in longer
+
+
+def test_best_mmd_seq_scores_real_candidates_of_odmo(tmp_path):
+    """ODMO's candidates are finished (modes fitted) before they are scored and evaluated."""
+    text = benchmark(tmp_path, "--dataset", "demo", "--methods", "odmo", "--presets", "odmo=tiny",
+                     "--seeds", "0,1", "--select", "best-mmd-seq", "--select-every", "2",
+                     "--select-n", "4", iters=4)
+    results = json.loads((tmp_path / "work" / "results.json").read_text())
+    entry = results["settings"][0]["methods"]["odmo"]
+    assert not entry.get("errors") and entry["metrics"]["fid"]["mean"] is not None
+    for run in entry["runs"]:
+        scores = {int(it): value for it, value in run["scores"].items()}
+        assert set(scores) == {2, 4} and all(np.isfinite(list(scores.values())))
+        assert run["chosen"] == min(scores, key=scores.get) and run["select_seconds"] > 0
+    assert f"| 4 × 2 | {entry['chosen'][0]} / {entry['chosen'][1]} |" in text
+    assert "checkpoint selection" in text and "(modes)" in text
+
+
+@pytest.mark.parametrize("args, message", [
+    (("--select", "best"), r"--select: invalid choice: 'best' \(choose from 'last', 'best-mmd-seq'\)"),
+    (("--mmd-protocol", "ours"), r"--mmd-protocol: invalid choice: 'ours' \(choose from 'heldout', 'paper'\)"),
+    (("--select", "best-mmd-seq", "--select-every", "0"), r"--select-every must be from 1 to --iters \(3\); got 0"),
+    (("--select", "best-mmd-seq", "--select-every", "4"), r"--select-every must be from 1 to --iters \(3\); got 4"),
+    (("--select", "best-mmd-seq", "--select-n", "1"), "--select-n must be at least 2"),
+    (("--select-every", "2",), "--select-every and --select-n go with --select best-mmd-seq, not --select last"),
+])
+def test_command_rejects_bad_selections_naming_the_option(tmp_path, args, message):
+    with pytest.raises(CommandError, match=message):
+        benchmark(tmp_path, "--dataset", "demo", "--methods", "cond_gru", *args)
+
+
+def test_best_mmd_seq_with_a_time_budget_needs_its_interval(tmp_path):
+    with pytest.raises(CommandError, match="--select best-mmd-seq with --budget needs --select-every N"):
+        call_command("benchmark_methods", "--dataset", "demo", "--budget", "1", "--select", "best-mmd-seq",
+                     "--out", str(tmp_path / "r.md"), verbosity=0)
+
+
+def test_tables_name_their_mmd_protocol_and_checkpoint_selection():
+    entry = {"recipe": "tiny", "parameters": 10, "runs": [
+        {"seed": seed, "iterations": 6, "chosen": chosen, "seconds": 1.0, "cpu_seconds": 1.0}
+        for seed, chosen in ((0, 2), (1, 6))],
+        "metrics": {"mmd_seq": {"mean": 0.5, "ci_seeds": 0.1, "ci_samples": 0.01}}}
+    setting = {"tables": [], "protocol": "bootstrap", "real": {}, "methods": {"a2m": entry},
+               "mmd_protocol": "heldout", "selection": {"rule": "last"}}
+    line = _metric_table(setting, ["mmd_seq"], [])[0]
+    assert "MMD protocol: `heldout` (distinct drawn motions against every held-out clip" in line
+    assert line.endswith("Checkpoints: the last of each training (`--select last`).")
+    assert "evaluated" not in "\n".join(_training_table(setting))
+    setting.update(mmd_protocol="paper", selection={"rule": "best-mmd-seq", "every": 2, "n": 50, "repeats": 3})
+    line = _metric_table(setting, ["mmd_seq"], [])[0]
+    assert "MMD protocol: `paper` (per action, equal numbers" in line and "candidates every 2 iterations" in line
+    assert "| `a2m` | tiny | 10 | 6 × 2 | 2 / 6 | 1 / 1 | 1 / 1 |  |" in _training_table(setting)
+    setting["methods"]["a2m"]["metrics"] = {"fid": {"mean": 1.0, "ci_seeds": 0.1, "ci_samples": 0.01}}
+    line = _metric_table(setting, ["fid"], [])[0]  # no MMD column: only the selection is named
+    assert "MMD protocol: " not in line and "lowest MMD_seq (`paper` MMD protocol" in line
 
 
 def test_training_stops_at_equal_iterations_and_resumes_to_more(tmp_path):

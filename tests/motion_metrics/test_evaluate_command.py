@@ -109,11 +109,28 @@ def test_paper_mmd_protocol_replaces_mmd_and_names_itself(real_motions, workdir,
         assert row["mmd_protocol"] == "paper" and len(row["values"]) == 2
         assert isinstance(row["mean"], float) and isinstance(row["real"]["mean"], float)
     assert "mmd_protocol" not in result["metrics"]["apd"]
+    assert list(result["metrics"]) == ["mmd_avg", "mmd_seq", "apd"]  # in the order asked
     printed = capsys.readouterr().out
     assert "MMD protocol paper:" in printed and "mmd_avg [paper]" in printed
     with pytest.raises(CommandError, match="--mmd-protocol paper measures one set"):
         call_command("evaluate", "--dataset", "demo", "--protocol", "a2m", "--checkpoint",
                      str(real_motions), "--mmd-protocol", "paper", "--json", str(out))
+
+
+def test_training_mmd_scores_motions_against_the_training_clips_by_the_paper_protocol():
+    from motion_metrics.evaluate import EvaluationError, training_mmd
+
+    clips = get_dataset("demo").clips(frames=FRAMES, actions=["walk", "jump"])
+    rng = np.random.default_rng(0)
+    copies = [clips[i] for i in rng.choice(len(clips), 12, replace=False)]
+    noisy = [clip.with_joints(clip.joints + rng.normal(0, 0.3, clip.joints.shape)) for clip in copies]
+    near = training_mmd(copies, clips, seed=1)
+    assert 0 <= near < training_mmd(noisy, clips, seed=1) and near == training_mmd(copies, clips, seed=1)
+    assert training_mmd(copies, clips, "mmd_avg", repeats=2) >= 0
+    with pytest.raises(EvaluationError, match="'fid' is not an MMD of the paper protocol"):
+        training_mmd(copies, clips, "fid")
+    with pytest.raises(EvaluationError, match="no training clips of run"):
+        training_mmd([make_motion(frames=FRAMES, action="run")], clips)
 
 
 def test_mode_homogeneity_groups_the_real_test_clips_by_the_models_modes(real_motions, odmo_checkpoint,

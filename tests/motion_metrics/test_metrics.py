@@ -356,6 +356,13 @@ def test_paper_mmd_compares_equal_counts_of_standardised_generated_and_training_
         assert np.allclose(again[name]["real"]["values"], away[name]["real"]["values"])
     with pytest.raises(M.MetricError, match="training clips have fewer than 2 motions of action 0, 1"):
         protocol.paper_mmd(far, make(1, 4), test)
+    # Without held-out clips there is no Real column (the score that selects a checkpoint).
+    alone = protocol.paper_mmd(far, train, None, ["mmd_seq"], repeats=3, seed=0)
+    assert set(alone) == {"mmd_seq"} and alone["mmd_seq"]["real"] is None
+    assert protocol.paper_mmd(close, train, None, ["mmd_seq"], 3)["mmd_seq"]["mean"] < alone["mmd_seq"]["mean"]
+    first = [protocol.MotionSet(s.joints[s.labels == 0], s.labels[s.labels == 0]) for s in (far, train, test)]
+    assert np.allclose(protocol.paper_mmd(first[0], first[1], None, repeats=3)["mmd_avg"]["values"],
+                       protocol.paper_mmd(*first, repeats=3)["mmd_avg"]["values"])  # the same draws
 
 
 def test_paired_mmd_needs_sets_of_equal_size():

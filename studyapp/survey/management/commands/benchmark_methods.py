@@ -8,14 +8,18 @@ from generation.datasets import DatasetError
 from generation.methods import CheckpointError, MethodError, list_methods
 from generation.recognition import ClassifierError
 from generation.sampling import SamplingError, split_names
-from motion_metrics.benchmark import BenchmarkError, run_benchmark
+from motion_metrics.benchmark import (
+    MMD_PROTOCOL, SELECT_N, SELECTIONS, BenchmarkError, Selection, run_benchmark,
+)
 from motion_metrics.benchmark_report import render
+from motion_metrics.protocol import MMD_PROTOCOLS
 
 
 class Command(BaseCommand):
     help = (
         "Train every method with several seeds for an equal number of iterations (or a time "
-        "budget) on each dataset, evaluate each seed's model with the seed papers' metrics and "
+        "budget) on each dataset, evaluate each seed's model (its last checkpoint, or with "
+        "--select best-mmd-seq the one of lowest MMD_seq) with the seed papers' metrics and "
         "write a Markdown report of the means over seeds, with intervals over seeds and over "
         "samples, beside the papers' numbers (default docs/RESULTS.md). Checkpoints in --work "
         "let a stopped run resume."
@@ -49,6 +53,23 @@ class Command(BaseCommand):
                             help="Training iterations of the action classifier.")
         parser.add_argument("--classifier-preset", default="paper",
                             help="Classifier preset: paper (A2M's GRU) or tiny (tests).")
+        parser.add_argument("--mmd-protocol", choices=sorted(MMD_PROTOCOLS), default=MMD_PROTOCOL,
+                            help="How MMD_avg/MMD_seq are measured: heldout (default: against every "
+                                 "held-out clip of the action, raw coordinates) or paper (seeds "
+                                 "003/004: against the training clips, coordinates standardised by "
+                                 "them, equal paired counts per action); every table names it.")
+        parser.add_argument("--select", choices=list(SELECTIONS), default="last",
+                            help="Which checkpoint of each training is evaluated: last (default) or "
+                                 "best-mmd-seq (seeds 003/004: of candidates kept every "
+                                 "--select-every iterations within the same budget, and the last, the "
+                                 "one with the lowest MMD_seq against the training clips, paper MMD "
+                                 "protocol); the training tables show the iteration chosen per seed.")
+        parser.add_argument("--select-every", type=int, metavar="N",
+                            help="best-mmd-seq: a candidate every N iterations (default with --iters: "
+                                 "a tenth of them; required with --budget).")
+        parser.add_argument("--select-n", type=int, default=SELECT_N, metavar="M",
+                            help=f"best-mmd-seq: motions per action sampled to score a candidate "
+                                 f"(default: {SELECT_N}; another seed than the evaluated motions').")
         parser.add_argument("--data-root", help="Folder of the datasets (default: their usual place).")
         parser.add_argument("--work", help="Folder for checkpoints, samples and records "
                                            "(default: STUDY_VAR_DIR/benchmark).")
@@ -67,6 +88,7 @@ class Command(BaseCommand):
         if len(seeds) < 2 or len(set(seeds)) != len(seeds) or min(seeds) < 0:
             raise CommandError(f"--seeds {options['seeds']!r}: give at least 2 distinct "
                                f"non-negative seeds (an interval over seeds needs 2), e.g. 0,1,2")
+        selection = selection_of(options)
         work = Path(options["work"] or Path(settings.VAR_DIR) / "benchmark")
         try:
             presets = dict(item.split("=", 1) for item in split_names(options["presets"]))
@@ -83,6 +105,7 @@ class Command(BaseCommand):
                 actions=split_names(options["actions"]) or None,
                 classifier_iters=options["classifier_iters"],
                 classifier_preset=options["classifier_preset"], data_root=options["data_root"],
+                mmd_protocol=options["mmd_protocol"], selection=selection,
                 progress=options["verbosity"] >= 1, log=self.stdout.write,
             )
         except KeyError as exc:
@@ -92,11 +115,33 @@ class Command(BaseCommand):
             raise CommandError(str(exc)) from None
         out = Path(options["out"])
         out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(render(result, command_line(options, work)))
+        out.write_text(render(result, command_line(options, work, selection)))
         self.stdout.write(f"wrote {out} ({result['wall_seconds'] / 60:.1f} minutes)")
 
 
-def command_line(options: dict, work: Path) -> str:
+def selection_of(options: dict) -> Selection:
+    """Return the checkpoint selection asked for, or raise a CommandError naming the option."""
+    every, iters = options["select_every"], options["iters"]
+    if options["select"] != "best-mmd-seq":
+        if every is not None or options["select_n"] != SELECT_N:
+            raise CommandError(f"--select-every and --select-n go with --select best-mmd-seq, not "
+                               f"--select {options['select']}")
+        return Selection(options["select"])
+    if every is None:
+        if iters is None:
+            raise CommandError("--select best-mmd-seq with --budget needs --select-every N "
+                               "(candidates every N iterations)")
+        every = max(1, iters // 10)
+    if every < 1 or (iters is not None and every > iters):
+        raise CommandError(f"--select-every must be from 1 to --iters ({iters}); got {every}"
+                           if iters is not None else f"--select-every must be at least 1; got {every}")
+    if options["select_n"] < 2:
+        raise CommandError(f"--select-n must be at least 2 (MMD needs 2 motions a side); "
+                           f"got {options['select_n']}")
+    return Selection("best-mmd-seq", every, options["select_n"])
+
+
+def command_line(options: dict, work: Path, selection: Selection) -> str:
     """Return the command that reproduces this run (every choice spelled out)."""
     parts = ["python", "manage.py", "benchmark_methods", "--dataset", options["dataset"]]
     if options["iters"] is not None:
@@ -109,6 +154,9 @@ def command_line(options: dict, work: Path) -> str:
             parts += [f"--{flag.replace('_', '-')}", options[flag]]
     parts += ["--repeats", str(options["repeats"]),
               "--n", str(options["n"]), "--classifier-iters", str(options["classifier_iters"]),
-              "--classifier-preset", options["classifier_preset"], "--out", options["out"],
-              "--work", str(work)]
+              "--classifier-preset", options["classifier_preset"],
+              "--mmd-protocol", options["mmd_protocol"], "--select", selection.rule]
+    if selection.best:
+        parts += ["--select-every", str(selection.every), "--select-n", str(selection.n)]
+    parts += ["--out", options["out"], "--work", str(work)]
     return shlex.join(parts)
