@@ -619,16 +619,7 @@ class TrialItemManager(models.Manager):
     def record_fetch(self, item_id: int, ext: str, start: int, end: int, size: int) -> None:
         """Record that bytes ``start..end`` (inclusive) of an item's ``ext`` file (its mp4,
         or the in-browser player's payload) were sent whole; the first time the ranges
-        of one of its files cover that file, ``fetched_at`` is set.
-
-        A file sent whole in one response (what browsers mostly ask for) is recorded by
-        one statement, with no lock: ``fetched_at`` is set only where it is not yet, and
-        the item's earlier ranges no longer matter once it is.
-        """
-        if start == 0 and end == size - 1:
-            self.filter(pk=item_id, fetched_at__isnull=True).update(
-                fetched={ext: [[0, size - 1]]}, fetched_at=timezone.now())
-            return
+        of one of its files cover that file, ``fetched_at`` is set."""
         with transaction.atomic():
             if connection.vendor == "sqlite":  # take the write lock first (see StudyManager.lock)
                 self.filter(pk=item_id).update(plays=F("plays"))

@@ -66,9 +66,7 @@ def clip(request, token, ext):
     range sent (``TrialItem.fetched``): the server, not the page, knows whether a clip
     was fetched to its end.
     """
-    fields = ("token", "stimulus__video", "stimulus__poster", "stimulus__motion")
-    item = get_object_or_404(TrialItem.objects.select_related("stimulus").only(*fields),
-                             token=token)
+    item = get_object_or_404(TrialItem.objects.select_related("stimulus"), token=token)
     on_sent = None
     if ext in ("mp4", "motion") and request.method == "GET":
         def on_sent(start, end, size, pk=item.pk):

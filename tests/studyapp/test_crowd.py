@@ -176,24 +176,6 @@ def test_an_answer_needs_every_clip_fetched_whole_and_its_time_played(ranking_st
     assert bot.answer(data).status_code == 302
 
 
-def test_a_clip_sent_whole_is_recorded_by_one_statement_and_once(ranking_study, make_bot,
-                                                                  django_assert_num_queries):
-    bot = make_bot(ranking_study)
-    bot.join()
-    bot.trial_page(watch=False)
-    item = bot.participant().current_trial().items.order_by("position").first()
-    whole = bot.client.get(item.clip_url())
-    with django_assert_num_queries(1):  # one UPDATE, no transaction or row lock
-        body = b"".join(whole.streaming_content)
-    item.refresh_from_db()
-    assert item.fetched == {"mp4": [[0, len(body) - 1]]} and item.fetched_at is not None
-    first = item.fetched_at
-    b"".join(bot.client.get(item.clip_url()).streaming_content)  # fetched again: kept as is
-    b"".join(bot.client.get(item.clip_url(), HTTP_RANGE="bytes=0-9").streaming_content)
-    item.refresh_from_db()
-    assert item.fetched_at == first and item.fetched == {"mp4": [[0, len(body) - 1]]}
-
-
 @pytest.mark.django_db(transaction=True)
 def test_bots_that_do_not_fetch_the_clips_are_refused(ranking_study, live_server, watching):
     with pytest.raises(CommandError, match="did not finish"):
