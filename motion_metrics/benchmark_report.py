@@ -494,7 +494,7 @@ def _setting_facts(setting: dict) -> list[str]:
             f"On {dataset} " + ", ".join(f"`{name}` ({_mean(methods[name], 'diversity'):.2f})"
                                           for name in collapsed)
             + f" {'has' if len(collapsed) == 1 else 'have'} less than half the diversity of real "
-            f"clips ({real_diversity:.2f})."
+            f"clips ({real_diversity:.2f}); this run does not establish why."
         )
     accuracy = {name: _mean(entry, "accuracy") for name, entry in methods.items()
                 if _mean(entry, "accuracy") is not None}
