@@ -60,6 +60,9 @@ def test_the_motion_plays_in_the_page_and_the_answer_is_stored(browser, live_ser
     page.set_default_timeout(20_000)
     begin(page, f"{live_server.url}/s/{study.slug}/")
     page.wait_for_selector("motion-player[src] canvas")
+    # The canvas is there before its payload: wait until every player drew its first frame.
+    page.wait_for_function(
+        "[...document.querySelectorAll('motion-player')].every(p => 'frame' in p.dataset)")
     assert page.locator("[data-clip-card] video").count() == 0  # the fallback went
     submit = page.locator("[data-submit]")
     expect(submit).to_be_disabled()
