@@ -7,7 +7,8 @@ are the same for every clip of one length), and every file is padded to one byte
 per format, resolution, length and frame rate (:func:`budget`, see
 :mod:`rendering.padding`). The files carry no metadata (no title, encoder or creation
 time), so identical frames give identical bytes. Frames go to the encoder one at a
-time, so memory does not grow with a clip's length.
+time, so memory does not grow with a clip's length. H.264 is encoded in this process
+(libx264 through PyAV); VP9 and GIF by an ``ffmpeg`` process reading raw frames.
 """
 
 from __future__ import annotations
@@ -94,30 +95,49 @@ def mp4_qp_floor(scale: float) -> int:
     return 0 if scale >= 1 else int(round(24 + 30 * (1 - scale)))
 
 
+def x264_options(width: int, height: int, fps, scale: float = 1.0) -> dict[str, str]:
+    """Return libx264's settings for a constant-rate mp4, by ffmpeg's option names.
+
+    ``scale`` < 1 marks a clip encoded again to fit its budget: it keeps the rate (which
+    its stream parameters carry) and gets a coarser quantiser floor (:func:`mp4_qp_floor`).
+    """
+    rate = str(bit_rate(width, height, fps))
+    return {
+        "preset": "superfast",
+        "b": rate, "minrate": rate, "maxrate": rate,
+        # A buffer of a few frames with a constant-rate HRD: x264 keeps every frame near
+        # the rate (the keyframe within the buffer), and the writer pads each frame to its
+        # fixed budget (padding.equalise_mp4_frames).
+        "bufsize": str(int(bit_rate(width, height, fps) * BUFFER_FRAMES / float(fps))),
+        # Keyframes every KEYINT frames whatever is shown, no B-frames: frame types and so
+        # the mp4's tables never depend on content.
+        "x264-params": f"filler=1:nal-hrd=cbr:bframes=0:scenecut=0:keyint={KEYINT}"
+                       f":min-keyint={KEYINT}:qpmin={mp4_qp_floor(scale)}",
+    }
+
+
+# x264 writes its version and settings into the stream (an SEI message): dropped.
+DROP_X264_BANNER = "filter_units=remove_types=6"
+
+
 def encoder_options(kind: str, width: int, height: int, fps, scale: float = 1.0) -> list[str]:
-    """Return ffmpeg's output options for a constant-rate mp4 or WebM (``scale`` < 1: a
-    clip encoded again to fit its budget: a lower rate for WebM, a coarser floor for mp4)."""
-    rate = bit_rate(width, height, fps, 1.0 if kind == "mp4" else scale)
+    """Return ffmpeg's command-line output options for a constant-rate mp4 or WebM
+    (``scale`` < 1: a clip encoded again to fit its budget: a lower rate for WebM, a
+    coarser floor for mp4). The mp4 ones are what :class:`VideoWriter` sets in-process."""
     common = ["-map_metadata", "-1", "-metadata:s:v:0", "encoder=", "-fflags", "+bitexact",
               "-flags:v", "+bitexact"]
     if kind == "mp4":
+        settings = x264_options(width, height, fps, scale)
         return [
-            "-preset", "superfast",
-            "-b:v", str(rate), "-minrate", str(rate), "-maxrate", str(rate),
-            # A buffer of a few frames with a constant-rate HRD: x264 keeps every frame
-            # near the rate (the keyframe within the buffer), and the writer pads each
-            # frame to its fixed budget (padding.equalise_mp4_frames).
-            "-bufsize", str(int(rate * BUFFER_FRAMES / float(fps))),
-            # Keyframes every KEYINT frames whatever is shown, no B-frames: frame types and
-            # so the mp4's tables never depend on content.
-            "-x264-params",
-            f"filler=1:nal-hrd=cbr:bframes=0:scenecut=0:keyint={KEYINT}:min-keyint={KEYINT}"
-            f":qpmin={mp4_qp_floor(scale)}",
+            "-preset", settings["preset"], "-b:v", settings["b"],
+            *(item for key in ("minrate", "maxrate", "bufsize", "x264-params")
+              for item in (f"-{key}", settings[key])),
             "-threads", "1",  # x264's output depends on its thread count; fix it everywhere
             "-movflags", "+faststart",
             *common,
-            "-bsf:v", "filter_units=remove_types=6",  # drop x264's SEI banner with its settings
+            "-bsf:v", DROP_X264_BANNER,
         ]
+    rate = bit_rate(width, height, fps, scale)
     return [
         "-b:v", str(rate), "-minrate", str(rate), "-maxrate", str(rate),
         "-deadline", "good",
@@ -168,19 +188,21 @@ class VideoWriter:
         self.frames = 0
         self.pad, self.rate_scale = pad, rate_scale
         self._writer = None if self.format == "gif" else self._yuv_writer()
-        # Frames go to ffmpeg from a thread of their own: a frame is larger than the
-        # pipe's buffer, so a direct write would wait for ffmpeg to read it, and the
-        # next frame could not be drawn while ffmpeg encodes this one.
+        # Frames go to the encoder from a thread of their own, so the next frame can be
+        # drawn while this one is encoded: x264 in-process runs without the GIL for
+        # much of its work, and an ffmpeg pipe would otherwise block on every frame
+        # (a frame is larger than the pipe's buffer).
         self._pending: queue.Queue = queue.Queue(maxsize=4)
         self._failure: BaseException | None = None
         self._sender = threading.Thread(target=self._send_pending, daemon=True)
         self._sender.start()
 
     def _yuv_writer(self):
-        codec = "libx264" if self.format == "mp4" else "libvpx-vp9"
+        if self.format == "mp4":
+            return _X264(self.path, self.width, self.height, self.fps, self.rate_scale)
         options = encoder_options(self.format, self.width, self.height, self.fps, self.rate_scale)
         return _Pipe(_raw_input(self.width, self.height, self.fps)
-                     + ["-c:v", codec, "-pix_fmt", "yuv420p", *options, str(self.path)])
+                     + ["-c:v", "libvpx-vp9", "-pix_fmt", "yuv420p", *options, str(self.path)])
 
     def write(self, frame: np.ndarray) -> None:
         """Append one frame."""
@@ -190,10 +212,10 @@ class VideoWriter:
                 f"got {frame.shape} {frame.dtype}"
             )
         if self._failure is not None:
-            raise RuntimeError(f"ffmpeg stopped writing {self.path}: {self._failure}")
+            raise RuntimeError(f"the encoder stopped writing {self.path}: {self._failure}")
         if self._writer is None:
             self._writer = _GifPipe(self.path, np.ascontiguousarray(frame), self.fps)
-        self._pending.put(frame.tobytes())  # a copy: the caller may reuse its buffer
+        self._pending.put(self._writer.prepare(frame))  # a copy: the caller may reuse its buffer
         self.frames += 1
 
     def _send_pending(self) -> None:
@@ -210,7 +232,7 @@ class VideoWriter:
             self._pending.put(None)
             self._sender.join()
         if self._failure is not None:
-            raise RuntimeError(f"ffmpeg stopped writing {self.path}: {self._failure}")
+            raise RuntimeError(f"the encoder stopped writing {self.path}: {self._failure}")
         if self._writer is not None:
             self._writer.close()
         if self.pad and self.frames:
@@ -235,6 +257,61 @@ class VideoWriter:
                 self.path.unlink(missing_ok=True)
 
 
+class _X264:
+    """libx264 inside this process (through PyAV's FFmpeg libraries) writing an mp4.
+
+    The same encoder and settings as ``ffmpeg`` with :func:`encoder_options` (the same
+    x264 build's SEI listed identical settings), without an ffmpeg process per clip,
+    its start-up and a pipe carrying every frame: per frame, drawing and encoding then
+    share one process's memory. Frames are converted to yuv420p by FFmpeg's scaler.
+    """
+
+    def __init__(self, path: Path, width: int, height: int, fps: Fraction, scale: float):
+        import av
+        from av.bitstream import BitStreamFilterContext
+        from av.codec.context import Flags
+
+        self._av, self._path = av, path
+        settings = x264_options(width, height, fps, scale)
+        try:
+            self._container = av.open(str(path), "w", format="mp4",
+                                      options={"movflags": "+faststart"},
+                                      container_options={"fflags": "+bitexact"})
+            self._stream = self._container.add_stream("libx264", rate=fps)
+            context = self._stream.codec_context
+            context.width, context.height, context.pix_fmt = width, height, "yuv420p"
+            context.bit_rate = int(settings.pop("b"))
+            context.thread_count = 1  # x264's output depends on its thread count
+            context.flags |= int(Flags.bitexact)
+            context.options = settings
+            self._container.start_encoding()  # the stream's parameters, before the filter's
+            self._banner = BitStreamFilterContext(DROP_X264_BANNER, self._stream, self._stream)
+        except av.FFmpegError as exc:
+            raise RuntimeError(f"could not start encoding {path.name}: {exc}") from None
+
+    def prepare(self, frame: np.ndarray):
+        """Return what :meth:`send` takes: the frame copied into an FFmpeg frame."""
+        return self._av.VideoFrame.from_ndarray(frame, format="rgb24")
+
+    def _mux(self, packets) -> None:
+        for packet in packets:
+            for kept in self._banner.filter(packet):
+                self._container.mux(kept)
+
+    def send(self, frame) -> None:
+        self._mux(self._stream.encode(frame))
+
+    def close(self) -> None:
+        try:
+            self._mux(self._stream.encode(None))
+            for kept in self._banner.filter(None):
+                self._container.mux(kept)
+        except self._av.FFmpegError as exc:
+            raise RuntimeError(f"could not finish {self._path.name}: {exc}") from None
+        finally:
+            self._container.close()
+
+
 PIPE_BYTES = 1 << 20  # a whole 480x480 frame fits: one wake-up of ffmpeg per frame, not 11
 
 
@@ -257,6 +334,10 @@ class _Pipe:
             fcntl.fcntl(self._process.stdin.fileno(), fcntl.F_SETPIPE_SZ, PIPE_BYTES)
         except (AttributeError, OSError):  # not Linux, or a lower system limit: still works
             pass
+
+    def prepare(self, frame: np.ndarray) -> bytes:
+        """Return what :meth:`send` takes: a copy of the frame's bytes."""
+        return frame.tobytes()
 
     def send(self, data: bytes) -> None:
         self._process.stdin.write(data)
