@@ -265,8 +265,9 @@ def render_set(
     horizontally; ``False`` keeps it still). ``out_dir/renders.json``
     records what was rendered from what, for the researcher only: never serve it.
     ``formats`` may add ``"webm"`` (VP9) and ``"gif"``, as ``<hash>.webm`` and
-    ``<hash>.gif`` beside the mp4. ``workers > 1`` spawns processes, so a calling
-    script needs the ``if __name__ == "__main__":`` guard. ``on_clip(index)`` is called
+    ``<hash>.gif`` beside the mp4. ``workers > 1`` spawns ``workers - 1`` processes (and
+    renders in this one too), so a calling script needs the ``if __name__ ==
+    "__main__":`` guard. ``on_clip(index)`` is called
     as each clip is done (rendered or failed), e.g. to show progress.
     """
     style_class = get_style(style)
@@ -338,11 +339,18 @@ class _Progress:
 
 
 def _render_parallel(motions, ready, style, framing, size, fps, out_dir, workers, done, formats):
+    """Render ``ready`` in ``workers`` processes: this one and ``workers - 1`` spawned ones.
+
+    Spawned workers start slowly (a new interpreter imports the renderer), so this
+    process draws at once, taking clips from the end of the list while the workers take
+    them from its front; a clip a worker has not started yet is cancelled there and drawn
+    here, until the two meet.
+    """
     # Spawned, not forked: the caller may hold threads (torch, Django) a fork would copy.
     context = multiprocessing.get_context("spawn")
     results = []
     with ProcessPoolExecutor(
-        max_workers=min(workers, len(ready)),
+        max_workers=min(workers, len(ready)) - 1,
         mp_context=context,
         initializer=_start_worker,
         initargs=(style, framing, *size),
@@ -351,12 +359,25 @@ def _render_parallel(motions, ready, style, framing, size, fps, out_dir, workers
             pool.submit(_work, index, motions[index], fps, out_dir, formats): index
             for index in ready
         }
-        for future in as_completed(futures):
+        waiting = list(futures)
+
+        def report(future) -> None:
             try:
                 results.append(future.result())
             except Exception as exc:  # a worker died; its clip fails, the others go on
                 results.append((futures[future], f"{type(exc).__name__}: {exc}"))
+            waiting.remove(future)
             done(futures[future])
+
+        with get_style(style)(framing, *size) as drawer:
+            while waiting and waiting[-1].cancel():
+                index = futures[waiting.pop()]
+                results.append(_attempt(drawer, index, motions[index], fps, out_dir, formats))
+                done(index)
+                for future in [f for f in waiting if f.done()]:
+                    report(future)
+        for future in as_completed(list(waiting)):
+            report(future)
     return results
 
 

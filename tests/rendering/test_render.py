@@ -171,6 +171,26 @@ def test_parallel_workers_render_the_same_files(rendered, tmp_path):
     assert [c.video_hash for c in parallel.clips] == [c.video_hash for c in report.clips]
 
 
+def test_parallel_rendering_shares_the_clips_between_this_process_and_a_worker(tmp_path):
+    """workers=2: this process draws from the end while a spawned worker takes the front;
+    every clip is rendered once, byte for byte as alone, a bad one fails alone, and
+    progress is told once per clip drawn."""
+    motions = [make_figure(frames=6, speed=0.5 + 0.25 * k) for k in range(9)]
+    joints = motions[4].joints.copy()
+    joints[2, 1] = np.nan
+    motions[4] = motions[4].with_joints(joints)
+    seen = []
+    serial = render_set(motions, tmp_path / "serial", size=SIZE, progress=False)
+    parallel = render_set(motions, tmp_path / "parallel", size=SIZE, workers=2, progress=False,
+                          on_clip=seen.append)
+    assert sorted(seen) == [0, 1, 2, 3, 5, 6, 7, 8]  # the clips that could be drawn
+    assert [i for i, _ in parallel.failures] == [4] and "non-finite" in parallel.failures[0][1]
+    assert [c.index for c in parallel.clips] == [0, 1, 2, 3, 5, 6, 7, 8]
+    assert [c.video_hash for c in parallel.clips] == [c.video_hash for c in serial.clips]
+    files = sorted(p.name for p in (tmp_path / "parallel").iterdir())
+    assert len(files) == 2 * 8 + 1  # an mp4 and a poster per clip, the sidecar
+
+
 def test_following_camera_keeps_a_fast_walker_inside(tmp_path):
     walker = make_figure(frames=12, speed=4.0)
     report = render_set([walker], tmp_path, size=SIZE, follow=True, progress=False)
