@@ -74,6 +74,19 @@ class Camera:
         pixels[..., 1] += self.height / 2
         return pixels, depth
 
+    def project_each(self, points: np.ndarray, shifts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return :meth:`project` of each frame's points ``(T, N, 3)`` by this camera moved
+        by that frame's ``shifts`` ``(T, 3)`` (:meth:`looking_at`), all frames at once."""
+        eyes = self.eye + np.asarray(shifts, dtype=np.float64)
+        local = np.einsum("...j,ij->...i", np.asarray(points, dtype=np.float64) - eyes[:, None],
+                          self.rotation)
+        depth = local[..., 2]
+        scale = self.focal if self.orthographic else self.focal / np.maximum(depth, 1e-6)
+        pixels = local[..., :2] * np.asarray(scale)[..., None]
+        pixels[..., 0] += self.width / 2
+        pixels[..., 1] += self.height / 2
+        return pixels, depth
+
     def pixel_size(self, depth: np.ndarray) -> np.ndarray:
         """Return how many pixels one world unit spans at the given depths."""
         if self.orthographic:

@@ -25,6 +25,7 @@ SUPERSAMPLE = 2
 SHADOW_SHRINK = 4  # the shadow is drawn this much smaller, then blurred and stretched
 LIGHT = np.array([-0.55, -0.83])  # on screen: from the upper left
 NEAR = 0.05  # parts nearer the eye than this share of the camera distance are not drawn
+CHUNK = 16  # frames whose geometry is worked out together
 
 # Sizes as fractions of the figure height, the same for every clip of a set.
 BONE_RADIUS = 0.021
@@ -49,27 +50,31 @@ class Figure:
 
 
 def _tones(colours: np.ndarray) -> np.ndarray:
-    """Return the (rim, body, highlight) colours ``(N, 3, 3)`` of each base colour ``(N, 3)``."""
-    shades = np.stack([colours * 0.66, colours, colours + (palette.WHITE - colours) * 0.5], axis=1)
+    """Return the (rim, body, highlight) colours ``(..., 3, 3)`` of base colours ``(..., 3)``."""
+    shades = np.stack([colours * 0.66, colours, colours + (palette.WHITE - colours) * 0.5],
+                      axis=-2)
     return np.rint(shades).astype(int)
 
 
-def _inks(tones: np.ndarray) -> list[list[int]]:
+def _inks(tones: np.ndarray) -> np.ndarray:
     """Return Pillow's inks for RGB colours ``(..., 3)``: the packed pixel, opaque."""
     packed = tones[..., 0] | tones[..., 1] << 8 | tones[..., 2] << 16 | 255 << 24
-    return packed.astype(np.uint32).view(np.int32).tolist()
+    return packed.astype(np.uint32).view(np.int32)
 
 
-def _cover(pixels, radii, size) -> tuple[int, int, int, int] | None:
-    """Return the even-aligned box around the figure, inside the image."""
-    low = (pixels - radii[:, None]).min(axis=0) - 4
-    high = (pixels + radii[:, None]).max(axis=0) + 4
+def _covers(pixels, radii, seen, size) -> tuple[np.ndarray, np.ndarray]:
+    """Return each frame's even-aligned box around the figure, inside the image, and
+    whether it has one: ``(T, 4)`` (left, top, right, bottom) and ``(T,)``."""
+    wide = radii[..., None]
+    any_seen = seen.any(axis=1)
+    low = np.where(seen[..., None], pixels - wide, np.inf).min(axis=1) - 4
+    high = np.where(seen[..., None], pixels + wide, -np.inf).max(axis=1) + 4
+    low = np.where(any_seen[:, None], low, 0.0)  # frames with nothing seen: no box
+    high = np.where(any_seen[:, None], high, 0.0)
     step = SUPERSAMPLE
-    left, top = (max(0, int(np.floor(v / step)) * step) for v in low)
-    right, bottom = (min(limit, int(np.ceil(v / step)) * step) for v, limit in zip(high, size))
-    if right <= left or bottom <= top:
-        return None
-    return left, top, right, bottom
+    corner = np.maximum(0, np.floor(low / step).astype(int) * step)
+    far = np.minimum(size, np.ceil(high / step).astype(int) * step)
+    return np.concatenate([corner, far], axis=1), any_seen & (far > corner).all(axis=1)
 
 
 def _darken(frame: np.ndarray, shadow) -> None:
@@ -104,25 +109,38 @@ class StickStyle(Style):
         figure = self._figure(motion.skeleton)
         placed = self.framing.place(motion)
         targets = self.framing.targets(motion, placed)
-        for pose, target in zip(placed, targets):
-            camera = self.framing.camera(*self._size, target)
-            pixels, depth = camera.project(pose)
+        for begin in range(0, len(placed), CHUNK):
+            yield from self._chunk(figure, placed[begin:begin + CHUNK],
+                                   targets[begin:begin + CHUNK])
+
+    def _chunk(self, figure: Figure, placed: np.ndarray, targets: np.ndarray):
+        """Yield the frames of consecutive poses ``(T, J, 3)`` with their look-at points."""
+        # The geometry of a chunk's frames at once: numpy's cost per call, not its
+        # arithmetic, dominates arrays of a few joints, so only Pillow's drawing is left
+        # per frame (and memory does not grow with the clip's length).
+        camera = self.framing.camera(*self._size)  # at the framing's own look-at
+        shifts = targets - np.asarray(self.framing.target, dtype=np.float64)
+        pixels, depth = camera.project_each(placed, shifts)
+        seen = depth > NEAR * self.framing.distance  # a joint flung at or behind the eye
+        reach = camera.pixel_size(depth)
+        boxes, boxed = _covers(pixels, figure.joint_radii * reach, seen, self._size)
+        # Drawn on the patch of each box: coordinates from the patch's corner.
+        local = pixels - boxes[:, None, :2].astype(float)
+        drawing = self._figure_plan(local, depth, reach, figure)
+        shadows = self._shadow_plan(camera, shifts, placed, figure) if self.shadow else None
+        for number, target in enumerate(targets):
             frame = self._backdrop.image(target)
-            if self.shadow:
-                _darken(frame, self._shadow(camera, pose, figure))
-            # Only the patch around the figure is drawn large and halved.
-            seen = depth > NEAR * self.framing.distance  # a joint flung at or behind the eye
-            box = _cover(pixels[seen], (figure.joint_radii * camera.pixel_size(depth))[seen],
-                         self._size) if seen.any() else None
-            if box is None:
+            if shadows is not None:
+                _darken(frame, self._shadow(shadows, number))
+            if not boxed[number]:
                 yield frame
                 continue
-            left, top, right, bottom = (v // SUPERSAMPLE for v in box)
+            # Only the patch around the figure is drawn large and halved.
+            left, top, right, bottom = (int(v) // SUPERSAMPLE for v in boxes[number])
             part = Image.fromarray(frame[top:bottom, left:right])
             patch = part.resize((part.width * SUPERSAMPLE, part.height * SUPERSAMPLE),
                                 Image.NEAREST)
-            origin = np.array(box[:2], dtype=float)
-            self._draw_figure(ImageDraw.Draw(patch), pixels - origin, depth, camera, figure)
+            self._draw_figure(ImageDraw.Draw(patch), drawing, number)
             frame[top:bottom, left:right] = np.asarray(patch.reduce(SUPERSAMPLE))
             yield frame
 
@@ -131,117 +149,143 @@ class StickStyle(Style):
             self._figures[skeleton] = Figure(get_skeleton(skeleton), self.framing.height)
         return self._figures[skeleton]
 
-    def _shadow(self, camera: Camera, pose: np.ndarray, figure: Figure):
-        """Return the shadow's mask and its top-left corner in the frame, or ``None``.
+    def _shadow_plan(self, camera: Camera, shifts, placed: np.ndarray, figure: Figure) -> dict:
+        """Return the shadow's geometry for every frame (see :meth:`_shadow`)."""
+        pixels, depth = camera.project_each(self.framing.shadows(placed), shifts)
+        seen = depth > NEAR * self.framing.distance
+        pixels /= SHADOW_SHRINK
+        reach = camera.pixel_size(depth) / SHADOW_SHRINK
+        unit = self.framing.height * float(camera.pixel_size(self.framing.distance)) / SHADOW_SHRINK
+        closeness = 1.0 - np.clip(placed[..., 2] / (0.2 * self.framing.height), 0.0, 1.0)
+        strength = np.where(seen, 100.0, 0.0)  # nothing of what lies at or behind the eye
+        reach = np.where(seen, reach, 0.0)
+
+        border = (1.4 * figure.joint_radii * reach + 3 * 0.012 * unit + 2)[..., None]
+        size = (self._size[0] // SHADOW_SHRINK, self._size[1] // SHADOW_SHRINK)
+        any_seen = seen.any(axis=1)
+        low = np.where(seen[..., None], pixels - border, np.inf).min(axis=1)
+        high = np.where(seen[..., None], pixels + border, -np.inf).max(axis=1)
+        low = np.maximum(np.floor(np.where(any_seen[:, None], low, 0.0)), 0).astype(int)
+        high = np.minimum(np.ceil(np.where(any_seen[:, None], high, 0.0)), size).astype(int)
+        pixels = np.where(seen[..., None], pixels, low[:, None])  # unseen parts at no size
+        pixels = pixels - low[:, None]
+        a, b = figure.bones[:, 0], figure.bones[:, 1]
+        bone_reach = (reach[:, a] + reach[:, b]) / 2
+        lines = np.concatenate([pixels[:, a], pixels[:, b]], axis=-1)
+        layers = []
+        for layer_strength, spread, blur in (
+                (strength, 1.4, 0.012), (np.where(seen, closeness**2 * 150, 0.0), 1.2, 0.006)):
+            levels = np.minimum(layer_strength[:, a], layer_strength[:, b]).astype(int)
+            widths = np.maximum(1, np.rint(2 * spread * figure.bone_radius * bone_reach))
+            layers.append({
+                "strength": layer_strength, "spread": spread, "sigma": max(0.5, blur * unit),
+                "levels": levels, "drawn": levels > 0,  # the joints' wider discs cover the ends
+                "order": np.argsort(layer_strength, axis=1), "widths": widths,
+            })
+        return {"pixels": pixels, "reach": reach, "low": low, "high": high, "lines": lines,
+                "valid": any_seen & (high > low).all(axis=1), "layers": layers,
+                "radii": figure.joint_radii}
+
+    def _shadow(self, plan: dict, number: int):
+        """Return frame ``number``'s shadow mask and its top-left corner in the frame, or ``None``.
 
         A faint shadow of the whole figure, plus a darker one where parts are near the
         floor: contact, sliding and floating all show against it. It is drawn small,
         blurred and stretched, and only over the patch it covers.
         """
-        pixels, depth = camera.project(self.framing.shadows(pose))
-        seen = depth > NEAR * self.framing.distance
-        if not seen.any():
+        if not plan["valid"][number]:
             return None
-        pixels /= SHADOW_SHRINK
-        reach = camera.pixel_size(depth) / SHADOW_SHRINK
-        unit = self.framing.height * float(camera.pixel_size(self.framing.distance)) / SHADOW_SHRINK
-        closeness = 1.0 - np.clip(pose[:, 2] / (0.2 * self.framing.height), 0.0, 1.0)
-        strength = np.where(seen, 100.0, 0.0)  # nothing of what lies at or behind the eye
-        layers = ((strength, 1.4, 0.012), (np.where(seen, closeness**2 * 150, 0.0), 1.2, 0.006))
-        reach = np.where(seen, reach, 0.0)
-
-        border = (1.4 * figure.joint_radii * reach + 3 * 0.012 * unit + 2)[seen, None]
-        size = (self._size[0] // SHADOW_SHRINK, self._size[1] // SHADOW_SHRINK)
-        low = np.maximum(np.floor((pixels[seen] - border).min(axis=0)), 0).astype(int)
-        high = np.minimum(np.ceil((pixels[seen] + border).max(axis=0)), size).astype(int)
-        pixels = np.where(seen[:, None], pixels, low)  # unseen parts are drawn at no size
-        if (high <= low).any():
-            return None
-        pixels = pixels - low
-        a, b = figure.bones[:, 0], figure.bones[:, 1]
-        bone_reach = (reach[a] + reach[b]) / 2
+        pixels, reach = plan["pixels"][number], plan["reach"][number]
+        low, high = plan["low"][number], plan["high"][number]
+        lines_all = plan["lines"][number]
         mask = None
-        for strength, spread, blur in layers:
+        for layer in plan["layers"]:
             # Each layer is drawn and blurred only where it has anything: the darker one
             # often only around the feet. Blurring zeros gives zeros, so the box (the
             # parts, the blur's reach and a margin) changes nothing.
-            sigma = max(0.5, blur * unit)
-            levels = np.minimum(strength[a], strength[b]).astype(int)
-            drawn = levels > 0  # the joints' wider discs cover the ends
-            order = np.argsort(strength)
+            strength, order = layer["strength"][number], layer["order"][number]
             order = order[strength[order] >= 1]
             if not len(order):
                 continue
-            radii = (spread * figure.joint_radii[order] * reach[order])[:, None]
+            drawn, sigma = layer["drawn"][number], layer["sigma"]
+            radii = (layer["spread"] * plan["radii"][order] * reach[order])[:, None]
             discs = np.concatenate([pixels[order] - radii, pixels[order] + radii], axis=1)
-            widths = np.maximum(1, np.rint(2 * spread * figure.bone_radius * bone_reach))
-            lines = np.concatenate([pixels[a], pixels[b]], axis=1)[drawn]
-            margin = np.ceil(4 * sigma) + 4 + (widths[drawn].max() if drawn.any() else 0)
+            widths = layer["widths"][number][drawn]
+            lines = lines_all[drawn]
+            margin = np.ceil(4 * sigma) + 4 + (widths.max() if len(widths) else 0)
             corner = np.maximum(np.floor(discs[:, :2].min(axis=0) - margin), 0).astype(int)
             far = np.minimum(np.ceil(discs[:, 2:].max(axis=0) + margin), high - low).astype(int)
             if (far <= corner).any():
                 continue
-            layer = Image.new("L", tuple(far - corner), 0)
-            core = ImageDraw.Draw(layer).draw
+            layer_image = Image.new("L", tuple(far - corner), 0)
+            core = ImageDraw.Draw(layer_image).draw
             shift = np.tile(corner, 2)
-            for line, level, width in zip((lines - shift).tolist(), levels[drawn].tolist(),
-                                          widths[drawn].astype(int).tolist()):
+            for line, level, width in zip((lines - shift).tolist(),
+                                          layer["levels"][number][drawn].tolist(),
+                                          widths.astype(int).tolist()):
                 core.draw_lines(line, level, width)
             for disc, level in zip((discs - shift).tolist(), strength[order].astype(int).tolist()):
                 core.draw_ellipse(disc, level, 1)
-            layer = layer.filter(ImageFilter.GaussianBlur(sigma))
+            layer_image = layer_image.filter(ImageFilter.GaussianBlur(sigma))
             if mask is None:
                 mask = Image.new("L", tuple(high - low), 0)
             box = (*corner.tolist(), *far.tolist())
-            mask.paste(ImageChops.add(mask.crop(box), layer), box)
+            mask.paste(ImageChops.add(mask.crop(box), layer_image), box)
         if mask is None:
             return None
         grow = SHADOW_SHRINK // SUPERSAMPLE  # to the frame's own size
         mask = mask.resize((mask.width * grow, mask.height * grow), Image.BILINEAR)
         return mask, tuple(int(v) * grow for v in low)
 
-    def _draw_figure(self, draw: ImageDraw.ImageDraw, pixels, depth, camera: Camera, figure):
-        """Draw bones and joints far to near, each a tube or ball lit from the upper left."""
-        reach = camera.pixel_size(depth)
+    def _figure_plan(self, pixels, depth, reach, figure: Figure) -> dict:
+        """Return every frame's bones and joints as tubes and balls lit from the upper
+        left, far to near, as plain numbers for Pillow's drawing core (see
+        :meth:`_draw_figure`); ``pixels`` ``(T, J, 2)`` on each frame's patch."""
         bones = figure.bones
-        start, end = pixels[bones[:, 0]], pixels[bones[:, 1]]
-        bone_depth = (depth[bones[:, 0]] + depth[bones[:, 1]]) / 2
-        bone_radii = figure.bone_radius * (reach[bones[:, 0]] + reach[bones[:, 1]]) / 2
+        head, tail = bones[:, 0], bones[:, 1]
+        start, end = pixels[:, head], pixels[:, tail]
+        bone_depth = (depth[:, head] + depth[:, tail]) / 2
+        bone_radii = figure.bone_radius * (reach[:, head] + reach[:, tail]) / 2
         joint_radii = figure.joint_radii * reach
 
         # Nearer parts a little brighter, farther ones fading towards the sky.
-        tone = np.concatenate([bone_depth, depth]) - self.framing.distance
+        tone = np.concatenate([bone_depth, depth], axis=1) - self.framing.distance
         tone = np.clip(tone / self.framing.height, -1.0, 1.0)
         base = np.concatenate([figure.bone_colours, figure.joint_colours])
-        base = base * (1.0 - 0.1 * tone[:, None])
-        base = base + (palette.SKY_HORIZON - base) * (0.25 * np.maximum(tone, 0.0))[:, None]
+        base = base * (1.0 - 0.1 * tone[..., None])
+        base = base + (palette.SKY_HORIZON - base) * (0.25 * np.maximum(tone, 0.0))[..., None]
         tones = _tones(np.clip(base, 0.0, 255.0))
 
         along = end - start
-        length = np.linalg.norm(along, axis=1, keepdims=True)
-        normal = np.stack([-along[:, 1], along[:, 0]], axis=1) / np.maximum(length, 1e-6)
-        lit = (normal * LIGHT).sum(axis=1)
-        light_offset = normal * lit[:, None]  # the light's component across the tube
+        length = np.linalg.norm(along, axis=-1, keepdims=True)
+        normal = np.stack([-along[..., 1], along[..., 0]], axis=-1) / np.maximum(length, 1e-6)
+        lit = (normal * LIGHT).sum(axis=-1)
+        light_offset = normal * lit[..., None]  # the light's component across the tube
 
-        # Every primitive's place, size and colour at once, as plain numbers for Pillow's
-        # drawing core (its Python wrappers cost more than the drawing itself).
-        r = bone_radii[:, None]
+        r = bone_radii[..., None]
         body_shift, shine = light_offset * 0.2 * r, light_offset * 0.48 * r
         lines = np.concatenate([start, end, start + body_shift, end + body_shift, start + shine,
-                                end + shine], axis=1).reshape(-1, 3, 4).tolist()
-        widths = np.maximum(1, np.rint(2 * r * [1.0, 0.72, 0.25])).astype(int).tolist()
-        j = joint_radii[:, None]
-        centres = np.stack([pixels, pixels + LIGHT * 0.2 * j, pixels + LIGHT * 0.45 * j], axis=1)
+                                end + shine], axis=-1).reshape(*start.shape[:2], 3, 4)
+        widths = np.maximum(1, np.rint(2 * r * [1.0, 0.72, 0.25])).astype(int)
+        j = joint_radii[..., None]
+        centres = np.stack([pixels, pixels + LIGHT * 0.2 * j, pixels + LIGHT * 0.45 * j], axis=-2)
         radii = (j * [1.0, 0.76, 0.3])[..., None]
-        discs = np.concatenate([centres - radii, centres + radii], axis=2).tolist()
-        inks = _inks(tones)
+        discs = np.concatenate([centres - radii, centres + radii], axis=-1)
 
-        n_bones = len(bones)
         near = NEAR * self.framing.distance
-        seen = np.concatenate([(depth[bones[:, 0]] > near) & (depth[bones[:, 1]] > near),
-                               depth > near])
+        seen = np.concatenate([(depth[:, head] > near) & (depth[:, tail] > near), depth > near],
+                              axis=1)
         # Balls sit a little nearer than the tubes meeting at them, so they cap the ends.
-        order = np.argsort(-np.concatenate([bone_depth, depth - figure.joint_radii]), kind="stable")
+        order = np.argsort(-np.concatenate([bone_depth, depth - figure.joint_radii], axis=1),
+                           axis=1, kind="stable")
+        return {"lines": lines, "widths": widths, "discs": discs, "inks": _inks(tones),
+                "order": order, "seen": seen, "bones": len(bones)}
+
+    def _draw_figure(self, draw: ImageDraw.ImageDraw, plan: dict, number: int):
+        """Draw frame ``number``'s bones and joints far to near (:meth:`_figure_plan`)."""
+        lines, widths = plan["lines"][number].tolist(), plan["widths"][number].tolist()
+        discs, inks = plan["discs"][number].tolist(), plan["inks"][number].tolist()
+        order, seen, n_bones = plan["order"][number], plan["seen"][number], plan["bones"]
         core = draw.draw
         for k in order[seen[order]].tolist():
             if k < n_bones:
