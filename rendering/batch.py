@@ -125,7 +125,8 @@ def _formats(formats) -> tuple[str, ...]:
 RATE_SCALES = (1.0, 0.8, 0.6, 0.4)  # a clip over its byte budget is encoded again, lower
 
 
-def _encode(style: Style, motion: Motion, videos: list[Path], poster: Path) -> int:
+def _encode(style: Style, motion: Motion, videos: list[Path], poster: Path,
+            background: bool = True) -> int:
     """Stream a motion's frames into every video, save its middle frame; return the count.
 
     Every file comes out at its budget's size; the rare clip whose encoder overshoots it
@@ -133,18 +134,20 @@ def _encode(style: Style, motion: Motion, videos: list[Path], poster: Path) -> i
     """
     for scale in RATE_SCALES[:-1]:
         try:
-            return _encode_at(style, motion, videos, poster, scale)
+            return _encode_at(style, motion, videos, poster, scale, background)
         except OverBudget:
             pass
-    return _encode_at(style, motion, videos, poster, RATE_SCALES[-1])
+    return _encode_at(style, motion, videos, poster, RATE_SCALES[-1], background)
 
 
-def _encode_at(style: Style, motion: Motion, videos: list[Path], poster: Path, scale) -> int:
+def _encode_at(style: Style, motion: Motion, videos: list[Path], poster: Path, scale,
+               background: bool = True) -> int:
     middle = (motion.frames - 1) // 2
     with ExitStack() as stack:
         writers = [
             stack.enter_context(
-                VideoWriter(video, style.width, style.height, motion.fps, rate_scale=scale)
+                VideoWriter(video, style.width, style.height, motion.fps, rate_scale=scale,
+                            background=background)
             )
             for video in videos
         ]
@@ -186,10 +189,11 @@ def render_motion(
     return replace(clip, motion_hash=given.content_hash())
 
 
-def _render_file(drawer: Style, index, motion: Motion, fps, videos: list[Path], poster: Path):
+def _render_file(drawer: Style, index, motion: Motion, fps, videos: list[Path], poster: Path,
+                 background: bool = True):
     """Render into ``videos`` (the mp4 first) and ``poster``; describe the result."""
     timed = resample(motion, fps) if fps else motion
-    frames = _encode(drawer, timed, videos, poster)
+    frames = _encode(drawer, timed, videos, poster, background)
     video = videos[0]
     return RenderedClip(
         index=index,
@@ -206,13 +210,13 @@ def _render_file(drawer: Style, index, motion: Motion, fps, videos: list[Path], 
 
 
 def _render_hashed(drawer: Style, index: int, motion: Motion, fps, out_dir: Path,
-                   formats: tuple[str, ...]) -> RenderedClip:
+                   formats: tuple[str, ...], background: bool = True) -> RenderedClip:
     """Render into temporary files, then name them all by the mp4's hash."""
     stem = out_dir / f".rendering-{os.getpid()}-{index}"
     videos = [stem.with_suffix(f".{f}") for f in formats]
     poster = stem.with_suffix(".png")
     try:
-        clip = _render_file(drawer, index, motion, fps, videos, poster)
+        clip = _render_file(drawer, index, motion, fps, videos, poster, background)
         named = {path: out_dir / f"{clip.video_hash}{path.suffix}" for path in videos + [poster]}
         for temporary, final in named.items():
             os.replace(temporary, final)
@@ -223,10 +227,11 @@ def _render_hashed(drawer: Style, index: int, motion: Motion, fps, out_dir: Path
     return replace(clip, video=named[videos[0]], poster=named[poster], extras=extras)
 
 
-def _attempt(drawer: Style, index: int, motion: Motion, fps, out_dir: Path, formats):
+def _attempt(drawer: Style, index: int, motion: Motion, fps, out_dir: Path, formats,
+             background: bool = True):
     """Return a rendered clip, or ``(index, message)`` if it failed."""
     try:
-        return _render_hashed(drawer, index, motion, fps, out_dir, formats)
+        return _render_hashed(drawer, index, motion, fps, out_dir, formats, background)
     except Exception as exc:  # one bad clip must not stop the set
         return index, f"{type(exc).__name__}: {exc}"
 
@@ -239,7 +244,8 @@ def _start_worker(style: str, framing: Framing, width: int, height: int) -> None
 
 
 def _work(index: int, motion: Motion, fps, out_dir: Path, formats):
-    return _attempt(_WORKER["drawer"], index, motion, fps, out_dir, formats)
+    # Rendering processes share the cores: each encodes in its drawing thread (VideoWriter).
+    return _attempt(_WORKER["drawer"], index, motion, fps, out_dir, formats, background=False)
 
 
 def render_set(
@@ -372,7 +378,8 @@ def _render_parallel(motions, ready, style, framing, size, fps, out_dir, workers
         with get_style(style)(framing, *size) as drawer:
             while waiting and waiting[-1].cancel():
                 index = futures[waiting.pop()]
-                results.append(_attempt(drawer, index, motions[index], fps, out_dir, formats))
+                results.append(_attempt(drawer, index, motions[index], fps, out_dir, formats,
+                                        background=False))
                 done(index)
                 for future in [f for f in waiting if f.done()]:
                     report(future)

@@ -166,17 +166,25 @@ class OverBudget(RuntimeError):
 GIF_FILTER = "[0:v][1:v]paletteuse=dither=bayer:bayer_scale=4:diff_mode=rectangle"
 
 
+# Without a thread of its own, a writer encodes its frames in groups: drawing a group and
+# then encoding it keeps each one's working set in the caches; alternating frame by frame
+# cost about 15 % more CPU here (48 stick clips at 480x480).
+BATCH_FRAMES = 16
+
+
 class VideoWriter:
     """Write ``(H, W, 3)`` uint8 frames one at a time (use as a context manager).
 
     The format follows the file's suffix: ``.mp4`` (H.264), ``.webm`` (VP9) or
     ``.gif``. If the block raises, the partial file is removed. ``pad`` makes the file
     its :func:`budget`'s size on closing (:class:`OverBudget` if it is larger: encode
-    again with a smaller ``rate_scale``).
+    again with a smaller ``rate_scale``). ``background=False`` encodes in the caller's
+    thread, :data:`BATCH_FRAMES` frames at a time: for processes that share the cores
+    with other rendering processes, where a thread of its own gains nothing.
     """
 
     def __init__(self, path: str | Path, width: int, height: int, fps: float,
-                 pad: bool = True, rate_scale: float = 1.0):
+                 pad: bool = True, rate_scale: float = 1.0, background: bool = True):
         self.path = Path(path)
         self.format = self.path.suffix[1:].lower()
         if self.format not in FORMATS:
@@ -188,14 +196,17 @@ class VideoWriter:
         self.frames = 0
         self.pad, self.rate_scale = pad, rate_scale
         self._writer = None if self.format == "gif" else self._yuv_writer()
-        # Frames go to the encoder from a thread of their own, so the next frame can be
-        # drawn while this one is encoded: x264 in-process runs without the GIL for
-        # much of its work, and an ffmpeg pipe would otherwise block on every frame
-        # (a frame is larger than the pipe's buffer).
-        self._pending: queue.Queue = queue.Queue(maxsize=4)
         self._failure: BaseException | None = None
-        self._sender = threading.Thread(target=self._send_pending, daemon=True)
-        self._sender.start()
+        self._batch: list = []
+        self._sender = None
+        if background:
+            # Frames go to the encoder from a thread of their own, so the next frame can
+            # be drawn while this one is encoded: x264 in-process runs without the GIL
+            # for much of its work, and an ffmpeg pipe would otherwise block on every
+            # frame (a frame is larger than the pipe's buffer).
+            self._pending: queue.Queue = queue.Queue(maxsize=4)
+            self._sender = threading.Thread(target=self._send_pending, daemon=True)
+            self._sender.start()
 
     def _yuv_writer(self):
         if self.format == "mp4":
@@ -215,8 +226,23 @@ class VideoWriter:
             raise RuntimeError(f"the encoder stopped writing {self.path}: {self._failure}")
         if self._writer is None:
             self._writer = _GifPipe(self.path, np.ascontiguousarray(frame), self.fps)
-        self._pending.put(self._writer.prepare(frame))  # a copy: the caller may reuse its buffer
+        prepared = self._writer.prepare(frame)  # a copy: the caller may reuse its buffer
+        if self._sender is not None:
+            self._pending.put(prepared)
+        else:
+            self._batch.append(prepared)
+            if len(self._batch) == BATCH_FRAMES:
+                self._send_batch()
         self.frames += 1
+
+    def _send_batch(self) -> None:
+        try:
+            for prepared in self._batch:
+                self._writer.send(prepared)
+        except Exception as exc:
+            raise RuntimeError(f"the encoder stopped writing {self.path}: {exc}") from exc
+        finally:
+            self._batch.clear()
 
     def _send_pending(self) -> None:
         while (data := self._pending.get()) is not None:
@@ -228,9 +254,11 @@ class VideoWriter:
 
     def close(self) -> None:
         """Finish the file (an mp4 gets its index at the front)."""
-        if self._sender.is_alive():
+        if self._sender is not None and self._sender.is_alive():
             self._pending.put(None)
             self._sender.join()
+        elif self._batch:
+            self._send_batch()
         if self._failure is not None:
             raise RuntimeError(f"the encoder stopped writing {self.path}: {self._failure}")
         if self._writer is not None:

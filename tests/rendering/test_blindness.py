@@ -90,7 +90,7 @@ def test_a_clip_over_its_budget_is_encoded_again_with_nothing_that_tells(tmp_pat
     scales = []
     encode_at = batch._encode_at
     monkeypatch.setattr(batch, "_encode_at",
-                        lambda *args: scales.append(args[-1]) or encode_at(*args))
+                        lambda *args: scales.append(args[4]) or encode_at(*args))
     report = render_set(_extremes()[2:], tmp_path, size=SIZE, progress=False)
     assert scales == [1.0, 0.2]
     assert report.failures == []

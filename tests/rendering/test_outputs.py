@@ -117,3 +117,23 @@ def test_memory_does_not_grow_with_clip_length(style):
             peaks.append(tracemalloc.get_traced_memory()[1])
             tracemalloc.stop()
     assert peaks[1] < peaks[0] + 256 * 1024, peaks
+
+
+@pytest.mark.parametrize("kind", ["mp4", "webm"])
+def test_writing_in_the_callers_thread_gives_the_same_file(tmp_path, kind):
+    """background=False encodes in groups in the caller's thread (rendering processes
+    sharing the cores): the bytes are those of the writer thread's, for a clip longer
+    than one group and not a multiple of it."""
+    from rendering.video import BATCH_FRAMES, VideoWriter
+
+    rng = np.random.default_rng(0)
+    frames = [rng.integers(0, 255, (32, 32, 3), dtype=np.uint8) for _ in range(BATCH_FRAMES + 5)]
+    paths = []
+    for background in (True, False):
+        path = tmp_path / f"{background}.{kind}"
+        with VideoWriter(path, 32, 32, 25, background=background) as writer:
+            for frame in frames:
+                writer.write(frame)
+        paths.append(path)
+    assert paths[0].read_bytes() == paths[1].read_bytes()
+    assert decode(paths[1])[1].shape == (len(frames), 32, 32, 3)
