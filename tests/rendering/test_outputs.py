@@ -137,3 +137,28 @@ def test_writing_in_the_callers_thread_gives_the_same_file(tmp_path, kind):
         paths.append(path)
     assert paths[0].read_bytes() == paths[1].read_bytes()
     assert decode(paths[1])[1].shape == (len(frames), 32, 32, 3)
+
+
+def test_the_mp4_writer_gives_the_bytes_of_ffmpeg_with_the_same_settings(tmp_path):
+    """x264 runs in-process, yet the file is byte for byte what the ffmpeg command line
+    writes with encoder_options from the same frames: anyone can reproduce a clip."""
+    import subprocess
+
+    import imageio_ffmpeg
+
+    from rendering.video import VideoWriter, encoder_options
+
+    framing = Framing.from_motions([make_figure(frames=12, speed=1.5)], pad=get_style("stick").pad)
+    with get_style("stick")(framing, 96, 96) as drawer:
+        frames = list(drawer.frames(make_figure(frames=12, speed=1.5)))
+    ours = tmp_path / "ours.mp4"
+    with VideoWriter(ours, 96, 96, 25, pad=False) as writer:
+        for frame in frames:
+            writer.write(frame)
+    theirs = tmp_path / "ffmpeg.mp4"
+    subprocess.run(
+        [imageio_ffmpeg.get_ffmpeg_exe(), "-v", "error", "-f", "rawvideo", "-pix_fmt", "rgb24",
+         "-s", "96x96", "-r", "25", "-i", "-", "-c:v", "libx264", "-pix_fmt", "yuv420p",
+         *encoder_options("mp4", 96, 96, 25), str(theirs)],
+        input=b"".join(frame.tobytes() for frame in frames), check=True)
+    assert ours.read_bytes() == theirs.read_bytes()
