@@ -379,11 +379,17 @@ def command_lines(folder: Path, size: int, clips: int) -> dict[str, list[str]]:
     }
 
 
+# Python's bytecode cache on, as Python has it by default (a machine may turn it off with
+# PYTHONDONTWRITEBYTECODE; every process would then compile the project's modules anew).
+COMMAND_ENV = {key: value for key, value in os.environ.items()
+               if key != "PYTHONDONTWRITEBYTECODE"}
+
+
 def timed(command: list[str]) -> tuple[float, float]:
     """Return the wall and CPU seconds (every process it started) of one command."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    subprocess.run(command, check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
+    subprocess.run(command, check=True, cwd=ROOT, stdout=subprocess.DEVNULL, env=COMMAND_ENV)
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
@@ -621,11 +627,12 @@ def main() -> None:
         "alone encodes the very frames the command draws (drawn beforehand to raw RGB files) "
         "with the command's encoder settings. matplotlib draws "
         f"{MATPLOTLIB_CLIPS * 60} frames of the same clips. Each line is a whole process "
-        f"(interpreter and Django start-up included), run in turn, {options.rounds} rounds, "
-        f"medians; load average {load_before:.1f} → {load_command:.1f} from other work on the "
-        "machine's 2 cores, so wall-clock rates vary from run to run (the commands' own "
-        "rounds: " + "; ".join(f"{k} " + "/".join(f"{w:.1f}" for w in r["walls"])
-                              for k, r in command.items() if k in ("render2", "x264")) + " s).",
+        "(interpreter and Django start-up included, Python's bytecode cache on), run in "
+        f"turn, {options.rounds} rounds, medians; load average {load_before:.1f} → "
+        f"{load_command:.1f} from other work on the machine's 2 cores, so wall-clock rates "
+        "vary from run to run (the commands' own rounds: "
+        + "; ".join(f"{k} " + "/".join(f"{w:.1f}" for w in r["walls"])
+                    for k, r in command.items() if k in ("render2", "x264")) + " s).",
         "",
         command_table(command),
         "",
