@@ -66,20 +66,17 @@ class Camera:
 
     def project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Return pixel coordinates ``(..., 2)`` and depths ``(...)`` of world points."""
-        local = self.to_camera(points)
-        depth = local[..., 2]
-        scale = self.focal if self.orthographic else self.focal / np.maximum(depth, 1e-6)
-        pixels = local[..., :2] * np.asarray(scale)[..., None]
-        pixels[..., 0] += self.width / 2
-        pixels[..., 1] += self.height / 2
-        return pixels, depth
+        return self._on_image(self.to_camera(points))
 
     def project_each(self, points: np.ndarray, shifts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Return :meth:`project` of each frame's points ``(T, N, 3)`` by this camera moved
         by that frame's ``shifts`` ``(T, 3)`` (:meth:`looking_at`), all frames at once."""
         eyes = self.eye + np.asarray(shifts, dtype=np.float64)
-        local = np.einsum("...j,ij->...i", np.asarray(points, dtype=np.float64) - eyes[:, None],
-                          self.rotation)
+        return self._on_image(np.einsum("...j,ij->...i", np.asarray(points, dtype=np.float64)
+                                        - eyes[:, None], self.rotation))
+
+    def _on_image(self, local: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return the pixels and depths of camera coordinates ``(..., 3)``."""
         depth = local[..., 2]
         scale = self.focal if self.orthographic else self.focal / np.maximum(depth, 1e-6)
         pixels = local[..., :2] * np.asarray(scale)[..., None]
