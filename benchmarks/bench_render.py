@@ -488,9 +488,11 @@ def cpu_breakdown(size: int) -> str:
     """Return a table of the CPU time per frame of each part of drawing and encoding.
 
     The command's clips in this process, one after another: each part of the ``stick``
-    style is timed by wrapping it, the rest of drawing (the camera, the figure's patch
-    made large and halved) is what is left of the whole frame; then the same frames
-    through the command's writer (mp4 pipe, ffmpeg included) and posters.
+    style is timed by wrapping it, the rest of drawing (the geometry of each group of
+    frames, the figure's patch made large and halved) is what is left of the whole
+    frame; then the same frames drawn and written as the command writes them (in-process
+    x264, padding, posters), and the drawn frames encoded alone by this writer and by an
+    ffmpeg process per clip through a pipe (the former writer), in turn per clip.
     """
     from rendering.batch import _render_hashed
     from rendering.styles import stick
@@ -543,7 +545,7 @@ def cpu_breakdown(size: int) -> str:
                         out.write(frame)
                 encoding[name] += cpu_seconds() - before
     rows = [(name, value) for name, value in spent.items()]
-    rows.append(("the rest: camera, the figure's patch made large and halved",
+    rows.append(("the rest: each 16 frames' geometry, the figure's patch made large and halved",
                  whole - sum(spent.values())))
     rows.append(("**drawing, whole frames**", whole))
     rows.append(("**drawn, encoded (x264), padded, posters: `_render_hashed`**", encoded))

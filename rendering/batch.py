@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import multiprocessing
 import os
+import threading
+from collections import deque
 from contextlib import ExitStack
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field, replace
@@ -348,43 +350,75 @@ def _render_parallel(motions, ready, style, framing, size, fps, out_dir, workers
     """Render ``ready`` in ``workers`` processes: this one and ``workers - 1`` spawned ones.
 
     Spawned workers start slowly (a new interpreter imports the renderer), so this
-    process draws at once, taking clips from the end of the list while the workers take
-    them from its front; a clip a worker has not started yet is cancelled there and drawn
-    here, until the two meet.
+    process draws at once, taking clips from the end of the list, while each worker is
+    handed the next clip from its front whenever it finishes one (never more than one
+    waiting per worker, so the two ends meet with no one idle for long). If the workers
+    die, this process renders what they had not been given.
     """
     # Spawned, not forked: the caller may hold threads (torch, Django) a fork would copy.
     context = multiprocessing.get_context("spawn")
+    pending = deque(ready)
+    futures: dict = {}
+    reported: set = set()
     results = []
+    lock = threading.Lock()
+    stopped = False
+
+    spawned = min(workers, len(ready)) - 1
     with ProcessPoolExecutor(
-        max_workers=min(workers, len(ready)) - 1,
+        max_workers=spawned,
         mp_context=context,
         initializer=_start_worker,
         initargs=(style, framing, *size),
     ) as pool:
-        futures = {
-            pool.submit(_work, index, motions[index], fps, out_dir, formats): index
-            for index in ready
-        }
-        waiting = list(futures)
+
+        def hand_out(_finished=None) -> None:
+            """Give a worker the next clip from the front (also as a clip finishes)."""
+            with lock:
+                if stopped or not pending:
+                    return
+                index = pending.popleft()
+                try:
+                    future = pool.submit(_work, index, motions[index], fps, out_dir, formats)
+                except Exception:  # the pool is broken: this process renders the rest
+                    pending.appendleft(index)
+                    return
+                futures[future] = index
+            future.add_done_callback(hand_out)
 
         def report(future) -> None:
             try:
                 results.append(future.result())
             except Exception as exc:  # a worker died; its clip fails, the others go on
                 results.append((futures[future], f"{type(exc).__name__}: {exc}"))
-            waiting.remove(future)
+            reported.add(future)
             done(futures[future])
 
-        with get_style(style)(framing, *size) as drawer:
-            while waiting and waiting[-1].cancel():
-                index = futures[waiting.pop()]
-                results.append(_attempt(drawer, index, motions[index], fps, out_dir, formats,
-                                        background=False))
-                done(index)
-                for future in [f for f in waiting if f.done()]:
-                    report(future)
-        for future in as_completed(list(waiting)):
-            report(future)
+        try:
+            for _ in range(spawned):
+                hand_out()
+            with get_style(style)(framing, *size) as drawer:
+                while True:
+                    with lock:
+                        if not pending:
+                            break
+                        index = pending.pop()
+                    results.append(_attempt(drawer, index, motions[index], fps, out_dir,
+                                            formats, background=False))
+                    done(index)
+                    with lock:
+                        finished = [f for f in futures if f.done() and f not in reported]
+                    for future in finished:
+                        report(future)
+            with lock:
+                left = [f for f in futures if f not in reported]
+            for future in as_completed(left):
+                report(future)
+        except BaseException:
+            with lock:
+                stopped = True
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
     return results
 
 

@@ -6,9 +6,10 @@ no content-dependent choices (no scene-cut keyframes, no B-frames, so the mp4's 
 are the same for every clip of one length), and every file is padded to one byte size
 per format, resolution, length and frame rate (:func:`budget`, see
 :mod:`rendering.padding`). The files carry no metadata (no title, encoder or creation
-time), so identical frames give identical bytes. Frames go to the encoder one at a
-time, so memory does not grow with a clip's length. H.264 is encoded in this process
-(libx264 through PyAV); VP9 and GIF by an ``ffmpeg`` process reading raw frames.
+time), so identical frames give identical bytes. Frames go to the encoder as they are
+drawn (at most a few at a time), so memory does not grow with a clip's length. H.264 is
+encoded in this process (libx264 through PyAV); VP9 and GIF by an ``ffmpeg`` process
+reading raw frames.
 """
 
 from __future__ import annotations
@@ -178,9 +179,10 @@ class VideoWriter:
     The format follows the file's suffix: ``.mp4`` (H.264), ``.webm`` (VP9) or
     ``.gif``. If the block raises, the partial file is removed. ``pad`` makes the file
     its :func:`budget`'s size on closing (:class:`OverBudget` if it is larger: encode
-    again with a smaller ``rate_scale``). ``background=False`` encodes in the caller's
-    thread, :data:`BATCH_FRAMES` frames at a time: for processes that share the cores
-    with other rendering processes, where a thread of its own gains nothing.
+    again with a smaller ``rate_scale``). ``background=False`` hands frames to the encoder
+    (x264 in this thread, or an ffmpeg pipe for WebM and GIF) from the caller's thread,
+    :data:`BATCH_FRAMES` frames at a time: for processes that share the cores with other
+    rendering processes, where a thread of its own gains nothing.
     """
 
     def __init__(self, path: str | Path, width: int, height: int, fps: float,
@@ -254,13 +256,22 @@ class VideoWriter:
 
     def close(self) -> None:
         """Finish the file (an mp4 gets its index at the front)."""
-        if self._sender is not None and self._sender.is_alive():
-            self._pending.put(None)
-            self._sender.join()
-        elif self._batch:
-            self._send_batch()
-        if self._failure is not None:
-            raise RuntimeError(f"the encoder stopped writing {self.path}: {self._failure}")
+        try:
+            if self._sender is not None and self._sender.is_alive():
+                self._pending.put(None)
+                self._sender.join()
+            elif self._batch:
+                self._send_batch()
+            if self._failure is not None:
+                raise RuntimeError(f"the encoder stopped writing {self.path}: {self._failure}")
+        except BaseException as failure:
+            # Close the encoder anyway: a pipe's ffmpeg then says why it stopped.
+            if self._writer is not None:
+                try:
+                    self._writer.close()
+                except Exception as reason:
+                    raise reason from failure
+            raise
         if self._writer is not None:
             self._writer.close()
         if self.pad and self.frames:
@@ -278,11 +289,27 @@ class VideoWriter:
         return self
 
     def __exit__(self, exc_type, exc, tb):
+        if exc_type is not None:
+            self._abort()  # the block's own error is the one to tell
+            self.path.unlink(missing_ok=True)
+            return
         try:
             self.close()
-        finally:
-            if exc_type is not None:
-                self.path.unlink(missing_ok=True)
+        except BaseException:
+            self.path.unlink(missing_ok=True)  # no partial file is left behind
+            raise
+
+    def _abort(self) -> None:
+        """Stop the encoder without finishing the file; its errors no longer matter."""
+        self._batch.clear()
+        if self._sender is not None and self._sender.is_alive():
+            self._pending.put(None)
+            self._sender.join()
+        if self._writer is not None:
+            try:
+                self._writer.close()
+            except Exception:
+                pass
 
 
 class _X264:
@@ -302,6 +329,7 @@ class _X264:
         self._av, self._path = av, path
         self._converter = VideoReformatter()  # keeps its scaler from frame to frame
         settings = x264_options(width, height, fps, scale)
+        self._container = None
         try:
             self._container = av.open(str(path), "w", format="mp4",
                                       options={"movflags": "+faststart"},
@@ -316,14 +344,17 @@ class _X264:
             self._container.start_encoding()  # the stream's parameters, before the filter's
             self._banner = BitStreamFilterContext(DROP_X264_BANNER, self._stream, self._stream)
         except av.FFmpegError as exc:
-            raise RuntimeError(f"could not start encoding {path.name}: {exc}") from None
+            self._close_container()
+            path.unlink(missing_ok=True)
+            raise RuntimeError(f"could not start encoding {path}: {exc}") from None
 
     def prepare(self, frame: np.ndarray):
         """Return what :meth:`send` takes: the frame in yuv420p, converted as ``ffmpeg``
         converts it (bicubic: its default scaler), so the file's bytes are those of
         ``ffmpeg`` with :func:`encoder_options` on the same frames."""
         rgb = self._av.VideoFrame.from_ndarray(frame, format="rgb24")
-        return self._converter.reformat(rgb, format="yuv420p", interpolation="BICUBIC")
+        return self._converter.reformat(rgb, format="yuv420p", interpolation="BICUBIC",
+                                        threads=1)  # processes share the cores
 
     def _mux(self, packets) -> None:
         for packet in packets:
@@ -339,9 +370,17 @@ class _X264:
             for kept in self._banner.filter(None):
                 self._container.mux(kept)
         except self._av.FFmpegError as exc:
-            raise RuntimeError(f"could not finish {self._path.name}: {exc}") from None
+            raise RuntimeError(f"could not finish {self._path}: {exc}") from None
         finally:
-            self._container.close()
+            self._close_container()
+
+    def _close_container(self) -> None:
+        try:
+            if self._container is not None:
+                self._container.close()
+        except self._av.FFmpegError:  # already failing: the first error is the one to tell
+            pass
+        self._container = None
 
 
 PIPE_BYTES = 1 << 20  # a whole 480x480 frame fits: one wake-up of ffmpeg per frame, not 11

@@ -162,3 +162,21 @@ def test_the_mp4_writer_gives_the_bytes_of_ffmpeg_with_the_same_settings(tmp_pat
          *encoder_options("mp4", 96, 96, 25), str(theirs)],
         input=b"".join(frame.tobytes() for frame in frames), check=True)
     assert ours.read_bytes() == theirs.read_bytes()
+
+
+@pytest.mark.parametrize("background", [True, False])
+def test_an_encoder_failing_mid_clip_names_the_file_and_leaves_none(tmp_path, monkeypatch,
+                                                                    background):
+    from rendering import video
+
+    def broken(self, prepared):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(video._X264, "send", broken)
+    path = tmp_path / "clip.mp4"
+    frame = np.zeros((32, 32, 3), np.uint8)
+    with pytest.raises(RuntimeError, match=f"stopped writing {path}.*disk full"):
+        with video.VideoWriter(path, 32, 32, 25, background=background) as writer:
+            for _ in range(video.BATCH_FRAMES + 2):
+                writer.write(frame)
+    assert not path.exists()

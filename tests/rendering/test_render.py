@@ -191,6 +191,19 @@ def test_parallel_rendering_shares_the_clips_between_this_process_and_a_worker(t
     assert len(files) == 2 * 8 + 1  # an mp4 and a poster per clip, the sidecar
 
 
+def test_an_error_while_rendering_in_parallel_stops_without_waiting_for_the_rest(tmp_path):
+    """The calling process's own failure (here its progress callback) is raised at once:
+    the clips not yet handed to a worker are never started."""
+    motions = [make_figure(frames=6, speed=0.5 + 0.1 * k) for k in range(12)]
+
+    def stop(index):
+        raise RuntimeError(f"stopped at clip {index}")
+
+    with pytest.raises(RuntimeError, match="stopped at clip"):
+        render_set(motions, tmp_path, size=SIZE, workers=2, progress=False, on_clip=stop)
+    assert len(list(tmp_path.glob("*.mp4"))) < len(motions)
+
+
 def test_following_camera_keeps_a_fast_walker_inside(tmp_path):
     walker = make_figure(frames=12, speed=4.0)
     report = render_set([walker], tmp_path, size=SIZE, follow=True, progress=False)
