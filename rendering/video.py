@@ -102,14 +102,14 @@ def x264_options(width: int, height: int, fps, scale: float = 1.0) -> dict[str, 
     ``scale`` < 1 marks a clip encoded again to fit its budget: it keeps the rate (which
     its stream parameters carry) and gets a coarser quantiser floor (:func:`mp4_qp_floor`).
     """
-    rate = str(bit_rate(width, height, fps))
+    rate = bit_rate(width, height, fps)
     return {
         "preset": "superfast",
-        "b": rate, "minrate": rate, "maxrate": rate,
+        "b": str(rate), "minrate": str(rate), "maxrate": str(rate),
         # A buffer of a few frames with a constant-rate HRD: x264 keeps every frame near
         # the rate (the keyframe within the buffer), and the writer pads each frame to its
         # fixed budget (padding.equalise_mp4_frames).
-        "bufsize": str(int(bit_rate(width, height, fps) * BUFFER_FRAMES / float(fps))),
+        "bufsize": str(int(rate * BUFFER_FRAMES / float(fps))),
         # Keyframes every KEYINT frames whatever is shown, no B-frames: frame types and so
         # the mp4's tables never depend on content.
         "x264-params": f"filler=1:nal-hrd=cbr:bframes=0:scenecut=0:keyint={KEYINT}"
