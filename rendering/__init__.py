@@ -1,7 +1,7 @@
 """Render motions to videos: styles by name, one framing per stimulus set.
 
-Plain numpy and Pillow (the mesh style adds pyrender, imported when first drawn); never
-Django or torch.
+Plain numpy, Pillow and OpenCV (the mesh style adds pyrender, imported when first drawn);
+never Django or torch.
 """
 
 from rendering.batch import (

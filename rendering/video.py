@@ -25,6 +25,7 @@ import threading
 from fractions import Fraction
 from pathlib import Path
 
+import cv2
 import imageio_ffmpeg
 import numpy as np
 from PIL import Image
@@ -49,7 +50,10 @@ OVERHEAD = {"mp4": (2048, 24), "webm": (2048, 24)}
 # GIFs have no rate control, so their budget is LZW's worst case (12-bit codes for 8-bit
 # pixels, plus the sub-blocks' length bytes): large; prefer mp4 or WebM.
 GIF_BYTES_PER_PIXEL = 1.51
-POSTER_BYTES_PER_PIXEL = 0.3
+# Poster budgets: 4 KiB and this much per pixel. The middle frames of 16 demo clips took
+# up to 0.38 byte per pixel beyond the 4 KiB at 128 and 240 pixels, 0.27 at 480 (PNG
+# level 3); a busier frame is stored with 256 colours.
+POSTER_BYTES_PER_PIXEL = 0.4
 BLOCK = 1024  # budgets are whole KiB
 FORMATS = ("mp4", "webm", "gif")
 
@@ -156,6 +160,23 @@ def encoder_settings() -> dict:
     return {"bits_per_pixel": BITS_PER_PIXEL, "headroom": HEADROOM,
             "mp4": encoder_options("mp4", 2, 2, 1)[:2] + ["constant rate, filler, no B-frames"],
             "padded": True}
+
+
+# Rendering processes share the cores (one per core): OpenCV's own thread pool would
+# only make them contend.
+cv2.setNumThreads(1)
+
+
+def to_yuv420p(frame: np.ndarray) -> np.ndarray:
+    """Return an RGB frame ``(H, W, 3)`` uint8 as yuv420p planes ``(3 H / 2, W)`` uint8.
+
+    BT.601 in limited range, as ffmpeg converts RGB for H.264 by default (the same
+    luma), with each chroma sample the mean of its 2×2 pixels (ffmpeg's default filters
+    chroma with a wider bicubic kernel: edges of colour differ by a few levels). OpenCV's
+    conversion costs a tenth of ffmpeg's bicubic scaler (0.08 against 0.7 ms per 480×480
+    frame here), which was half of x264's own time per frame.
+    """
+    return cv2.cvtColor(np.ascontiguousarray(frame), cv2.COLOR_RGB2YUV_I420)
 
 
 class OverBudget(RuntimeError):
@@ -315,19 +336,17 @@ class VideoWriter:
 class _X264:
     """libx264 inside this process (through PyAV's FFmpeg libraries) writing an mp4.
 
-    The same encoder, settings and colour conversion as ``ffmpeg`` with
-    :func:`encoder_options`, so the same bytes (checked on demo clips), without an
-    ffmpeg process per clip, its start-up and a pipe carrying every frame.
+    The same encoder and settings as ``ffmpeg`` with :func:`encoder_options`, so the
+    same bytes from the same yuv420p frames (a test checks), without an ffmpeg process
+    per clip, its start-up and a pipe carrying every frame.
     """
 
     def __init__(self, path: Path, width: int, height: int, fps: Fraction, scale: float):
         import av
         from av.bitstream import BitStreamFilterContext
         from av.codec.context import Flags
-        from av.video.reformatter import VideoReformatter
 
         self._av, self._path = av, path
-        self._converter = VideoReformatter()  # keeps its scaler from frame to frame
         settings = x264_options(width, height, fps, scale)
         self._container = None
         try:
@@ -349,12 +368,9 @@ class _X264:
             raise RuntimeError(f"could not start encoding {path}: {exc}") from None
 
     def prepare(self, frame: np.ndarray):
-        """Return what :meth:`send` takes: the frame in yuv420p, converted as ``ffmpeg``
-        converts it (bicubic: its default scaler), so the file's bytes are those of
-        ``ffmpeg`` with :func:`encoder_options` on the same frames."""
-        rgb = self._av.VideoFrame.from_ndarray(frame, format="rgb24")
-        return self._converter.reformat(rgb, format="yuv420p", interpolation="BICUBIC",
-                                        threads=1)  # processes share the cores
+        """Return what :meth:`send` takes: the frame in yuv420p (:func:`to_yuv420p`), in a
+        buffer of its own that the frame wraps (x264 copies it when it is sent)."""
+        return self._av.VideoFrame.from_numpy_buffer(to_yuv420p(frame), format="yuv420p")
 
     def _mux(self, packets) -> None:
         for packet in packets:

@@ -141,12 +141,12 @@ def test_writing_in_the_callers_thread_gives_the_same_file(tmp_path, kind):
 
 def test_the_mp4_writer_gives_the_bytes_of_ffmpeg_with_the_same_settings(tmp_path):
     """x264 runs in-process, yet the file is byte for byte what the ffmpeg command line
-    writes with encoder_options from the same frames: anyone can reproduce a clip."""
+    writes with encoder_options from the same yuv420p frames: anyone can reproduce a clip."""
     import subprocess
 
     import imageio_ffmpeg
 
-    from rendering.video import VideoWriter, encoder_options
+    from rendering.video import VideoWriter, encoder_options, to_yuv420p
 
     framing = Framing.from_motions([make_figure(frames=12, speed=1.5)], pad=get_style("stick").pad)
     with get_style("stick")(framing, 96, 96) as drawer:
@@ -157,11 +157,31 @@ def test_the_mp4_writer_gives_the_bytes_of_ffmpeg_with_the_same_settings(tmp_pat
             writer.write(frame)
     theirs = tmp_path / "ffmpeg.mp4"
     subprocess.run(
-        [imageio_ffmpeg.get_ffmpeg_exe(), "-v", "error", "-f", "rawvideo", "-pix_fmt", "rgb24",
+        [imageio_ffmpeg.get_ffmpeg_exe(), "-v", "error", "-f", "rawvideo", "-pix_fmt", "yuv420p",
          "-s", "96x96", "-r", "25", "-i", "-", "-c:v", "libx264", "-pix_fmt", "yuv420p",
          *encoder_options("mp4", 96, 96, 25), str(theirs)],
-        input=b"".join(frame.tobytes() for frame in frames), check=True)
+        input=b"".join(to_yuv420p(frame).tobytes() for frame in frames), check=True)
     assert ours.read_bytes() == theirs.read_bytes()
+
+
+def test_frames_convert_to_yuv420p_as_ffmpeg_does_within_its_chroma_filter():
+    """Our RGB to yuv420p conversion is ffmpeg's (BT.601, limited range) up to the chroma
+    filter: the same luma, chroma within a few levels on flat colour."""
+    import av
+
+    from rendering.video import to_yuv420p
+
+    rng = np.random.default_rng(0)
+    # Blocks of flat colour, 8 pixels wide, as clips are mostly made of.
+    frame = np.kron(rng.integers(0, 256, (6, 6, 3)), np.ones((8, 8, 1))).astype(np.uint8)
+    ours = to_yuv420p(frame).astype(int)
+    theirs = av.VideoFrame.from_ndarray(frame, format="rgb24").reformat(
+        format="yuv420p").to_ndarray().astype(int)
+    assert ours.shape == theirs.shape == (72, 48)
+    assert np.abs(ours[:48] - theirs[:48]).max() <= 1  # luma
+    for plane in (slice(48, 60), slice(60, 72)):  # U and V: 24 x 24 samples, 4 per block
+        difference = np.abs(ours[plane] - theirs[plane]).reshape(6, 4, 6, 4)
+        assert difference[:, 1:3, :, 1:3].max() <= 2  # inside each block, away from its edges
 
 
 @pytest.mark.parametrize("background", [True, False])
