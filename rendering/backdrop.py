@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
-from PIL import Image
 
 from rendering import palette
 from rendering.framing import Framing
@@ -66,8 +66,9 @@ class Backdrop:
         self._index_u = _index(u[band], wu[band])
         self._index_v = _index(v[band], wv[band])
         self._half_fade = (fade[band][..., 0] * (_SHADES / 2)).astype(np.float32)
-        darkening = np.rint(np.arange(_SHADES + 1)[:, None] / _SHADES * darker)
-        self._darkening = darkening.astype(np.uint8).tobytes()  # a palette, RGB per level
+        darkening = np.zeros((_SHADES + 1, 4), np.uint8)  # RGB and a spare byte per level
+        darkening[:, :3] = np.rint(np.arange(_SHADES + 1)[:, None] / _SHADES * darker)
+        self._darkening = darkening.view(np.uint32)[:, 0]
         self._still = None
 
     def image(self, target=None) -> np.ndarray:
@@ -88,12 +89,12 @@ class Backdrop:
             shade *= _WAVE[_shift(dv):].take(self._index_v)
             shade *= self._half_fade
             np.subtract(self._half_fade, shade, out=shade)
-            # The shade levels are a palette image whose colours are the darkenings:
-            # Pillow looks them up faster than numpy gathers three bytes a pixel.
-            levels = shade.astype(np.uint8)
-            darkening = Image.frombuffer("P", levels.shape[::-1], levels, "raw", "P", 0, 1)
-            darkening.putpalette(self._darkening)
-            image[self._rows] -= np.asarray(darkening.convert("RGB"))
+            # Each shade level's darkening is looked up as one 4-byte word (numpy gathers
+            # words faster than three bytes a pixel), then the spare byte dropped.
+            darkening = self._darkening.take(shade.astype(np.uint8))
+            band = image[self._rows]
+            cv2.subtract(band, cv2.cvtColor(darkening.view(np.uint8).reshape(*band.shape[:2], 4),
+                                            cv2.COLOR_RGBA2RGB), dst=band)
         return image
 
 

@@ -1,8 +1,9 @@
 """Stick figures: shaded tubes and balls in perspective over a floor with a soft shadow.
 
-Drawn with Pillow far to near, at twice the size and halved (4 samples a pixel), and
-only around the figure, over the backdrop drawn once at the frame's size (the floor is
-box-filtered, so it needs no extra samples); an order of magnitude faster than
+Drawn with OpenCV at the frame's own size, anti-aliased at 1/16 pixel (tubes as filled
+quadrilaterals, balls as discs), far to near, over the backdrop drawn once at the
+frame's size (the floor is box-filtered, so it needs no extra samples); the shadow is
+drawn at half the size, blurred and stretched. An order of magnitude faster than
 matplotlib 3D or pyrender.
 """
 
@@ -10,8 +11,8 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
+import cv2
 import numpy as np
-from PIL import Image, ImageChops, ImageDraw, ImageFilter
 
 from generation.motion import Motion
 from generation.skeletons import Skeleton, get_skeleton
@@ -21,16 +22,31 @@ from rendering.camera import Camera
 from rendering.framing import Framing
 from rendering.styles.base import Style, register_style
 
-SUPERSAMPLE = 2
-SHADOW_SHRINK = 4  # the shadow is drawn this much smaller, then blurred and stretched
+SHADOW_SHRINK = 2  # the shadow is drawn this much smaller, then blurred and stretched
 LIGHT = np.array([-0.55, -0.83])  # on screen: from the upper left
 NEAR = 0.05  # parts nearer the eye than this share of the camera distance are not drawn
 CHUNK = 16  # frames whose geometry is worked out together
+# OpenCV takes coordinates and radii as integers in 1/2**SHIFT pixel; its pixel centres
+# lie on whole numbers, the camera's half a pixel further (Camera.rays).
+SHIFT = 4
+ONE = 1 << SHIFT
+CENTRE = 0.5
+# OpenCV's anti-aliased edge reaches beyond a shape: a band's by about 0.7 pixel on each
+# side, a disc's by 0.5. Drawn this much smaller, each covers its true area (measured on
+# bands 3-14 pixels wide and discs of radius 2-12, within 4 %).
+BAND_BLEED, DISC_BLEED = 0.7, 0.5
+# Farther than this from the frame a point is clamped (OpenCV's integers must not
+# overflow; a part so far out shows nothing anyway).
+FAR_OUT = 1 << 14
 
 # Sizes as fractions of the figure height, the same for every clip of a set.
 BONE_RADIUS = 0.021
 JOINT_RADIUS = 0.029
 HEAD_RADIUS = 0.062
+# Each tube is three bands (rim, body, highlight) of these widths, each ball three
+# discs of these radii, as shares of the part's radius.
+BANDS = np.array([1.0, 0.72, 0.25])
+DISCS = np.array([1.0, 0.76, 0.3])
 
 
 class Figure:
@@ -56,40 +72,32 @@ def _tones(colours: np.ndarray) -> np.ndarray:
     return np.rint(shades).astype(int)
 
 
-def _inks(tones: np.ndarray) -> np.ndarray:
-    """Return Pillow's inks for RGB colours ``(..., 3)``: the packed pixel, opaque."""
-    packed = tones[..., 0] | tones[..., 1] << 8 | tones[..., 2] << 16 | 255 << 24
-    return packed.astype(np.uint32).view(np.int32)
-
-
-def _covers(pixels, radii, seen, size) -> tuple[np.ndarray, np.ndarray]:
-    """Return each frame's even-aligned box around the figure, inside the image, and
-    whether it has one: ``(T, 4)`` (left, top, right, bottom) and ``(T,)``."""
-    wide = radii[..., None]
-    any_seen = seen.any(axis=1)
-    low = np.where(seen[..., None], pixels - wide, np.inf).min(axis=1) - 4
-    high = np.where(seen[..., None], pixels + wide, -np.inf).max(axis=1) + 4
-    low = np.where(any_seen[:, None], low, 0.0)  # frames with nothing seen: no box
-    high = np.where(any_seen[:, None], high, 0.0)
-    step = SUPERSAMPLE
-    corner = np.maximum(0, np.floor(low / step).astype(int) * step)
-    far = np.minimum(size, np.ceil(high / step).astype(int) * step)
-    return np.concatenate([corner, far], axis=1), any_seen & (far > corner).all(axis=1)
+def _fixed(points: np.ndarray) -> np.ndarray:
+    """Return pixel coordinates (camera convention) as OpenCV's fixed-point integers."""
+    points = np.clip(points - CENTRE, -FAR_OUT, FAR_OUT)
+    return np.rint(points * ONE).astype(np.int32)
 
 
 def _darken(frame: np.ndarray, shadow) -> None:
-    """Lay the shadow colour over ``frame`` through a mask ``(mask image, (left, top))``."""
+    """Lay the shadow colour over ``frame`` through a mask ``(mask (h, w) uint8, (left, top))``.
+
+    Each pixel moves towards the shadow colour by the mask's share (``mask / 255``); the
+    backdrop is lighter than the shadow colour everywhere, so all in unsigned bytes.
+    """
     if shadow is None:
         return
     mask, (left, top) = shadow
     height, width = frame.shape[:2]
-    right, bottom = min(left + mask.width, width), min(top + mask.height, height)
+    right, bottom = min(left + mask.shape[1], width), min(top + mask.shape[0], height)
     if right <= left or bottom <= top:
         return
-    part = Image.fromarray(frame[top:bottom, left:right])
-    part.paste(palette.SHADOW, (0, 0, right - left, bottom - top),
-               mask.crop((0, 0, right - left, bottom - top)))
-    frame[top:bottom, left:right] = np.asarray(part)
+    part = frame[top:bottom, left:right]
+    weight = cv2.cvtColor(mask[: bottom - top, : right - left], cv2.COLOR_GRAY2RGB)
+    above = cv2.subtract(part, _SHADOW_INK)
+    cv2.subtract(part, cv2.multiply(above, weight, scale=1 / 255), dst=part)
+
+
+_SHADOW_INK = (*palette.SHADOW, 0)
 
 
 @register_style("stick")
@@ -101,7 +109,6 @@ class StickStyle(Style):
 
     def __init__(self, framing: Framing, width: int, height: int):
         super().__init__(framing, width, height)
-        self._size = (width * SUPERSAMPLE, height * SUPERSAMPLE)
         self._backdrop = Backdrop(framing, width, height)
         self._figures: dict[str, Figure] = {}
 
@@ -116,32 +123,18 @@ class StickStyle(Style):
     def _chunk(self, figure: Figure, placed: np.ndarray, targets: np.ndarray):
         """Yield the frames of consecutive poses ``(T, J, 3)`` with their look-at points."""
         # The geometry of a chunk's frames at once: numpy's cost per call, not its
-        # arithmetic, dominates arrays of a few joints, so only Pillow's drawing is left
-        # per frame (and memory does not grow with the clip's length).
-        camera = self.framing.camera(*self._size)  # at the framing's own look-at
+        # arithmetic, dominates arrays of a few joints, so only the drawing calls are
+        # left per frame (and memory does not grow with the clip's length).
+        camera = self.framing.camera(self.width, self.height)  # at the framing's own look-at
         shifts = targets - np.asarray(self.framing.target, dtype=np.float64)
         pixels, depth = camera.project_each(placed, shifts)
-        seen = depth > NEAR * self.framing.distance  # a joint flung at or behind the eye
-        reach = camera.pixel_size(depth)
-        boxes, boxed = _covers(pixels, figure.joint_radii * reach, seen, self._size)
-        # Drawn on the patch of each box: coordinates from the patch's corner.
-        local = pixels - boxes[:, None, :2].astype(float)
-        drawing = self._figure_plan(local, depth, reach, figure)
+        drawing = self._figure_plan(pixels, depth, camera.pixel_size(depth), figure)
         shadows = self._shadow_plan(camera, shifts, placed, figure) if self.shadow else None
         for number, target in enumerate(targets):
             frame = self._backdrop.image(target)
             if shadows is not None:
                 _darken(frame, self._shadow(shadows, number))
-            if not boxed[number]:
-                yield frame
-                continue
-            # Only the patch around the figure is drawn large and halved.
-            left, top, right, bottom = (int(v) // SUPERSAMPLE for v in boxes[number])
-            part = Image.fromarray(frame[top:bottom, left:right])
-            patch = part.resize((part.width * SUPERSAMPLE, part.height * SUPERSAMPLE),
-                                Image.NEAREST)
-            self._draw_figure(ImageDraw.Draw(patch), drawing, number)
-            frame[top:bottom, left:right] = np.asarray(patch.reduce(SUPERSAMPLE))
+            self._draw_figure(frame, drawing, number)
             yield frame
 
     def _figure(self, skeleton: str) -> Figure:
@@ -161,7 +154,7 @@ class StickStyle(Style):
         reach = np.where(seen, reach, 0.0)
 
         border = (1.4 * figure.joint_radii * reach + 3 * 0.012 * unit + 2)[..., None]
-        size = (self._size[0] // SHADOW_SHRINK, self._size[1] // SHADOW_SHRINK)
+        size = (self.width // SHADOW_SHRINK, self.height // SHADOW_SHRINK)
         any_seen = seen.any(axis=1)
         low = np.where(seen[..., None], pixels - border, np.inf).min(axis=1)
         high = np.where(seen[..., None], pixels + border, -np.inf).max(axis=1)
@@ -171,20 +164,41 @@ class StickStyle(Style):
         pixels = pixels - low[:, None]
         a, b = figure.bones[:, 0], figure.bones[:, 1]
         bone_reach = (reach[:, a] + reach[:, b]) / 2
-        lines = np.concatenate([pixels[:, a], pixels[:, b]], axis=-1)
+        ends = np.stack([pixels[:, a], pixels[:, b]], axis=-2)  # (T, bones, 2, 2)
+        limit = (high - low)[:, None]
         layers = []
         for layer_strength, spread, blur in (
                 (strength, 1.4, 0.012), (np.where(seen, closeness**2 * 150, 0.0), 1.2, 0.006)):
+            # Each layer is drawn and blurred only in its own box (its discs, the blur's
+            # reach and a margin), as plain numbers per frame for OpenCV.
+            sigma = max(0.5, blur * unit)
+            order = np.argsort(layer_strength, axis=1, kind="stable")  # the strongest on top
+            strength_ordered = np.take_along_axis(layer_strength, order, axis=1)
+            discs = strength_ordered >= 1
+            radii = spread * figure.joint_radii[order] * np.take_along_axis(reach, order, axis=1)
+            centres = np.take_along_axis(pixels, order[..., None], axis=1)
             levels = np.minimum(layer_strength[:, a], layer_strength[:, b]).astype(int)
+            drawn = levels > 0  # the joints' wider discs cover the ends
             widths = np.maximum(1, np.rint(2 * spread * figure.bone_radius * bone_reach))
+            margin = np.ceil(4 * sigma) + 4 + np.where(drawn, widths, 0).max(axis=1)
+            margin = margin[:, None]
+            corner = np.where(discs[..., None], centres - radii[..., None], np.inf).min(axis=1)
+            far = np.where(discs[..., None], centres + radii[..., None], -np.inf).max(axis=1)
+            corner = np.maximum(np.floor(np.where(discs.any(axis=1)[:, None], corner - margin,
+                                                  0.0)), 0).astype(int)
+            far = np.minimum(np.ceil(np.where(discs.any(axis=1)[:, None], far + margin, 0.0)),
+                             limit[:, 0]).astype(int)
             layers.append({
-                "strength": layer_strength, "spread": spread, "sigma": max(0.5, blur * unit),
-                "levels": levels, "drawn": levels > 0,  # the joints' wider discs cover the ends
-                "order": np.argsort(layer_strength, axis=1), "widths": widths,
+                "sigma": sigma, "corner": corner, "far": far,
+                "boxed": discs.any(axis=1) & (far > corner).all(axis=1),
+                "lines": _fixed(ends - corner[:, None, None]), "widths": widths.astype(int),
+                "levels": levels, "drawn": drawn,
+                "centres": _fixed(centres - corner[:, None]), "discs": discs,
+                "radii": np.rint(radii * ONE).astype(np.int32),
+                "strength": strength_ordered.astype(int),
             })
-        return {"pixels": pixels, "reach": reach, "low": low, "high": high, "lines": lines,
-                "valid": any_seen & (high > low).all(axis=1), "layers": layers,
-                "radii": figure.joint_radii}
+        return {"low": low, "high": high, "layers": layers,
+                "valid": any_seen & (high > low).all(axis=1)}
 
     def _shadow(self, plan: dict, number: int):
         """Return frame ``number``'s shadow mask and its top-left corner in the frame, or ``None``.
@@ -195,52 +209,39 @@ class StickStyle(Style):
         """
         if not plan["valid"][number]:
             return None
-        pixels, reach = plan["pixels"][number], plan["reach"][number]
         low, high = plan["low"][number], plan["high"][number]
-        lines_all = plan["lines"][number]
         mask = None
         for layer in plan["layers"]:
-            # Each layer is drawn and blurred only where it has anything: the darker one
-            # often only around the feet. Blurring zeros gives zeros, so the box (the
-            # parts, the blur's reach and a margin) changes nothing.
-            strength, order = layer["strength"][number], layer["order"][number]
-            order = order[strength[order] >= 1]
-            if not len(order):
+            # Blurring zeros gives zeros, so drawing a layer only in its box changes nothing.
+            if not layer["boxed"][number]:
                 continue
-            drawn, sigma = layer["drawn"][number], layer["sigma"]
-            radii = (layer["spread"] * plan["radii"][order] * reach[order])[:, None]
-            discs = np.concatenate([pixels[order] - radii, pixels[order] + radii], axis=1)
-            widths = layer["widths"][number][drawn]
-            lines = lines_all[drawn]
-            margin = np.ceil(4 * sigma) + 4 + (widths.max() if len(widths) else 0)
-            corner = np.maximum(np.floor(discs[:, :2].min(axis=0) - margin), 0).astype(int)
-            far = np.minimum(np.ceil(discs[:, 2:].max(axis=0) + margin), high - low).astype(int)
-            if (far <= corner).any():
-                continue
-            layer_image = Image.new("L", tuple(far - corner), 0)
-            core = ImageDraw.Draw(layer_image).draw
-            shift = np.tile(corner, 2)
-            for line, level, width in zip((lines - shift).tolist(),
-                                          layer["levels"][number][drawn].tolist(),
-                                          widths.astype(int).tolist()):
-                core.draw_lines(line, level, width)
-            for disc, level in zip((discs - shift).tolist(), strength[order].astype(int).tolist()):
-                core.draw_ellipse(disc, level, 1)
-            layer_image = layer_image.filter(ImageFilter.GaussianBlur(sigma))
+            (left, top), (right, bottom) = layer["corner"][number], layer["far"][number]
+            layer_image = np.zeros((bottom - top, right - left), np.uint8)
+            for (start, end), level, width, drawn in zip(
+                    layer["lines"][number].tolist(), layer["levels"][number].tolist(),
+                    layer["widths"][number].tolist(), layer["drawn"][number].tolist()):
+                if drawn:
+                    cv2.line(layer_image, start, end, level, width, cv2.LINE_8, SHIFT)
+            for centre, radius, level, disc in zip(
+                    layer["centres"][number].tolist(), layer["radii"][number].tolist(),
+                    layer["strength"][number].tolist(), layer["discs"][number].tolist()):
+                if disc:
+                    cv2.circle(layer_image, centre, radius, level, -1, cv2.LINE_8, SHIFT)
+            layer_image = cv2.GaussianBlur(layer_image, (0, 0), layer["sigma"])
             if mask is None:
-                mask = Image.new("L", tuple(high - low), 0)
-            box = (*corner.tolist(), *far.tolist())
-            mask.paste(ImageChops.add(mask.crop(box), layer_image), box)
+                mask = np.zeros(tuple(high - low)[::-1], np.uint8)
+            box = mask[top:bottom, left:right]
+            cv2.add(box, layer_image, dst=box)
         if mask is None:
             return None
-        grow = SHADOW_SHRINK // SUPERSAMPLE  # to the frame's own size
-        mask = mask.resize((mask.width * grow, mask.height * grow), Image.BILINEAR)
-        return mask, tuple(int(v) * grow for v in low)
+        mask = cv2.resize(mask, (mask.shape[1] * SHADOW_SHRINK, mask.shape[0] * SHADOW_SHRINK),
+                          interpolation=cv2.INTER_LINEAR)
+        return mask, tuple(int(v) * SHADOW_SHRINK for v in low)
 
     def _figure_plan(self, pixels, depth, reach, figure: Figure) -> dict:
         """Return every frame's bones and joints as tubes and balls lit from the upper
-        left, far to near, as plain numbers for Pillow's drawing core (see
-        :meth:`_draw_figure`); ``pixels`` ``(T, J, 2)`` on each frame's patch."""
+        left, far to near, as plain numbers for OpenCV's drawing (see
+        :meth:`_draw_figure`); ``pixels`` ``(T, J, 2)`` on the frame."""
         bones = figure.bones
         head, tail = bones[:, 0], bones[:, 1]
         start, end = pixels[:, head], pixels[:, tail]
@@ -262,15 +263,17 @@ class StickStyle(Style):
         lit = (normal * LIGHT).sum(axis=-1)
         light_offset = normal * lit[..., None]  # the light's component across the tube
 
-        r = bone_radii[..., None]
-        body_shift, shine = light_offset * 0.2 * r, light_offset * 0.48 * r
-        lines = np.concatenate([start, end, start + body_shift, end + body_shift, start + shine,
-                                end + shine], axis=-1).reshape(*start.shape[:2], 3, 4)
-        widths = np.maximum(1, np.rint(2 * r * [1.0, 0.72, 0.25])).astype(int)
+        # Each band is a quadrilateral: the bone's ends moved towards the light, widened
+        # across the bone (no round caps: every bone ends in a joint's larger ball,
+        # drawn nearer).
+        r = bone_radii[..., None, None]
+        moved = light_offset[..., None, :] * (r * np.array([0.0, 0.2, 0.48])[:, None])
+        across = normal[..., None, :] * np.maximum(r * BANDS[:, None] - BAND_BLEED, 0.0)
+        head_end, tail_end = start[..., None, :] + moved, end[..., None, :] + moved
+        quads = np.stack([head_end + across, tail_end + across, tail_end - across,
+                          head_end - across], axis=-2)  # (T, bones, 3, 4, 2)
         j = joint_radii[..., None]
         centres = np.stack([pixels, pixels + LIGHT * 0.2 * j, pixels + LIGHT * 0.45 * j], axis=-2)
-        radii = (j * [1.0, 0.76, 0.3])[..., None]
-        discs = np.concatenate([centres - radii, centres + radii], axis=-1)
 
         near = NEAR * self.framing.distance
         seen = np.concatenate([(depth[:, head] > near) & (depth[:, tail] > near), depth > near],
@@ -278,20 +281,21 @@ class StickStyle(Style):
         # Balls sit a little nearer than the tubes meeting at them, so they cap the ends.
         order = np.argsort(-np.concatenate([bone_depth, depth - figure.joint_radii], axis=1),
                            axis=1, kind="stable")
-        return {"lines": lines, "widths": widths, "discs": discs, "inks": _inks(tones),
-                "order": order, "seen": seen, "bones": len(bones)}
+        return {"quads": _fixed(quads), "centres": _fixed(centres),
+                "radii": np.rint(np.clip(j * DISCS - DISC_BLEED, 0.0, FAR_OUT) * ONE
+                                 ).astype(np.int32),
+                "tones": tones, "order": order, "seen": seen, "bones": len(bones)}
 
-    def _draw_figure(self, draw: ImageDraw.ImageDraw, plan: dict, number: int):
+    def _draw_figure(self, frame: np.ndarray, plan: dict, number: int):
         """Draw frame ``number``'s bones and joints far to near (:meth:`_figure_plan`)."""
-        lines, widths = plan["lines"][number].tolist(), plan["widths"][number].tolist()
-        discs, inks = plan["discs"][number].tolist(), plan["inks"][number].tolist()
+        quads, centres = plan["quads"][number], plan["centres"][number]
+        radii, tones = plan["radii"][number].tolist(), plan["tones"][number].tolist()
         order, seen, n_bones = plan["order"][number], plan["seen"][number], plan["bones"]
-        core = draw.draw
         for k in order[seen[order]].tolist():
             if k < n_bones:
-                # No round caps: every bone ends in a joint's larger ball, drawn nearer.
-                for line, ink, width in zip(lines[k], inks[k], widths[k]):
-                    core.draw_lines(line, ink, width)
+                for band, tone in zip(quads[k], tones[k]):
+                    cv2.fillConvexPoly(frame, band, tone, cv2.LINE_AA, SHIFT)
             else:
-                for disc, ink in zip(discs[k - n_bones], inks[k]):
-                    core.draw_ellipse(disc, ink, 1)
+                for centre, radius, tone in zip(centres[k - n_bones].tolist(),
+                                                radii[k - n_bones], tones[k]):
+                    cv2.circle(frame, centre, radius, tone, -1, cv2.LINE_AA, SHIFT)
