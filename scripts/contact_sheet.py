@@ -1,6 +1,6 @@
 """Write a contact sheet of every clip under a folder (a render output or a stimulus build).
 
-    .venv/bin/python scripts/contact_sheet.py var/demo docs/images/demo_contact_sheet.jpg
+    .venv/bin/python scripts/contact_sheet.py var/stimuli docs/images/demo_contact_sheet.jpg
 
 Labels come from the folder's ``renders.json`` / ``manifest.json`` records and name the
 sources: the sheet is for researchers, never for participants.
