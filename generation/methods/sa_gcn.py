@@ -56,12 +56,14 @@ Choices where the paper is silent, documented here ([code]: the authors' code):
   diversity at any checkpoint 4.1): what the variants shared was the small start.
   The paper's ``c_0 = o_0`` is kept: ``c_t`` grows with ``t``, mostly by a drift common
   to all motions, but a Gaussian start with residuals scaled by 0.1 reached less accuracy
-  in 500 iterations than without (0.12 and 0.18 against 0.37 and 0.09, seeds 0 and 1). With He initialisation a fresh generator varies by 0.73 across motions and
-  0.44 between classes; with the term below it learns (version 3 of the method);
-- the discriminators are also shown each real clip with a wrong label (uniform over the
-  other classes) as fake, with weight ``mismatch_weight`` (1; 0 gives Eq. 1 alone), the
-  "matching-aware" discriminator of Reed et al. (2016). Under Eq. 1 alone the video
-  discriminator judged real clips with wrong labels real as often as with their own
+  in 500 iterations than without (0.12 and 0.18 against 0.37 and 0.09, seeds 0 and 1).
+  With He initialisation a fresh generator varies by 0.73 across motions and 0.44
+  between classes; with the term below it learns (version 3 of the method);
+- with ``mismatch_weight`` > 0 (1 in the ``demo`` and ``tiny`` presets; 0, Eq. 1 alone,
+  in ``paper`` and ``code``: not in the paper) the discriminators are also shown each
+  real clip with a wrong label (uniform over the other classes) as fake, with that
+  weight, the "matching-aware" discriminator of Reed et al. (2016). Under Eq. 1 alone
+  the video discriminator judged real clips with wrong labels real as often as with their own
   (e.g. 0.46 and 0.48 after 500 iterations with He initialisation), i.e. it ignored
   the label, so the generator got no signal about the class: accuracy stayed at chance
   (0.10) even with a generator that did spread its motions (diversity 4-6). With the term
@@ -109,10 +111,10 @@ class SAGCNConfig(MethodConfig):
         "paper": {},
         "code": {"batch_size": 20, "real_label": 0.9},
         "demo": {"batch_size": 32, "linear_width": 128, "gc_width": 16, "d_hidden": 256,
-                 "d_features": 64, "lr": 5e-4},
+                 "d_features": 64, "lr": 5e-4, "mismatch_weight": 1.0},
         "tiny": {"batch_size": 8, "noise": 4, "label_embed": 4, "rnn_input": 8, "hidden": 8,
                  "linear_width": 8, "gc_width": 4, "d_hidden": 16, "d_features": 8,
-                 "frame_k": 4},
+                 "frame_k": 4, "mismatch_weight": 1.0},
     }
 
     batch_size: int = 100
@@ -128,7 +130,9 @@ class SAGCNConfig(MethodConfig):
     frame_k: int = 20  # frames shown to the frame discriminator
     lr: float = 2e-4
     real_label: float = 1.0
-    mismatch_weight: float = 1.0  # D's term on real clips with a wrong label (the paper: 0)
+    # D's term on real clips with a wrong label: not in the paper (0, its Eq. 1 alone, in
+    # the paper and code presets; 1 in demo and tiny)
+    mismatch_weight: float = 0.0
 
     def validate(self) -> None:
         super().validate()
@@ -137,6 +141,9 @@ class SAGCNConfig(MethodConfig):
             raise ValueError("SAGCNConfig sizes must be >= 1")
         if not 0.0 < self.real_label <= 1.0:
             raise ValueError(f"SAGCNConfig.real_label must be in (0, 1]; got {self.real_label}")
+        if not 0.0 <= self.mismatch_weight < float("inf"):
+            raise ValueError("SAGCNConfig.mismatch_weight must be a finite number >= 0 (0: the "
+                             f"paper's Eq. 1 alone); got {self.mismatch_weight}")
 
 
 def skeleton_adjacency(skeleton: Skeleton) -> torch.Tensor:
