@@ -55,23 +55,24 @@ Choices where the paper is silent, documented here ([code]: the authors' code):
   cumulative sum and residuals scaled by 0.1 (none learned the class; the highest
   diversity at any checkpoint 4.1): what the variants shared was the small start.
   The paper's ``c_0 = o_0`` is kept: ``c_t`` grows with ``t``, mostly by a drift common
-  to all motions, but a Gaussian start with residuals scaled by 0.1 reached less accuracy
-  in 500 iterations than without (0.12 and 0.18 against 0.37 and 0.09, seeds 0 and 1).
+  to all motions, but a Gaussian start with residuals scaled by 0.1 did not clearly do
+  better (accuracy at 500 iterations 0.12 and 0.18 against 0.37 and 0.09 for seeds 0 and
+  1, in exploratory runs of their own).
   With He initialisation a fresh generator varies by 0.73 across motions and 0.44
   between classes; with the term below it learns (version 3 of the method);
 - with ``mismatch_weight`` > 0 (1 in the ``demo`` and ``tiny`` presets; 0, Eq. 1 alone,
   in ``paper`` and ``code``: not in the paper) the discriminators are also shown each
   real clip with a wrong label (uniform over the other classes) as fake, with that
   weight, the "matching-aware" discriminator of Reed et al. (2016). Under Eq. 1 alone
-  the video discriminator judged real clips with wrong labels real as often as with their own
-  (e.g. 0.46 and 0.48 after 500 iterations with He initialisation), i.e. it ignored
+  the video discriminator judged real clips with wrong labels real as often as with
+  their own (e.g. 0.46 and 0.48 after 500 iterations with He initialisation), i.e. it ignored
   the label, so the generator got no signal about the class: accuracy stayed at chance
   (0.10) even with a generator that did spread its motions (diversity 4-6). With the term
   the video discriminator judged 0.1-0.3 of the mismatched real clips real against
   0.3-0.73 of the matched ones from about iteration 300, and the generator's class means
-  spread (0.35-0.73 after 400-500 iterations in the seeds that learned the class);
-  the discriminators did not win early either way (losses 0.8-1.4 per discriminator
-  through training; 1.39 is chance). Results per training seed are in
+  spread (0.35-0.73 after 400-500 iterations in the seeds that learned the class).
+  Under Eq. 1 alone the discriminators did not win early (each one's loss 0.8-1.4
+  through training; 1.39, two terms of ln 2, is chance). Results per training seed are in
   ``docs/SA_GCN_COLLAPSE.md``;
 - the discriminators follow the code: per frame ``F -> 1024 -> 1024``, the label
   joined, ``-> 1024 -> 128`` (LeakyReLU 0.2); D_V then a temporal convolution (width 3)

@@ -161,28 +161,47 @@ def test_sa_gcn_motions_of_one_class_differ_from_the_start(clips, seed):
 
 
 def test_sa_gcn_discriminators_see_real_clips_with_wrong_labels(clips):
-    """With ``mismatch_weight`` > 0 the discriminators are also shown real clips under other labels."""
-    seen = {}
+    """With ``mismatch_weight`` > 0 both discriminators are also shown real clips (whole,
+    or their frames) under labels other than theirs, and only then; the generator's
+    terms keep the true labels."""
     for weight in (0.0, 1.0):
         model = build("sa_gcn", mismatch_weight=weight)
         model.fit(clips, iters=0, seed=0, progress=False)
         batch = model.encode(clips[:6])
-        calls = []
-        video = model.networks["video_discriminator"]
-        original = video.forward
+        labels = torch.as_tensor(batch["label"])
+        calls = {"video_discriminator": [], "frame_discriminator": []}
+        for key, log in calls.items():
+            net = model.networks[key]
 
-        def record(poses, classes, original=original):
-            calls.append((poses.detach().clone(), classes.argmax(-1)))
-            return original(poses, classes)
+            def record(poses, classes, original=net.forward, log=log):
+                log.append((poses.detach().clone(), classes.argmax(-1)))
+                return original(poses, classes)
 
-        video.forward = record
+            net.forward = record
         model.train_step(batch, torch.Generator().manual_seed(0))
-        real = batch["pose"]
-        seen[weight] = [labels for poses, labels in calls if torch.equal(poses, real)]
-    assert len(seen[0.0]) == 1 and torch.equal(seen[0.0][0], torch.as_tensor(batch["label"]))
-    assert len(seen[1.0]) == 2
-    wrong = seen[1.0][1]
-    assert torch.all(wrong != batch["label"])
+        for key, log in calls.items():
+            wrong = [poses for poses, seen in log if torch.all(seen != labels)]
+            right = [poses for poses, seen in log if torch.equal(seen, labels)]
+            assert len(wrong) + len(right) == len(log), key  # no call mixes the two
+            assert len(wrong) == int(weight), key  # the mismatched term: one call, or none
+            assert len(right) == 3, key  # real and fake for D, fake for the generator
+            if weight:
+                real = batch["pose"] if key == "video_discriminator" else right[0]
+                assert torch.equal(wrong[0], real), key  # the real clips, relabelled
+
+
+def test_sa_gcn_generator_layers_start_at_he_scale():
+    """The three linear layers and five graph convolutions start with He's variance for the
+    ReLU after them (2 / fan_in; 1 / fan_in for those without) and zero biases."""
+    torch.manual_seed(0)  # the first convolution has only 2 x 16 weights to measure
+    generator = build("sa_gcn", linear_width=64, gc_width=16).networks["generator"]
+    relu = [generator.linears[0], generator.linears[2], *generator.convolutions]
+    plain = [generator.linears[4], generator.skip_1_3, generator.skip_3_5, generator.output]
+    for layers, gain in ((relu, 2.0), (plain, 1.0)):
+        for layer in layers:
+            assert layer.bias is None or not layer.bias.any()
+            expected = (gain / layer.in_features) ** 0.5
+            assert 0.7 * expected < layer.weight.std().item() < 1.3 * expected, layer
 
 
 def test_sa_gcn_adjacency_follows_the_bones():
