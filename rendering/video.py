@@ -52,8 +52,9 @@ OVERHEAD = {"mp4": (2048, 24), "webm": (2048, 24)}
 GIF_BYTES_PER_PIXEL = 1.51
 # Poster budgets: 4 KiB and this much per pixel. The middle frames of 16 demo clips took
 # up to 0.38 byte per pixel beyond the 4 KiB at 128 and 240 pixels, 0.27 at 480 (PNG
-# level 3); a busier frame is stored with 256 colours.
+# level 3); a busier frame is stored with fewer colours (save_poster).
 POSTER_BYTES_PER_PIXEL = 0.4
+POSTER_COLOURS = (256, 64, 16)  # a busier poster is reduced to these many colours in turn
 BLOCK = 1024  # budgets are whole KiB
 FORMATS = ("mp4", "webm", "gif")
 
@@ -170,13 +171,26 @@ cv2.setNumThreads(1)
 def to_yuv420p(frame: np.ndarray) -> np.ndarray:
     """Return an RGB frame ``(H, W, 3)`` uint8 as yuv420p planes ``(3 H / 2, W)`` uint8.
 
-    BT.601 in limited range, as ffmpeg converts RGB for H.264 by default (the same
-    luma), with each chroma sample the mean of its 2×2 pixels (ffmpeg's default filters
-    chroma with a wider bicubic kernel: edges of colour differ by a few levels). OpenCV's
-    conversion costs a tenth of ffmpeg's bicubic scaler (0.08 against 0.7 ms per 480×480
-    frame here), which was half of x264's own time per frame.
+    BT.601 in limited range, as ffmpeg converts RGB for H.264 by default: the same luma
+    (within one level), and each chroma sample from the mean colour of its 2×2 pixels
+    (OpenCV's own I420 conversion takes the top-left pixel's, which lets thin coloured
+    edges flicker; ffmpeg's default filters chroma with a wider bicubic kernel, so colour
+    edges differ from its by a few levels). About 0.3 ms a 480×480 frame here, against
+    0.5 for ffmpeg's bicubic scaler, which was most of x264's own time per frame.
     """
-    return cv2.cvtColor(np.ascontiguousarray(frame), cv2.COLOR_RGB2YUV_I420)
+    frame = np.ascontiguousarray(frame)
+    height, width = frame.shape[:2]
+    planes = cv2.cvtColor(frame, cv2.COLOR_RGB2YUV_I420)  # its luma; chroma replaced below
+    means = cv2.resize(frame, (width // 2, height // 2), interpolation=cv2.INTER_AREA)
+    # OpenCV's YCrCb is full range (JPEG's); limited range is 128 + (c - 128) * 224 / 255.
+    chroma = cv2.convertScaleAbs(cv2.cvtColor(means, cv2.COLOR_RGB2YCrCb),
+                                 alpha=224 / 255, beta=128 * (1 - 224 / 255))
+    quarter = height * width // 4
+    flat = planes.reshape(-1)
+    for channel, start in ((2, height * width), (1, height * width + quarter)):  # Cb, Cr
+        plane = flat[start:start + quarter].reshape(height // 2, width // 2)
+        cv2.extractChannel(chroma, channel, dst=plane)
+    return planes
 
 
 class OverBudget(RuntimeError):
@@ -346,7 +360,7 @@ class _X264:
         from av.bitstream import BitStreamFilterContext
         from av.codec.context import Flags
 
-        self._av, self._path = av, path
+        self._av, self._path, self._height = av, path, height
         settings = x264_options(width, height, fps, scale)
         self._container = None
         try:
@@ -370,7 +384,12 @@ class _X264:
     def prepare(self, frame: np.ndarray):
         """Return what :meth:`send` takes: the frame in yuv420p (:func:`to_yuv420p`), in a
         buffer of its own that the frame wraps (x264 copies it when it is sent)."""
-        return self._av.VideoFrame.from_numpy_buffer(to_yuv420p(frame), format="yuv420p")
+        planes = to_yuv420p(frame)
+        if self._height % 4:
+            # PyAV 18's from_numpy_buffer reads the height as rows // 6 * 4: wrong (and
+            # silently so) for heights of 2 more than a multiple of 4. Copy those.
+            return self._av.VideoFrame.from_ndarray(planes, format="yuv420p")
+        return self._av.VideoFrame.from_numpy_buffer(planes, format="yuv420p")
 
     def _mux(self, packets) -> None:
         for packet in packets:
@@ -464,18 +483,21 @@ class _GifPipe(_Pipe):
 def save_poster(path: str | Path, frame: np.ndarray, padded: bool = True) -> Path:
     """Save a frame as a PNG without metadata, padded to its :func:`budget`'s size.
 
-    A frame too busy to fit is saved with 256 colours instead; one that still does not
-    fit raises :class:`OverBudget`.
+    A frame too busy to fit is reduced to 256 colours (then 64, then 16) and still stored
+    as an RGB PNG (a palette PNG's header would tell such frames from the others); one
+    that does not fit even so raises :class:`OverBudget`.
     """
     path = Path(path)
     image = Image.fromarray(frame)
     encoded = io.BytesIO()
     image.save(encoded, format="PNG", compress_level=3)  # level 9 costs 10x the time
     size = budget("png", image.width, image.height, 1, 1)
-    if padded and encoded.tell() > size - 12:
+    for colours in POSTER_COLOURS:
+        if not padded or encoded.tell() <= size - 12:
+            break
         encoded = io.BytesIO()
-        image.quantize(256, method=Image.Quantize.MEDIANCUT).save(encoded, format="PNG",
-                                                                  compress_level=9)
+        fewer = image.quantize(colours, method=Image.Quantize.MEDIANCUT).convert("RGB")
+        fewer.save(encoded, format="PNG", compress_level=9)
     path.write_bytes(encoded.getvalue())
     if padded:
         try:

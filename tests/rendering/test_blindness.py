@@ -5,6 +5,8 @@ study shows (a frozen generated clip, a broken catch clip); everything a partici
 read off their files without decoding a frame must be the same.
 """
 
+import io
+
 import numpy as np
 import pytest
 from PIL import Image
@@ -116,3 +118,25 @@ def test_padding_refuses_a_file_already_too_large(tmp_path):
         pad(path, 104)  # no room for a box header
     with pytest.raises(PaddingError, match="not one of"):
         pad(tmp_path / "clip.avi", 10)
+
+
+def test_posters_have_one_png_header_whatever_they_show(tmp_path):
+    """A frame too busy for its poster budget is reduced to 256 colours but stays an RGB
+    PNG: the header (colour type, bit depth) is the same for every poster."""
+    rng = np.random.default_rng(0)
+    plain = np.full((64, 64, 3), 200, np.uint8)
+    rows, columns = np.mgrid[:64, :64]
+    # A gradient with noise: too many colours for the budget as it is, not with 256.
+    busy = np.stack([columns * 4, rows * 4, (rows + columns) * 2], axis=-1)
+    busy = np.clip(busy + rng.integers(-6, 7, busy.shape), 0, 255).astype(np.uint8)
+    headers = []
+    for name, frame in (("plain", plain), ("busy", busy)):
+        path = video.save_poster(tmp_path / f"{name}.png", frame)
+        data = path.read_bytes()
+        headers.append(data[:33])  # signature and IHDR: size, bit depth, colour type
+        assert path.stat().st_size == video.budget("png", 64, 64, 1, 1)
+    encoded = io.BytesIO()
+    Image.fromarray(busy).save(encoded, format="PNG", compress_level=3)
+    assert encoded.tell() > video.budget("png", 64, 64, 1, 1)  # the busy one was reduced
+    assert headers[0] == headers[1]
+    assert Image.open(tmp_path / "busy.png").mode == "RGB"

@@ -139,29 +139,53 @@ def test_writing_in_the_callers_thread_gives_the_same_file(tmp_path, kind):
     assert decode(paths[1])[1].shape == (len(frames), 32, 32, 3)
 
 
-def test_the_mp4_writer_gives_the_bytes_of_ffmpeg_with_the_same_settings(tmp_path):
+@pytest.mark.parametrize("width,height", [(96, 96), (96, 98), (98, 64)])
+def test_the_mp4_writer_gives_the_bytes_of_ffmpeg_with_the_same_settings(tmp_path, width,
+                                                                          height):
     """x264 runs in-process, yet the file is byte for byte what the ffmpeg command line
-    writes with encoder_options from the same yuv420p frames: anyone can reproduce a clip."""
+    writes with encoder_options from the same yuv420p frames: anyone with this project's
+    pinned OpenCV (which makes them, rendering.video.to_yuv420p) can reproduce a clip.
+    Heights of 2 more than a multiple of 4 included: PyAV's zero-copy frames misread them."""
     import subprocess
 
     import imageio_ffmpeg
 
     from rendering.video import VideoWriter, encoder_options, to_yuv420p
 
-    framing = Framing.from_motions([make_figure(frames=12, speed=1.5)], pad=get_style("stick").pad)
-    with get_style("stick")(framing, 96, 96) as drawer:
-        frames = list(drawer.frames(make_figure(frames=12, speed=1.5)))
+    motion = make_figure(frames=12, speed=1.5)
+    framing = Framing.from_motions([motion], aspect=width / height, pad=get_style("stick").pad)
+    with get_style("stick")(framing, width, height) as drawer:
+        frames = list(drawer.frames(motion))
     ours = tmp_path / "ours.mp4"
-    with VideoWriter(ours, 96, 96, 25, pad=False) as writer:
+    with VideoWriter(ours, width, height, 25, pad=False) as writer:
         for frame in frames:
             writer.write(frame)
     theirs = tmp_path / "ffmpeg.mp4"
     subprocess.run(
         [imageio_ffmpeg.get_ffmpeg_exe(), "-v", "error", "-f", "rawvideo", "-pix_fmt", "yuv420p",
-         "-s", "96x96", "-r", "25", "-i", "-", "-c:v", "libx264", "-pix_fmt", "yuv420p",
-         *encoder_options("mp4", 96, 96, 25), str(theirs)],
+         "-s", f"{width}x{height}", "-r", "25", "-i", "-", "-c:v", "libx264",
+         "-pix_fmt", "yuv420p", *encoder_options("mp4", width, height, 25), str(theirs)],
         input=b"".join(to_yuv420p(frame).tobytes() for frame in frames), check=True)
     assert ours.read_bytes() == theirs.read_bytes()
+    # And the clip shows the frames (a misread plane would tint it by tens of levels).
+    decoded = decode(ours)[1].astype(int)
+    assert np.abs(decoded - np.array(frames, dtype=int)).mean() < 4
+
+
+def test_chroma_is_the_mean_of_each_2x2_block():
+    """One red pixel anywhere in a 2x2 block tints that block's chroma by a quarter of
+    red's (OpenCV's own I420 conversion would see it only at the block's top left)."""
+    from rendering.video import to_yuv420p
+
+    tints = []
+    for row, column in ((0, 0), (0, 1), (1, 0), (1, 1)):
+        frame = np.zeros((4, 4, 3), np.uint8)
+        frame[row, column] = (255, 0, 0)
+        planes = to_yuv420p(frame).astype(int)
+        tints.append((planes[4, 0], planes[5, 0]))  # Cb and Cr of the top-left block
+    # BT.601 limited range: red's Cb is 128 - 37.797, Cr 128 + 112; a quarter of each.
+    assert all(abs(cb - (128 - 37.797 / 4)) <= 1 and abs(cr - (128 + 112 / 4)) <= 1
+               for cb, cr in tints)
 
 
 def test_frames_convert_to_yuv420p_as_ffmpeg_does_within_its_chroma_filter():
