@@ -31,13 +31,21 @@ CHUNK = 16  # frames whose geometry is worked out together
 SHIFT = 4
 ONE = 1 << SHIFT
 CENTRE = 0.5
-# OpenCV's anti-aliased edge reaches beyond a shape: a band's by about 0.7 pixel on each
-# side, a disc's by 0.5. Drawn this much smaller, each covers its true area (measured on
-# bands 3-14 pixels wide and discs of radius 2-12, within 4 %).
-BAND_BLEED, DISC_BLEED = 0.7, 0.5
-# Farther than this from the frame a point is clamped (OpenCV's integers must not
-# overflow; a part so far out shows nothing anyway).
-FAR_OUT = 1 << 14
+# OpenCV's anti-aliased edge reaches beyond a shape by about 0.65 pixel: drawn this much
+# smaller, tubes (bands 2-20 pixels wide) and balls (16-gons of radius 2.2-20) cover
+# their true area within 6 % (measured at random angles and sub-pixel positions).
+BLEED = 0.65
+# Balls are drawn as polygons of this many corners, of the disc's area (OpenCV's own
+# anti-aliased circles have 4 corners below a radius of 3 pixels, 12 below 10).
+CORNERS = 16
+_ANGLES = np.arange(CORNERS) * 2 * np.pi / CORNERS
+_POLYGON = np.stack([np.cos(_ANGLES), np.sin(_ANGLES)], axis=-1) * np.sqrt(
+    np.pi / (CORNERS / 2 * np.sin(2 * np.pi / CORNERS)))
+# Shapes reaching farther than this beyond the frame are clipped to it before drawing
+# (OpenCV's integers must not overflow); what lies out there shows nothing.
+GUARD = 1 << 12
+# Shadow lines are clipped by OpenCV; their ends are only kept within its integers.
+LINE_REACH = 1 << 22
 
 # Sizes as fractions of the figure height, the same for every clip of a set.
 BONE_RADIUS = 0.021
@@ -69,13 +77,45 @@ def _tones(colours: np.ndarray) -> np.ndarray:
     """Return the (rim, body, highlight) colours ``(..., 3, 3)`` of base colours ``(..., 3)``."""
     shades = np.stack([colours * 0.66, colours, colours + (palette.WHITE - colours) * 0.5],
                       axis=-2)
-    return np.rint(shades).astype(int)
+    return np.rint(shades).astype(np.uint8)
 
 
-def _fixed(points: np.ndarray) -> np.ndarray:
-    """Return pixel coordinates (camera convention) as OpenCV's fixed-point integers."""
-    points = np.clip(points - CENTRE, -FAR_OUT, FAR_OUT)
-    return np.rint(points * ONE).astype(np.int32)
+def _fixed(points: np.ndarray, low=-LINE_REACH, high=LINE_REACH) -> np.ndarray:
+    """Return pixel coordinates (camera convention) as OpenCV's fixed-point integers,
+    held within ``[low, high]``."""
+    points = points - CENTRE
+    np.clip(points, np.asarray(low, points.dtype), np.asarray(high, points.dtype), out=points)
+    points *= ONE
+    return np.rint(points, out=points).astype(np.int32)
+
+
+def _clip(polygon: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """Return a convex polygon ``(N, 2)`` cut to the box ``[low, high]`` (Sutherland-Hodgman);
+    it stays convex, and may come out empty."""
+    for axis in (0, 1):
+        for bound, inside in ((low[axis], np.greater_equal), (high[axis], np.less_equal)):
+            if not len(polygon):
+                return polygon
+            kept = []
+            for a, b in zip(polygon, np.roll(polygon, -1, axis=0)):
+                a_in, b_in = inside(a[axis], bound), inside(b[axis], bound)
+                if a_in:
+                    kept.append(a)
+                if a_in != b_in:
+                    kept.append(a + (b - a) * (bound - a[axis]) / (b[axis] - a[axis]))
+            polygon = np.array(kept).reshape(-1, 2)
+    return polygon
+
+
+def _shapes(polygons: np.ndarray, size: tuple[int, int]) -> tuple[np.ndarray, dict]:
+    """Return polygons ``(..., N, 2)`` in pixels as fixed-point integers, and those that
+    reach beyond the guard around a frame of ``size`` cut to it, by index (rare)."""
+    low = np.array([-GUARD, -GUARD], dtype=float)
+    high = np.array(size, dtype=float) + GUARD
+    beyond = ((polygons < low) | (polygons > high)).any(axis=(-1, -2))
+    cut = {index: _fixed(_clip(polygons[index], low, high))
+           for index in zip(*np.nonzero(beyond))}
+    return _fixed(polygons, low - CENTRE, high - CENTRE), cut
 
 
 def _darken(frame: np.ndarray, shadow) -> None:
@@ -266,10 +306,13 @@ class StickStyle(Style):
         # Each band is a quadrilateral: the bone's ends moved towards the light, widened
         # across the bone (no round caps: every bone ends in a joint's larger ball,
         # drawn nearer).
+        # (In single precision: a chunk's quadrilaterals are the style's largest array.)
         r = bone_radii[..., None, None]
         moved = light_offset[..., None, :] * (r * np.array([0.0, 0.2, 0.48])[:, None])
-        across = normal[..., None, :] * np.maximum(r * BANDS[:, None] - BAND_BLEED, 0.0)
-        head_end, tail_end = start[..., None, :] + moved, end[..., None, :] + moved
+        across = (normal[..., None, :] * np.maximum(r * BANDS[:, None] - BLEED, 0.0)
+                  ).astype(np.float32)
+        head_end = (start[..., None, :] + moved).astype(np.float32)
+        tail_end = (end[..., None, :] + moved).astype(np.float32)
         quads = np.stack([head_end + across, tail_end + across, tail_end - across,
                           head_end - across], axis=-2)  # (T, bones, 3, 4, 2)
         j = joint_radii[..., None]
@@ -281,21 +324,28 @@ class StickStyle(Style):
         # Balls sit a little nearer than the tubes meeting at them, so they cap the ends.
         order = np.argsort(-np.concatenate([bone_depth, depth - figure.joint_radii], axis=1),
                            axis=1, kind="stable")
-        return {"quads": _fixed(quads), "centres": _fixed(centres),
-                "radii": np.rint(np.clip(j * DISCS - DISC_BLEED, 0.0, FAR_OUT) * ONE
-                                 ).astype(np.int32),
-                "tones": tones, "order": order, "seen": seen, "bones": len(bones)}
+        quads, cut_quads = _shapes(quads, (self.width, self.height))
+        # Balls become polygons frame by frame (a chunk's would be the style's largest array).
+        return {"quads": quads, "cut_quads": cut_quads, "centres": centres,
+                "radii": np.maximum(j * DISCS - BLEED, 0.0), "tones": tones, "order": order,
+                "seen": seen, "bones": len(bones)}
 
     def _draw_figure(self, frame: np.ndarray, plan: dict, number: int):
         """Draw frame ``number``'s bones and joints far to near (:meth:`_figure_plan`)."""
-        quads, centres = plan["quads"][number], plan["centres"][number]
-        radii, tones = plan["radii"][number].tolist(), plan["tones"][number].tolist()
+        quads = plan["quads"][number]
+        cut_quads = {key[1:]: shape for key, shape in plan["cut_quads"].items()
+                     if key[0] == number}
+        radii = plan["radii"][number][..., None, None]
+        balls, cut_balls = _shapes(plan["centres"][number][..., None, :] + radii * _POLYGON,
+                                   (self.width, self.height))
+        tones = plan["tones"][number].tolist()
         order, seen, n_bones = plan["order"][number], plan["seen"][number], plan["bones"]
         for k in order[seen[order]].tolist():
-            if k < n_bones:
-                for band, tone in zip(quads[k], tones[k]):
-                    cv2.fillConvexPoly(frame, band, tone, cv2.LINE_AA, SHIFT)
-            else:
-                for centre, radius, tone in zip(centres[k - n_bones].tolist(),
-                                                radii[k - n_bones], tones[k]):
-                    cv2.circle(frame, centre, radius, tone, -1, cv2.LINE_AA, SHIFT)
+            shapes, part, cut = ((quads, k, cut_quads) if k < n_bones
+                                 else (balls, k - n_bones, cut_balls))
+            for layer, (shape, tone) in enumerate(zip(shapes[part], tones[k])):
+                if cut:  # a shape reaching far beyond the frame: drawn as cut to the guard
+                    shape = cut.get((part, layer), shape)
+                    if not len(shape):
+                        continue
+                cv2.fillConvexPoly(frame, shape, tone, cv2.LINE_AA, SHIFT)
