@@ -61,7 +61,7 @@ class Backdrop:
         # redrawn per frame (the checker darkens by at most |FLOOR_DARK - FLOOR_LIGHT|),
         # through tables: of the box-filtered square wave, and of the darkening per
         # level of shade. A following camera redraws the floor every frame; this keeps it
-        # to two table reads and a few operations per floor pixel.
+        # to two table reads and a few operations per 2×2 block of floor (below).
         light = sky * (1 - fade) + palette.FLOOR_LIGHT * fade
         darker = palette.FLOOR_LIGHT - palette.FLOOR_DARK
         self._base = np.rint(light).astype(np.uint8)

@@ -1,7 +1,7 @@
 """Stick figures: shaded tubes and balls in perspective over a floor with a soft shadow.
 
 Drawn with OpenCV at the frame's own size, anti-aliased at 1/16 pixel (tubes as filled
-quadrilaterals, balls as discs), far to near, over the backdrop drawn once at the
+quadrilaterals, balls as 16-gons), far to near, over the backdrop drawn once at the
 frame's size (the floor is box-filtered, so it needs no extra samples); the shadow is
 drawn at half the size, blurred and stretched. An order of magnitude faster than
 matplotlib 3D or pyrender.
