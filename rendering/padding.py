@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import struct
 import zlib
+from dataclasses import dataclass
 from pathlib import Path
 
 
@@ -138,13 +139,19 @@ def _mp4_boxes(data: bytes, start: int, end: int):
         at += size
 
 
-def _nal_units(sample: bytes, length_size: int):
-    """Yield ``(start, size, type)`` of the length-prefixed NAL units of an H.264 sample."""
-    at = 0
-    while at + length_size < len(sample):
-        size = int.from_bytes(sample[at:at + length_size], "big")
-        yield at, size, sample[at + length_size] & 0x1F
+def nal_units(data: bytes, length_size: int, start: int = 0, end: int | None = None):
+    """Yield ``(offset, size, type)`` of the length-prefixed NAL units of an H.264 sample
+    ``data[start:end]`` (``size`` without the length prefix)."""
+    end = len(data) if end is None else end
+    at = start
+    while at + length_size < end:
+        size = int.from_bytes(data[at:at + length_size], "big")
+        yield at, size, data[at + length_size] & 0x1F
         at += length_size + size
+
+
+def _nal_units(sample: bytes, length_size: int):
+    return nal_units(sample, length_size)
 
 
 def _has_filler(sample: bytes, length_size: int) -> bool:
@@ -171,37 +178,54 @@ def _grown(sample: bytes, by: int, length_size: int) -> bytes:
     return sample + len(body).to_bytes(length_size, "big") + body
 
 
-def equalise_mp4_frames(path: str | Path, key_size: int | None = None,
-                        frame_size: int | None = None) -> None:
-    """Make every keyframe of a one-track H.264 mp4 ``key_size`` bytes and every other
-    frame ``frame_size`` bytes (default: the largest of each kind in the file); see the
-    module docstring. Raise :class:`PaddingError` when a frame is larger than its size.
+@dataclass
+class SampleTable:
+    """Where an mp4's frames and the tables that place them are (see :func:`sample_table`).
+
+    ``samples`` are ``(offset, size)`` of each frame in the file, ``keys`` the indices of
+    keyframes, ``length_size`` the byte width of each NAL unit's length prefix; the rest
+    are offsets of the tables' entries, for rewriting them.
+    """
+
+    samples: list[tuple[int, int]]
+    keys: set[int]
+    length_size: int
+    per_chunk: list[int]
+    mdat: tuple[int, int]  # payload start and end of the mdat box
+    sizes_at: int  # the stsz box's payload
+    offsets_at: int  # the stco box's payload
+    mdia: tuple[int, int]
+    stsd: tuple[int, int] | None
+    fixed_size: bool = False  # stsz gives one size for every frame
+
+
+def sample_table(data: bytes, name: str = "the mp4") -> SampleTable:
+    """Return where the frames of a one-track H.264 mp4 are.
 
     The file must hold its index first (``+faststart``) and its frames in order in one
-    ``mdat``, as the video writer makes it; only sizes and offsets change in the index.
+    ``mdat``, as the video writer makes it; raise :class:`PaddingError` otherwise.
     """
-    path = Path(path)
-    data = path.read_bytes()
     top = {kind: (payload, stop) for kind, payload, stop in _mp4_boxes(data, 0, len(data))}
     if b"moov" not in top or b"mdat" not in top or top[b"moov"][0] > top[b"mdat"][0]:
-        raise PaddingError(f"{path.name}: not an mp4 with its index first")
+        raise PaddingError(f"{name}: not an mp4 with its index first")
     box = top[b"moov"]
     for kind in (b"trak", b"mdia", b"minf", b"stbl"):
         box = _child(data, *box, kind)
         if box is None:
-            raise PaddingError(f"{path.name}: no {kind.decode()} box")
+            raise PaddingError(f"{name}: no {kind.decode()} box")
         if kind == b"mdia":
             mdia = box
     stbl = box
     tables = {kind: _child(data, *stbl, kind) for kind in (b"stsz", b"stco", b"stsc", b"stss",
                                                             b"stsd")}
     if tables[b"stsz"] is None or tables[b"stco"] is None or tables[b"stsc"] is None:
-        raise PaddingError(f"{path.name}: no frame size, chunk or offset table")
+        raise PaddingError(f"{name}: no frame size, chunk or offset table")
     sizes_at = tables[b"stsz"][0]
     fixed, count = struct.unpack(">II", data[sizes_at + 4:sizes_at + 12])
     if fixed:
-        return  # every frame already has one size
-    sizes = list(struct.unpack(f">{count}I", data[sizes_at + 12:sizes_at + 12 + 4 * count]))
+        sizes = [fixed] * count
+    else:
+        sizes = list(struct.unpack(f">{count}I", data[sizes_at + 12:sizes_at + 12 + 4 * count]))
     offsets_at = tables[b"stco"][0]
     chunks = struct.unpack(">I", data[offsets_at + 4:offsets_at + 8])[0]
     offsets = list(struct.unpack(f">{chunks}I", data[offsets_at + 8:offsets_at + 8 + 4 * chunks]))
@@ -215,7 +239,7 @@ def equalise_mp4_frames(path: str | Path, key_size: int | None = None,
         for chunk in range(first - 1, last):
             per_chunk[chunk] = samples
     if sum(per_chunk) != count:
-        raise PaddingError(f"{path.name}: its chunk table does not add up to its frames")
+        raise PaddingError(f"{name}: its chunk table does not add up to its frames")
     keys = set(range(count))
     if tables[b"stss"] is not None:
         at = tables[b"stss"][0]
@@ -230,13 +254,34 @@ def equalise_mp4_frames(path: str | Path, key_size: int | None = None,
     expected = mdat_start
     for chunk, n in enumerate(per_chunk):
         if offsets[chunk] != expected:
-            raise PaddingError(f"{path.name}: its frames are not one run in the mdat box")
+            raise PaddingError(f"{name}: its frames are not one run in the mdat box")
         for _ in range(n):
-            samples.append(data[expected:expected + sizes[index]])
+            samples.append((expected, sizes[index]))
             expected += sizes[index]
             index += 1
     if expected != mdat_end:
-        raise PaddingError(f"{path.name}: the mdat box holds more than its frames")
+        raise PaddingError(f"{name}: the mdat box holds more than its frames")
+    return SampleTable(samples, keys, length_size, per_chunk, (mdat_start, mdat_end),
+                       sizes_at, offsets_at, mdia, tables[b"stsd"], bool(fixed))
+
+
+def equalise_mp4_frames(path: str | Path, key_size: int | None = None,
+                        frame_size: int | None = None) -> None:
+    """Make every keyframe of a one-track H.264 mp4 ``key_size`` bytes and every other
+    frame ``frame_size`` bytes (default: the largest of each kind in the file); see the
+    module docstring. Raise :class:`PaddingError` when a frame is larger than its size.
+
+    The file must be laid out as :func:`sample_table` reads it; only sizes and offsets
+    change in the index.
+    """
+    path = Path(path)
+    data = path.read_bytes()
+    table = sample_table(data, path.name)
+    if table.fixed_size:
+        return  # every frame already has one size
+    keys, length_size, count = table.keys, table.length_size, len(table.samples)
+    sizes = [size for _, size in table.samples]
+    samples = [data[at:at + size] for at, size in table.samples]
     largest = {True: max((sizes[k] for k in keys), default=0),
                False: max((sizes[k] for k in range(count) if k not in keys), default=0)}
     widest = {True: key_size or largest[True], False: frame_size or largest[False]}
@@ -259,14 +304,16 @@ def equalise_mp4_frames(path: str | Path, key_size: int | None = None,
     grown = [_grown(sample, widest[k in keys] - len(sample), length_size)
              for k, sample in enumerate(samples)]
     new_sizes = [len(sample) for sample in grown]
+    mdat_start, mdat_end = table.mdat
     new_offsets, at = [], mdat_start
     index = 0
-    for n in per_chunk:
+    for n in table.per_chunk:
         new_offsets.append(at)
         at += sum(new_sizes[index:index + n])
         index += n
     out = bytearray(data[:mdat_start])
-    _rewrite_bit_rates(out, data, mdia, tables[b"stsd"], new_sizes)
+    _rewrite_bit_rates(out, data, table.mdia, table.stsd, new_sizes)
+    sizes_at, offsets_at, chunks = table.sizes_at, table.offsets_at, len(table.per_chunk)
     out[sizes_at + 12:sizes_at + 12 + 4 * count] = struct.pack(f">{count}I", *new_sizes)
     out[offsets_at + 8:offsets_at + 8 + 4 * chunks] = struct.pack(f">{chunks}I", *new_offsets)
     header = mdat_start - 8

@@ -105,8 +105,33 @@ def _units(values: np.ndarray, step: float) -> np.ndarray:
 
 def size(frames: int, joints: int) -> int:
     """Return the byte size of every payload of this length and joint count."""
-    table = HEADER.size + 2 * joints + 4 * joints
-    return table + (-table % 4) + 6 * frames * joints + 4 * frames
+    return _positions_at(joints) + 6 * frames * joints + 4 * frames
+
+
+def _positions_at(joints: int) -> int:
+    """Return the byte offset of a payload's int16 positions (after its padded table)."""
+    table = HEADER.size + 6 * joints
+    return table + (-table % 4)
+
+
+def dither(data: bytes, rng) -> bytes:
+    """Return a payload with one unit added or taken on a random two thirds of its int16
+    values (placed joints and the camera's look-at), drawn from ``rng``.
+
+    A unit is a 4096th of the figure's height (under half a millimetre on a person), far
+    below a pixel: the figure drawn is the same, the bytes are not, so every delivery of
+    a clip can have bytes of its own (:mod:`rendering.delivery`).
+    """
+    if len(data) < HEADER.size or data[:4] != MAGIC:
+        raise PayloadError("not a motion payload (no MPLY header)")
+    frames, joints = HEADER.unpack_from(data)[2:4]
+    if len(data) != size(frames, joints):
+        raise PayloadError(f"payload of {len(data)} bytes; {frames} frames of {joints} joints "
+                           f"need {size(frames, joints)}")
+    at = _positions_at(joints)
+    values = np.frombuffer(data, "<i2", offset=at).astype(np.int32)
+    values += rng.integers(-1, 2, size=values.size)
+    return data[:at] + np.clip(values, -32767, 32767).astype("<i2").tobytes()
 
 
 def read(data: bytes) -> dict:
@@ -125,8 +150,7 @@ def read(data: bytes) -> dict:
     sides = np.frombuffer(data, np.int8, joints, at + joints)
     stick = np.frombuffer(data, "<u2", joints, at + 2 * joints) * step
     body = np.frombuffer(data, "<u2", joints, at + 4 * joints) * step
-    at += 6 * joints
-    at += -at % 4
+    at = _positions_at(joints)
     positions = np.frombuffer(data, "<i2", frames * joints * 3, at).reshape(frames, joints, 3)
     looks = np.frombuffer(data, "<i2", frames * 2, at + 6 * frames * joints).reshape(frames, 2)
     return {
