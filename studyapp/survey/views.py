@@ -47,11 +47,16 @@ def preview_page(request, slug, name):
     return flow.show(request, study, name, preview.PreviewStore(request))
 
 
-def _serve(request, stimulus, ext, etag, on_sent=None):
+def _serve(request, stimulus, ext, token, on_sent=None):
+    """Serve the delivery ``token`` of a stimulus' ``ext`` file: bytes of its own, and an
+    ETag of its own that changes with them (with the site's secret)."""
     name = getattr(stimulus, FILES[ext])
+    seed = media.delivery_seed(token)
+    etag = f'"{token}-{ext}-{seed[:4].hex()}"'
     try:
         # Only names under stimuli/ are opened, through default_storage (media.file_response).
-        return media.file_response(request, name, CONTENT_TYPES[ext], etag, on_sent)
+        return media.file_response(request, name, CONTENT_TYPES[ext], etag, on_sent,
+                                   delivery=(ext, seed))
     except (FileNotFoundError, IsADirectoryError, NotADirectoryError):
         raise Http404("no such clip") from None
 
@@ -60,9 +65,9 @@ def _serve(request, stimulus, ext, etag, on_sent=None):
 def clip(request, token, ext):
     """Serve a trial item's video or poster under its own opaque token only.
 
-    Every item (the same clip in a repeated trial too) has its own token and ETag, so
-    nothing in the URL or the headers tells two showings of a clip apart from two clips.
-    Sending the last byte of a video (or of the in-browser player's payload) records the
+    Every item (the same clip in a repeated trial too) has its own token, ETag and bytes
+    (:mod:`rendering.delivery`), so nothing in the URL, the headers or a hash of the file
+    tells two showings of a clip apart from two clips. Sending the last byte of a video (or of the in-browser player's payload) records the
     range sent (``TrialItem.fetched``): the server, not the page, knows whether a clip
     was fetched to its end.
     """
@@ -71,7 +76,7 @@ def clip(request, token, ext):
     if ext in ("mp4", "motion") and request.method == "GET":
         def on_sent(start, end, size, pk=item.pk):
             TrialItem.objects.record_fetch(pk, ext, start, end, size)
-    return _serve(request, item.stimulus, ext, f'"{item.token}-{ext}"', on_sent)
+    return _serve(request, item.stimulus, ext, item.token, on_sent)
 
 
 @staff_member_required
@@ -79,4 +84,4 @@ def clip(request, token, ext):
 def preview_clip(request, token, ext):
     """Serve a stimulus' files to staff (previews, the admin) under the stimulus token."""
     stimulus = get_object_or_404(Stimulus, token=token)
-    return _serve(request, stimulus, ext, f'"s{stimulus.token}-{ext}"')
+    return _serve(request, stimulus, ext, f"s{stimulus.token}")

@@ -77,7 +77,8 @@ def test_clips_go_to_the_bucket_and_are_served_in_ranges(db, s3, clips, client, 
     data = clips[0].video.read_bytes()
     item = shown_item(stimulus)
     url = f"/c/{item.token}.mp4"
-    # Served with ranged GETs: S3File never downloads the whole object into its buffer.
+    # Each request reads the object with one GET (a delivery's bytes are made from the
+    # whole file, rendering.delivery), never through S3File's spooled local copy.
     monkeypatch.setattr(S3File, "file", property(lambda self: pytest.fail("whole download")))
     full = client.get(url)
     assert full.status_code == 200 and b"".join(full.streaming_content) == data
