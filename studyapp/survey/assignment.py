@@ -126,12 +126,32 @@ class Pool:
         )
 
 
+def catch_counts(catches: list) -> Counter:
+    """Return how many trial items each catch stimulus (by id) has had so far."""
+    rows = (TrialItem.objects.filter(stimulus__in=[s.pk for s in catches])
+            .values("stimulus").annotate(n=Count("pk")).values_list("stimulus", "n"))
+    return Counter(dict(rows))
+
+
 def pick_catch(catches: list, n: int, rng) -> list:
-    """Return ``n`` catch stimuli in random order, each used once before any twice."""
+    """Return ``n`` catch stimuli in random order: the least used in the study so far
+    (ties at random), each used once in the session before any twice.
+
+    A study's catch clips are a family of broken versions (``stimulus_build``): handed
+    out least used first, participants share one only once every one has been shown, so
+    what one participant learns of a catch clip rarely helps another.
+    """
     if not catches:
         return []
-    rounds = -(-n // len(catches))
-    return [s for _ in range(rounds) for s in rng.sample(catches, len(catches))][:n]
+    used = catch_counts(catches)
+    here: Counter = Counter()
+    chosen = []
+    for _ in range(n):
+        stimulus = min(catches, key=lambda s: (here[s.pk], used[s.pk], rng.random()))
+        here[stimulus.pk] += 1
+        chosen.append(stimulus)
+    rng.shuffle(chosen)
+    return chosen
 
 
 def arrange(main: list, catch: list, n_repeats: int, rng) -> list:

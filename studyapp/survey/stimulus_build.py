@@ -18,6 +18,13 @@ built from the same sources share their motions and clips:
 - ``renders/<video_hash>.mp4|png`` and ``renders/index.json``: each clip's render,
   keyed by its motion hash, the style, the size and the framing.
 
+Catch clips come as a family per action (or prompt): :data:`CATCH_PER_BASE` broken
+versions (:func:`generation.perturb.catch_family`) of one base clip per source, drawn as
+that source's judged clips are (one more per action, never a judged one; cached as
+``motions/<source>-catch-<key>.npz``), so their numbers (bone lengths, speeds, jerk) are
+spread as the judged clips' are; the study hands the least used one to each new
+participant (``assignment.pick_catch``).
+
 The framing is fitted to real clips only (``clips_per_source + 3`` per action, drawn
 with the config's seed), never to generated ones: changing a method then re-renders only
 that method's clips, and catch, reference and example clips are framed exactly like the
@@ -64,6 +71,10 @@ Role = Stimulus.Role
 EXTRA_REAL = 3
 # Joint jitter of the practice clips after the first (a real clip), as in perturb.
 PRACTICE_NOISE = (0.02, 0.05, 0.1, 0.15, 0.2)
+# Broken versions of each catch base (one base per source and action): with three
+# sources, six catch clips per action, so that participants rarely share one.
+CATCH_PER_BASE = 2
+CATCH_STREAM = 7  # the catch family's random stream, beside the config's seed
 
 
 class BuildError(RuntimeError):
@@ -169,7 +180,7 @@ class Build:
                 self.step(f"sampled {source.name}")
             if c.prompts is None:
                 base, framing = self.real_base()
-                extras = self.extras(base)
+                extras = self.extras(base) + self.catch_clips(groups)
             else:
                 same_skeleton(groups)
                 # As with actions, real clips set the framing when there are any (a change
@@ -199,7 +210,10 @@ class Build:
             ready = source.kind != "method" or source.checkpoint or self._auto_checkpoint(source).is_file()
             self.log(f"{source.name}: {source.kind}"
                      f"{'' if ready else ' (to train: ' + str(source.iters) + ' iterations)'}")
-        roles = ", ".join(f"{n} {role}" for role, n in self.roles().items()) or "none"
+        counts = dict(self.roles())
+        if counts.get(Role.CATCH):
+            counts[Role.CATCH] = CATCH_PER_BASE * len(self.config.sources)
+        roles = ", ".join(f"{n} {role}" for role, n in counts.items()) or "none"
         prompts = self.config.prompts
         per = "action" if prompts is None else "prompt"
         self.log(f"study {self.config.slug!r} ({self.config.study_type}"
@@ -261,12 +275,13 @@ class Build:
                                  fps=c.fps, progress=False, save_every=0)
         return path
 
-    def sample(self, source) -> list:
+    def sample(self, source, n: int | None = None) -> list:
+        """Return ``n`` motions per action of ``source`` (default ``clips_per_source``)."""
         c = self.config
         if c.prompts is not None:
             motions = self.prompt_motions(source)
             return [m.with_joints(m.joints, source=source.name, meta=dict(m.meta)) for m in motions]
-        n = c.clips_per_source
+        n = n or c.clips_per_source
         frames = c.frames or self.dataset.clip_frames
         if source.kind == "real":
             from generation.sampling import sample_real
@@ -339,17 +354,58 @@ class Build:
                                     pad=style.pad)
 
     def prompt_extras(self, groups) -> list[tuple]:
-        """Return the catch clips of a prompts study: per prompt, a broken version of one of
-        its judged clips (of any source, chosen by the seed)."""
+        """Return the catch clips of a prompts study: per prompt, broken versions of one
+        judged clip of each source (chosen by the seed)."""
         if not self.roles().get(Role.CATCH):
             return []
-        rng = np.random.default_rng(self.config.seed + 1)
-        by_prompt = defaultdict(list)
-        for _, motions, _ in groups:
+        rng = np.random.default_rng([self.config.seed, CATCH_STREAM])
+        by_prompt = defaultdict(lambda: defaultdict(list))
+        for source, motions, _ in groups:
             for motion in motions:
-                by_prompt[motion.action].append(motion)
-        return [(perturb.catch_clip(mine[int(rng.integers(len(mine)))], rng), Role.CATCH, None)
-                for mine in by_prompt.values()]
+                by_prompt[motion.action][source.name].append(motion)
+        out = []
+        for per_source in by_prompt.values():
+            bases = [mine[int(rng.integers(len(mine)))] for mine in per_source.values()]
+            out += [(m, Role.CATCH, None)
+                    for m in perturb.catch_family(bases, CATCH_PER_BASE, rng)]
+        return out
+
+    def catch_clips(self, groups) -> list[tuple]:
+        """Return the catch family: per action, ``CATCH_PER_BASE`` broken versions of one
+        base clip of each source (see the module docstring)."""
+        if not self.roles().get(Role.CATCH):
+            return []
+        rng = np.random.default_rng([self.config.seed, CATCH_STREAM])
+        by_action = defaultdict(list)
+        for source, motions, meta in groups:
+            for motion in self.catch_bases(source, motions, meta):
+                by_action[motion.action].append(motion)
+        return [(m, Role.CATCH, None) for action in sorted(by_action)
+                for m in perturb.catch_family(by_action[action], CATCH_PER_BASE, rng)]
+
+    def catch_bases(self, source, judged, meta) -> list:
+        """Return one clip per action of ``source`` that is not judged: drawn as its judged
+        clips are, one more per action (a file's next motion), cached; a judged clip where
+        the source has no other (a file of exactly ``clips_per_source`` per action)."""
+        c = self.config
+        n = c.clips_per_source + 1
+        key = digest({"source": source.section(), "data": self.data_fields(), **meta,
+                      "catch_bases": n})[:16]
+        cached = self.cache / "motions" / f"{source.name}-catch-{key}.npz"
+        if cached.is_file():
+            return npz.load(cached)
+        drawn = self.sample(source, n)
+        taken = {m.content_hash() for m in judged}
+        bases = []
+        for action in dict.fromkeys(m.action for m in judged):
+            fresh = [m for m in drawn if m.action == action and m.content_hash() not in taken]
+            if not fresh:
+                self.log(f"{source.name}: no clip of {action} beyond the judged ones; its catch "
+                         f"clips are broken versions of a judged one")
+                fresh = [m for m in judged if m.action == action]
+            bases.append(fresh[-1])
+        npz.save(cached, bases)
+        return bases
 
     def real_base(self):
         """Return real clips (n + EXTRA_REAL per action) and the framing fitted to them, cached."""
@@ -376,7 +432,8 @@ class Build:
 
     def extras(self, base) -> list[tuple]:
         """Return ``(motion, role, score)`` of the clips the study type asks for beyond the
-        judged ones, made from real clips not judged (practice: for the first action only)."""
+        judged ones, made from real clips not judged (practice: for the first action only;
+        catch clips: :meth:`catch_clips`)."""
         roles = self.roles()
         if not roles:
             return []
@@ -394,7 +451,9 @@ class Build:
                 for score, motion in perturb.standard_examples(root, rng).items():
                     out.append((motion, Role.EXAMPLE, score))
             if roles.get(Role.CATCH):
-                out.append((perturb.catch_clip(root, rng), Role.CATCH, None))
+                # The draw the one shaken catch clip took before catch clips came as a
+                # family (catch_clips): anchors and practice clips stay as built before.
+                rng.normal(size=root.joints.shape)
             if roles.get(Role.ANCHOR):
                 out.append((perturb.low_anchor(root, rng), Role.ANCHOR, None))
             if roles.get(Role.PRACTICE) and start == 0:

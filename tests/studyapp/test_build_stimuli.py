@@ -179,7 +179,8 @@ def test_h36m2d_preset_builds_small(tmp_path, media_root, h36m_root):
     study = result.study
     assert study.study_type == "rating_reference"
     assert study.stimuli.filter(role="reference").count() == 2
-    assert study.stimuli.filter(role="catch").count() == 2
+    # Catch clips: two broken versions of a clip of each source, per action (2D ones too).
+    assert study.stimuli.filter(role="catch").count() == 2 * 2 * 2
     assert study.stimuli.judged().count() == 4
 
 

@@ -117,7 +117,8 @@ def test_the_demo_has_a_study_of_every_type_that_bots_can_finish(
     for study in studies:
         judged = Stimulus.objects.judged().filter(study=study)
         assert sorted({s.source for s in judged}) == ["a2m", "cond_gru", "real"]
-        assert study.stimuli.filter(role="catch").count() == 2  # one per action
+        # Two broken versions of a clip of each source, per action.
+        assert study.stimuli.filter(role="catch").count() == 2 * 3 * 2
         assert study.stimuli.filter(role="practice").exists()
         assert study.practice and study.catch_trials == 1 and study.ask_demographics
     standards = ScoringStandard.objects.filter(study=by_type["rating_standards"])

@@ -141,8 +141,8 @@ def test_a_prompt_study_builds_one_condition_per_prompt(tmp_path, media_root):
     assert sorted(set(judged.values_list("prompt", flat=True))) == sorted(PROMPTS)
     for stimulus in judged:
         assert stimulus.action == stimulus.prompt  # the trial's condition is its prompt
-    catch = study.stimuli.filter(role="catch")
-    assert sorted(catch.values_list("prompt", flat=True)) == sorted(PROMPTS)
+    catch = study.stimuli.filter(role="catch")  # two broken clips of each source's, per prompt
+    assert sorted(catch.values_list("prompt", flat=True)) == sorted(PROMPTS * 4)
     manifest = json.loads(result.manifest.read_text())
     assert {e["prompt"] for e in manifest["clips"]} == set(PROMPTS)
     # The default instructions speak of a text, not of a named action.
