@@ -1,188 +1,309 @@
-"""The blindness audit: can a simple classifier tell clips apart by what a participant's
-browser receives?
+"""The blindness audit: can a script tell clips apart by what it is sent?
 
-For every clip a study serves, :func:`clip_features` reads what is observable over HTTP:
-the byte size and the response headers, the MP4's duration, picture size and the sizes of
-its boxes and of its frames (the ``stsz`` table: a complex motion can make larger frames),
-and the poster's byte size and picture size. :func:`audit` fits a logistic regression to
-predict a label (real vs generated, catch vs not) from those features with stratified
-k-fold cross-validation and compares its held-out accuracy with chance (always guessing
-the larger class). It fails when the accuracy beats chance by more than
-``max(MIN_MARGIN, Z * standard error of chance)``: more than a few clips guessed right by
-luck, too few to be luck.
+Two questions are asked of a study's clips: can the source of a judged clip be told
+(real against generated; without real clips, the first source by name against the
+others), and can a catch clip be told from the judged clips? Each is asked of each family
+of features (:mod:`analysis.clip_features`) by :func:`leak_test`: a ridge classifier on the
+family's features (and their squares, which catch outliers on either side), scored by
+leave-one-out, and each feature alone; the statistic is the larger of the classifier's
+AUC and the best single feature's (either way round), and its p-value is that of a
+permutation test (the labels shuffled ``PERMUTATIONS`` times, the same statistic each
+time), valid for any number of clips. The audit also says which AUC it could have told
+from luck (the permutations' ``1 - alpha`` quantile): with few clips only a large leak
+can show, and it says so in words.
+
+What a leak is depends on the family and the question (:func:`assess`):
+
+- ``delivery`` (sizes, headers, boxes, frame-size tables, padding layout) must tell
+  nothing about either: a significant result fails the study.
+- ``bitstream`` and ``payload`` are content: a script that parses the H.264 stream for
+  its true frame sizes, or reads the player's joints, reads the motion itself, which is
+  what participants judge. For the source question they are reported as content ("a
+  script that parses the bitstream tells real from generated with AUC 0.99, as a viewer
+  of the motion could") and never fail; for the catch question they must be at chance,
+  since a script that picks out catch clips passes attention checks without watching.
+- ``hashes``: with several deliveries per clip, no two deliveries may share a file hash or
+  an ETag (a repeat's clip matching its first showing, a catch clip matching another
+  participant's); sharing fails. Two deliveries of one clip always show the same clip
+  (the content keys match), which is what a repeat is; that is reported, not failed.
+
+The tests that can fail share the error rate ``ALPHA`` (Bonferroni), so an honest study
+fails one by chance at most once in a hundred audits.
 
 Plain Python and NumPy: the Django side (``studyapp.survey.audit``) fetches the clips.
 """
 
 from __future__ import annotations
 
-import math
-import struct
+from collections import Counter
+from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.stats import rankdata
 
-MIN_MARGIN = 0.05
-Z = 2.33  # one-sided 99 %: a leak this clear is no coincidence
-FOLDS = 5
-# Headers whose values differ with the moment, not the clip.
-MOMENT_HEADERS = {"date", "expires", "server", "connection", "keep-alive", "set-cookie", "vary",
-                  "x-request-id"}
-CONTAINERS = {b"moov", b"trak", b"mdia", b"minf", b"stbl", b"edts", b"dinf", b"udta"}
+from analysis.clip_features import content_keys, features, file_hashes, same_content
 
-
-def _boxes(data: bytes, start: int = 0, end: int | None = None):
-    """Yield ``(type, payload start, box end)`` of the ISO-BMFF boxes in ``data[start:end]``."""
-    end = len(data) if end is None else end
-    at = start
-    while at + 8 <= end:
-        size, kind = struct.unpack(">I4s", data[at:at + 8])
-        header = 8
-        if size == 1 and at + 16 <= end:
-            size = struct.unpack(">Q", data[at + 8:at + 16])[0]
-            header = 16
-        elif size == 0:
-            size = end - at
-        if size < header or at + size > end:
-            return
-        yield kind, at + header, at + size
-        at += size
+ALPHA = 0.01
+PERMUTATIONS = 2000
+TOO_FEW_AUC = 0.9  # a test that could only see leaks above this AUC has too few clips
+RIDGE = (0.1, 1.0, 10.0)  # penalties, times the mean squared feature norm
+QUESTIONS = {"source": "real from generated", "catch": "catch clips from judged clips"}
+CONTENT = {"bitstream": "parses the H.264 bitstream (true frame sizes) and the poster's "
+                        "image data",
+           "payload": "reads the in-browser player's joints (bone lengths, speeds, jerk, "
+                      "value ranges)"}
 
 
-def mp4_features(data: bytes) -> dict[str, float]:
-    """Return what an MP4 file shows of itself: box sizes, duration, picture size, frames."""
-    out = {"mp4_boxes": 0.0, "mp4_bytes_free": 0.0}
-    sizes: list[int] = []
+@dataclass
+class ClipRecord:
+    """One stimulus as the audit saw it: its role and source (from the database) and what
+    each delivery sent, ``{ext: (headers, bytes)}`` per delivery."""
 
-    def walk(start, end, depth):
-        for kind, payload, stop in _boxes(data, start, end):
-            name = kind.decode("latin-1", "replace")
-            out["mp4_boxes"] += 1
-            out[f"box_{name}_bytes"] = out.get(f"box_{name}_bytes", 0.0) + (stop - payload)
-            if kind in (b"free", b"skip"):
-                out["mp4_bytes_free"] += stop - payload
-            if kind in CONTAINERS and depth < 8:
-                walk(payload, stop, depth + 1)
-            elif kind == b"mvhd" and stop - payload >= 20:
-                version = data[payload]
-                if version == 1:
-                    scale, duration = struct.unpack(">IQ", data[payload + 20:payload + 32])
-                else:
-                    scale, duration = struct.unpack(">II", data[payload + 12:payload + 20])
-                out["duration_s"] = duration / scale if scale else 0.0
-            elif kind == b"tkhd" and stop - payload >= 84:
-                width, height = struct.unpack(">II", data[stop - 8:stop])
-                out["width"], out["height"] = width / 65536, height / 65536
-            elif kind == b"stsz" and stop - payload >= 12:
-                fixed, count = struct.unpack(">II", data[payload + 4:payload + 12])
-                if fixed:
-                    sizes.extend([fixed] * count)
-                else:
-                    sizes.extend(struct.unpack(f">{count}I", data[payload + 12:payload + 12 + 4 * count]))
-
-    walk(0, len(data), 0)
-    if sizes:
-        frames = np.asarray(sizes, dtype=float)
-        out.update(frames=float(len(frames)), frame_bytes_mean=float(frames.mean()),
-                   frame_bytes_sd=float(frames.std()), frame_bytes_max=float(frames.max()),
-                   frame_bytes_min=float(frames.min()), frame_bytes_first=float(frames[0]))
-    return out
+    role: str
+    source: str
+    deliveries: list[dict] = field(default_factory=list)
+    action: str = ""
 
 
-def png_features(data: bytes) -> dict[str, float]:
-    out = {"poster_bytes": float(len(data))}
-    if data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) >= 24:
-        width, height = struct.unpack(">II", data[16:24])
-        out.update(poster_width=float(width), poster_height=float(height))
-    return out
-
-
-def header_features(headers: dict, prefix: str) -> dict[str, float]:
-    """Return the lengths of the response headers a page could read (not the moment's)."""
-    kept = {k.lower(): str(v) for k, v in headers.items() if k.lower() not in MOMENT_HEADERS}
-    out = {f"{prefix}_header_bytes": float(sum(len(k) + len(v) for k, v in kept.items())),
-           f"{prefix}_headers": float(len(kept))}
-    for name, value in kept.items():
-        out[f"{prefix}_h_{name}_len"] = float(len(value))
-        if name == "content-length" and value.isdigit():
-            out[f"{prefix}_content_length"] = float(value)
-    return out
-
-
-def clip_features(video: bytes, video_headers: dict, poster: bytes | None = None,
-                  poster_headers: dict | None = None, motion: bytes | None = None,
-                  motion_headers: dict | None = None) -> dict[str, float]:
-    """Return every observable feature of one served clip (see the module docstring): its
-    video, poster and, when the study plays in the page, the player's payload."""
-    out = {"video_bytes": float(len(video)), **mp4_features(video),
-           **header_features(video_headers, "video")}
-    if poster is not None:
-        out.update(png_features(poster))
-        out.update(header_features(poster_headers or {}, "poster"))
-    if motion is not None:
-        out["motion_bytes"] = float(len(motion))
-        out.update(header_features(motion_headers or {}, "motion"))
-    return out
-
-
-def _matrix(rows: list[dict]) -> np.ndarray:
+def _design(rows: list[dict]) -> tuple[np.ndarray, list[str]]:
+    """Return standardised features (constant ones dropped) and their names."""
     names = sorted({name for row in rows for name in row})
     x = np.array([[row.get(name, 0.0) for name in names] for row in rows], dtype=float)
+    if not x.size:
+        return np.zeros((len(rows), 0)), []
     x[~np.isfinite(x)] = 0.0
     spread = x.std(axis=0)
     keep = spread > 1e-9 * (np.abs(x).max(axis=0) + 1.0)
-    x = x[:, keep]
-    return (x - x.mean(axis=0)) / (x.std(axis=0) if x.size else 1.0)
+    x, names = x[:, keep], [n for n, k in zip(names, keep) if k]
+    return (x - x.mean(axis=0)) / np.where(x.std(axis=0) > 0, x.std(axis=0), 1.0), names
 
 
-def _fit(x: np.ndarray, y: np.ndarray, l2: float = 1.0, steps: int = 50) -> np.ndarray:
-    """Return weights (bias last) of an L2-regularised logistic regression (Newton steps)."""
-    design = np.hstack([x, np.ones((len(x), 1))])
-    w = np.zeros(design.shape[1])
-    penalty = np.full(design.shape[1], l2)
-    penalty[-1] = 0.0
-    for _ in range(steps):
-        p = 1 / (1 + np.exp(-np.clip(design @ w, -30, 30)))
-        gradient = design.T @ (p - y) + penalty * w
-        hessian = (design * (p * (1 - p))[:, None]).T @ design + np.diag(penalty + 1e-9)
-        step = np.linalg.solve(hessian, gradient)
-        w -= step
-        if np.abs(step).max() < 1e-8:
-            break
-    return w
+def _aucs(scores: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """Return the AUC of each column of ``scores`` ``(n, P)`` for 0/1 ``labels`` ``(n, P)``."""
+    ranks = rankdata(scores, axis=0)
+    positives = labels.sum(axis=0)
+    negatives = len(labels) - positives
+    return ((ranks * labels).sum(axis=0) - positives * (positives + 1) / 2) / (positives * negatives)
 
 
-def _folds(y: np.ndarray, k: int, rng) -> list[np.ndarray]:
-    """Return ``k`` test-index folds, each with about the same share of both labels."""
-    folds = [[] for _ in range(k)]
-    for label in (0, 1):
-        where = rng.permutation(np.flatnonzero(y == label))
-        for i, index in enumerate(where):
-            folds[i % k].append(index)
-    return [np.asarray(sorted(f), dtype=int) for f in folds if f]
+def _ridge_aucs(z: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """Return the leave-one-out AUC of kernel ridge regressions on ``z`` for each column
+    of ``labels`` ``(n, P)``, the best of the penalties :data:`RIDGE`."""
+    n = len(z)
+    design = np.hstack([z, z * z - (z * z).mean(axis=0)])
+    gram = design @ design.T
+    centred = labels - labels.mean(axis=0)
+    best = np.full(labels.shape[1], -np.inf)
+    for scale in RIDGE:
+        penalty = scale * max(float(np.trace(gram)) / n, 1e-9)
+        hat = gram @ np.linalg.inv(gram + penalty * np.eye(n))
+        diagonal = np.clip(np.diag(hat), None, 1 - 1e-9)[:, None]
+        loo = (hat @ centred - diagonal * centred) / (1 - diagonal)
+        best = np.maximum(best, _aucs(loo, labels))
+    return best
 
 
-def audit(rows: list[dict], labels, folds: int = FOLDS, seed: int = 0) -> dict:
-    """Return ``{"accuracy", "chance", "n", "margin", "passed"}`` of predicting ``labels``
-    (booleans) from the clips' features ``rows`` with cross-validated logistic regression.
-
-    Fewer than two clips of either label: nothing to tell apart, so ``passed`` with
-    ``accuracy`` None.
+def leak_test(rows: list[dict], labels, alpha: float = ALPHA,
+              permutations: int = PERMUTATIONS, seed: int = 0) -> dict:
+    """Return how well the features ``rows`` tell the ``labels`` (booleans) apart; see the
+    module docstring. Keys: ``n``, ``positives``, ``auc`` (the statistic), ``p_value``,
+    ``detectable_auc``, ``too_few``, ``significant``, ``best_feature``, ``best_auc``
+    (that feature alone, 0.5 to 1), ``model_auc``, ``accuracy`` and ``chance``.
+    Fewer than two clips of either label: nothing to tell apart (``auc`` None).
     """
     y = np.asarray(labels, dtype=float)
-    n = len(y)
-    positives = int(y.sum())
+    n, positives = len(y), int(y.sum())
     chance = max(positives, n - positives) / n if n else 1.0
-    margin = max(MIN_MARGIN, Z * math.sqrt(chance * (1 - chance) / n)) if n else 0.0
+    out = {"n": n, "positives": positives, "chance": chance, "alpha": alpha, "auc": None,
+           "p_value": 1.0, "detectable_auc": None, "too_few": True, "significant": False,
+           "best_feature": "", "best_auc": None, "model_auc": None, "accuracy": None}
     if min(positives, n - positives) < 2:
-        return {"accuracy": None, "chance": chance, "n": n, "margin": margin, "passed": True}
-    x = _matrix(rows)
+        return out
+    z, names = _design(rows)
     rng = np.random.default_rng(seed)
+    shuffled = np.stack([y] + [rng.permutation(y) for _ in range(permutations)], axis=1)
+    if names:
+        model = _ridge_aucs(z, shuffled)
+        ranks = rankdata(z, axis=0)  # (n, features)
+        per = (shuffled.T @ ranks - positives * (positives + 1) / 2) / (positives * (n - positives))
+        strength = np.maximum(per, 1 - per)  # (P + 1, features), either way round
+        statistic = np.maximum(model, strength.max(axis=1))
+        best = int(np.argmax(strength[0]))
+        out.update(best_feature=names[best], best_auc=float(strength[0, best]),
+                   model_auc=float(model[0]))
+    else:
+        statistic = np.full(permutations + 1, 0.5)
+    null = statistic[1:]
+    out["auc"] = float(statistic[0])
+    out["p_value"] = float((1 + (null >= statistic[0] - 1e-12).sum()) / (permutations + 1))
+    out["detectable_auc"] = float(np.quantile(null, 1 - alpha))
+    out["too_few"] = out["detectable_auc"] >= TOO_FEW_AUC
+    out["significant"] = out["p_value"] < alpha
+    if names:
+        # Leave-one-out guesses of the best-scoring feature's threshold rule, for a reader
+        # who thinks in accuracy: the share right against always guessing the larger class.
+        column = z[:, best] * (1 if per[0, best] >= 0.5 else -1)
+        out["accuracy"] = _loo_threshold_accuracy(column, y > 0.5)
+    return out
+
+
+def _loo_threshold_accuracy(values: np.ndarray, labels: np.ndarray) -> float:
+    """Return the leave-one-out accuracy of the best threshold on one feature (higher
+    values guessed positive), the threshold chosen without the clip it guesses."""
     right = 0
-    for test in _folds(y, min(folds, min(positives, n - positives)), rng):
-        train = np.setdiff1d(np.arange(n), test)
-        w = _fit(x[train], y[train])
-        guess = (np.hstack([x[test], np.ones((len(test), 1))]) @ w) > 0
-        right += int((guess == (y[test] > 0.5)).sum())
-    accuracy = right / n
-    return {"accuracy": accuracy, "chance": chance, "n": n, "margin": margin,
-            "passed": bool(accuracy <= chance + margin)}
+    for i in range(len(values)):
+        keep = np.arange(len(values)) != i
+        v, t = values[keep], labels[keep]
+        cuts = np.unique(v)
+        scores = [((v >= c) == t).mean() for c in cuts] + [(~t).mean()]
+        k = int(np.argmax(scores))
+        guess = bool(values[i] >= cuts[k]) if k < len(cuts) else False
+        right += guess == labels[i]
+    return right / len(values)
+
+
+def _could_show(result: dict) -> str:
+    detectable = result["detectable_auc"]
+    words = (f"{result['n']} clips ({result['positives']} against "
+             f"{result['n'] - result['positives']}) could show a leak of AUC {detectable:.2f} "
+             f"or more")
+    if result["too_few"]:
+        words += "; too few clips to tell a smaller one, so this part vouches for little"
+    return words
+
+
+def verdict(question: str, family: str, result: dict) -> dict:
+    """Return the audit's entry for one question and family: the test's numbers with
+    ``kind`` (``delivery`` or ``content``), ``passed`` and ``says`` (see the module
+    docstring for the rule)."""
+    what = QUESTIONS[question]
+    kind = "delivery" if family == "delivery" else "content"
+    entry = {"question": question, "family": family, "kind": kind, **result}
+    if result["auc"] is None:
+        entry.update(passed=True, says=f"nothing to tell apart: fewer than two clips of a kind "
+                                       f"({result['n']} clips, {result['positives']} of one)")
+        return entry
+    numbers = f"AUC {result['auc']:.2f}, p = {result['p_value']:.2g}"
+    if result["best_feature"]:
+        numbers += f"; best single feature {result['best_feature']} ({result['best_auc']:.2f})"
+    reader = ("what a browser receives (sizes, headers, boxes, frame-size tables, padding)"
+              if kind == "delivery" else f"a script that {CONTENT[family]}")
+    if kind == "content" and question == "source":
+        told = "tells" if result["significant"] else "does not tell"
+        entry.update(passed=True, says=(
+            f"content: {reader} {told} {what} ({numbers}), as a viewer of the motion could; "
+            f"not a blindness failure"))
+    elif result["significant"]:
+        harm = ("it can pass attention checks without watching" if question == "catch" else
+                "participants' browsers can tell the source")
+        entry.update(passed=False, says=f"FAILED: {reader} tells {what} ({numbers}): {harm}")
+    else:
+        entry.update(passed=True, says=f"passed: {reader} does not tell {what} ({numbers}); "
+                                       f"{_could_show(result)}")
+    return entry
+
+
+def _labels(clips: list[ClipRecord]) -> dict[str, tuple[list[int], list[bool]]]:
+    """Return per question the clips it asks about and their labels."""
+    judged = [i for i, c in enumerate(clips) if c.role == "judged"]
+    shown = [i for i, c in enumerate(clips) if c.role in ("judged", "catch")]
+    sources = sorted({clips[i].source for i in judged})
+    told = "real" if "real" in sources or not sources else sources[0]
+    return {"source": (judged, [clips[i].source == told for i in judged]),
+            "catch": (shown, [clips[i].role == "catch" for i in shown])}
+
+
+def delivery_check(clips: list[ClipRecord]) -> dict:
+    """Return the ``hashes`` entry: whether any two deliveries share a file's sha256 or an
+    ETag (a failure: see the module docstring)."""
+    hashes: Counter = Counter()
+    etags: Counter = Counter()
+    deliveries = 0
+    for clip in clips:
+        for files in clip.deliveries:
+            deliveries += 1
+            for ext, digest in file_hashes(files).items():
+                hashes[(ext, digest)] += 1
+            for ext, (headers, _) in files.items():
+                tag = {k.lower(): v for k, v in headers.items()}.get("etag")
+                if tag:
+                    etags[tag] += 1
+    repeated = Counter()
+    for (ext, _), n in hashes.items():
+        if n > 1:
+            repeated[ext] += n - 1
+    repeated_tags = sum(n - 1 for n in etags.values() if n > 1)
+    several = sum(len(c.deliveries) > 1 for c in clips)
+    passed = not repeated and not repeated_tags
+    if passed:
+        says = (f"passed: {deliveries} deliveries of {len(clips)} clips ({several} of them "
+                f"delivered more than once), no two with the same bytes or ETag: hashing what "
+                f"is sent matches no repeat and no other participant's catch clip")
+    else:
+        which = ", ".join(f"{n} {ext}" for ext, n in sorted(repeated.items())) or "none"
+        says = (f"FAILED: deliveries repeat bytes ({which}) or ETags ({repeated_tags}): a "
+                f"script that hashes them recognises a repeated trial's clip and a catch clip "
+                f"seen before; build the clips with build_stimuli (padded files) and serve "
+                f"them through this app, which gives every delivery bytes of its own")
+    return {"question": "deliveries", "family": "hashes", "kind": "delivery", "passed": passed,
+            "says": says, "n": deliveries, "clips": len(clips),
+            "repeated_bytes": sum(repeated.values()), "repeated_etags": repeated_tags}
+
+
+def content_check(clips: list[ClipRecord]) -> dict:
+    """Return the ``content`` entry: how often two deliveries of one clip show the same
+    clip to a script that strips what readers skip (by design: a repeat is the same clip),
+    how often two clips do, and how many catch clips there are to share."""
+    keys = [[content_keys(files) for files in clip.deliveries] for clip in clips]
+    same, pairs, confused = Counter(), Counter(), Counter()
+    for mine in keys:
+        for a in range(len(mine)):
+            for b in range(a + 1, len(mine)):
+                for ext in mine[a]:
+                    pairs[ext] += 1
+                    same[ext] += same_content(ext, mine[a][ext], mine[b][ext])
+    firsts = [mine[0] for mine in keys if mine]
+    for a in range(len(firsts)):
+        for b in range(a + 1, len(firsts)):
+            for ext in firsts[a]:
+                confused[ext] += ext in firsts[b] and same_content(ext, firsts[a][ext],
+                                                                  firsts[b][ext])
+    catch = sum(c.role == "catch" for c in clips)
+    actions = len({c.action for c in clips if c.role == "catch"}) or 1
+    shares = ", ".join(f"{ext} {same[ext]}/{pairs[ext]}" for ext in sorted(pairs)) or "none"
+    says = (f"content: two deliveries of one clip show the same clip to a script that strips "
+            f"filler and padding ({shares} pairs), as a viewer recognises a repeated clip; two "
+            f"different clips never do ({sum(confused.values())} alike). {catch} catch clips "
+            f"(about {catch / actions:.0f} per action) are handed out least used first, so "
+            f"participants share one only once each has been shown")
+    return {"question": "deliveries", "family": "content", "kind": "content", "passed": True,
+            "says": says, "n": sum(pairs.values()), "same_clip_alike": sum(same.values()),
+            "different_clips_alike": sum(confused.values()), "catch_clips": catch}
+
+
+def assess(clips: list[ClipRecord], deep: bool = True, seed: int = 0,
+           permutations: int = PERMUTATIONS) -> dict[str, dict]:
+    """Return the audit of ``clips``: ``{"<question>: <family>": entry}`` (see
+    :func:`verdict`), and with ``deep`` the content families and the deliveries' hashes.
+    Basic: the delivery family of each clip's first delivery only."""
+    rows = [features(clip.deliveries[0]) for clip in clips]
+    families = ["delivery"] + (["bitstream", "payload"] if deep else [])
+    families = [f for f in families if any(row[f] for row in rows)]
+    tests = [(q, f) for q in QUESTIONS for f in families
+             if f == "delivery" or q == "catch"]  # the tests that can fail
+    alpha = ALPHA / max(1, len(tests) + bool(deep))
+    out = {}
+    for question, (chosen, labels) in _labels(clips).items():
+        for family in families:
+            result = leak_test([rows[i][family] for i in chosen], labels, alpha=alpha,
+                               permutations=permutations, seed=seed)
+            out[f"{question}: {family}"] = verdict(question, family, result)
+    if deep:
+        out["deliveries: hashes"] = delivery_check(clips)
+        out["deliveries: content"] = content_check(clips)
+    return out
+
+
+def passed(result: dict) -> bool:
+    """Return whether every entry of an audit passed."""
+    return all(part["passed"] for part in result.values())

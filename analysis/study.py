@@ -81,9 +81,10 @@ class StudyResult:
         if self.blindness:
             rows = [{"told apart": label, **part} for label, part in self.blindness.items()]
             extra.append(Table(
-                "blindness", "Blindness audit: a classifier of what the browser receives per "
-                "clip (sizes, headers, MP4 boxes and frames), cross-validated accuracy against "
-                "chance", pd.DataFrame(rows)))
+                "blindness", "Blindness audit: per question and family of what a script is "
+                "sent (delivery: sizes, headers, boxes, padding; content: true frame sizes, "
+                "the player's joints; hashes of every delivery), a permutation test of "
+                "cross-validated classifiers", pd.DataFrame(rows)))
         return self.analysis.tables + extra
 
     def summary(self) -> dict:

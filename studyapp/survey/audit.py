@@ -1,10 +1,13 @@
 """Run the blindness audit (:mod:`analysis.blindness`) on a built study, through HTTP.
 
-The audit shows every clip of the study to a temporary audit participant (a practice
-trial, so no balance count changes; never consented, so it holds no place) and fetches
-each clip and poster under that participant's item tokens, exactly as a participant's
-browser would, from the server at ``url`` (or in-process from the clip view, as
-``analyze`` does). The audit participant is deleted afterwards.
+The audit shows every clip of the study to temporary audit participants (a practice
+trial each, so no balance count changes; never consented, so they hold no place) and
+fetches each clip's files (video, poster, payload) under their item tokens, exactly as a
+participant's browser would, from the server at ``url`` (or in-process from the clip
+view, as ``analyze`` does). The basic level shows each clip once and tests what a
+browser receives; the deep level shows each clip ``DELIVERIES`` times (as a repeated
+trial and other participants would see it) and also tests what a script parses out of
+the files. The audit participants are deleted afterwards.
 """
 
 from __future__ import annotations
@@ -15,11 +18,13 @@ import urllib.request
 
 from django.db import transaction
 
-from analysis.blindness import audit, clip_features
+from analysis.blindness import ClipRecord, assess, passed  # noqa: F401 (passed: for callers)
 from studyapp.survey.models import Participant, Stimulus, Trial, TrialItem
 
 AUDIT_KEY = "audit:blindness"
 TIMEOUT = 30
+DELIVERIES = 2  # deliveries of every clip at the deep level
+LEVELS = ("deep", "basic")
 
 
 class AuditUnavailable(RuntimeError):
@@ -67,20 +72,26 @@ def view_fetcher():
     return fetch
 
 
-def _show_everything(study) -> tuple[Participant, list[TrialItem]]:
+def _show_everything(study, times: int) -> tuple[list[Participant], list[list[TrialItem]]]:
+    """Return ``times`` audit participants, each shown every stimulus once (a practice
+    trial), and the items of each stimulus (one per participant), by stimulus."""
     stimuli = list(Stimulus.objects.filter(study=study).exclude(
         role__in=[Stimulus.Role.EXAMPLE]).order_by("pk"))
+    people, items = [], [[] for _ in stimuli]
     with transaction.atomic():
-        person = Participant.objects.create(
-            study=study, seed=0, external_key=f"{AUDIT_KEY}:{secrets.token_hex(4)}")
-        trial = Trial.objects.create(participant=person, index=0, action="audit",
-                                     kind=Trial.Kind.PRACTICE)
-        items = TrialItem.objects.bulk_create(
-            TrialItem(trial=trial, stimulus=s, position=i, required=False)
-            for i, s in enumerate(stimuli))
-    for item, stimulus in zip(items, stimuli):
-        item.stimulus = stimulus
-    return person, items
+        for _ in range(times):
+            person = Participant.objects.create(
+                study=study, seed=0, external_key=f"{AUDIT_KEY}:{secrets.token_hex(4)}")
+            people.append(person)
+            trial = Trial.objects.create(participant=person, index=0, action="audit",
+                                         kind=Trial.Kind.PRACTICE)
+            made = TrialItem.objects.bulk_create(
+                TrialItem(trial=trial, stimulus=s, position=i, required=False)
+                for i, s in enumerate(stimuli))
+            for k, (item, stimulus) in enumerate(zip(made, stimuli)):
+                item.stimulus = stimulus
+                items[k].append(item)
+    return people, items
 
 
 def _unavailable(item, what, url, status) -> str:
@@ -89,44 +100,41 @@ def _unavailable(item, what, url, status) -> str:
             f"stored, or skip the audit with --no-audit")
 
 
-def audit_study(study, fetch) -> dict:
-    """Return ``{"source": {...}, "catch": {...}}`` for ``study`` (see the module docstring).
+def _delivery(item, fetch) -> dict:
+    """Return ``{ext: (headers, bytes)}`` of every file of one item, fetched whole."""
+    files = {}
+    for ext, name, what in (("mp4", "video", "clip"), ("png", "poster", "poster"),
+                            ("motion", "motion", "motion")):
+        if ext != "mp4" and not getattr(item.stimulus, name):
+            continue
+        status, headers, body = fetch(item.clip_url(ext))
+        if status != 200:
+            raise AuditUnavailable(_unavailable(item, what, item.clip_url(ext), status))
+        files[ext] = (headers, body)
+    return files
 
-    ``source`` predicts real vs generated among the judged clips (without real clips: the
-    first source by name vs the others); ``catch`` predicts the
-    broken catch clips among the catch and judged ones. Each entry has ``accuracy``,
-    ``chance``, ``n``, ``margin`` and ``passed``.
+
+def audit_study(study, fetch, level: str = "deep") -> dict:
+    """Return the audit of ``study`` at ``level`` (``deep`` or ``basic``):
+    ``{"<question>: <family>": entry}`` (see :func:`analysis.blindness.assess`), each
+    entry with ``passed`` and ``says``.
+
+    ``source`` asks real against generated among the judged clips (without real clips:
+    the first source by name against the others); ``catch`` asks the catch clips among
+    the catch and judged ones.
     """
-    person, items = _show_everything(study)
+    if level not in LEVELS:
+        raise ValueError(f"audit level {level!r}; choose one of {', '.join(LEVELS)}")
+    deep = level == "deep"
+    people, items = _show_everything(study, DELIVERIES if deep else 1)
     try:
-        rows, kinds = [], []
-        for item in items:
-            status, headers, body = fetch(item.clip_url("mp4"))
-            if status != 200:
-                raise AuditUnavailable(_unavailable(item, "clip", item.clip_url("mp4"), status))
-            extra = {}
-            for ext, name in (("png", "poster"), ("motion", "motion")):
-                if getattr(item.stimulus, name):
-                    code, extra[f"{name}_headers"], extra[name] = fetch(item.clip_url(ext))
-                    if code != 200:
-                        raise AuditUnavailable(_unavailable(item, name, item.clip_url(ext), code))
-            rows.append(clip_features(body, headers, **extra))
-            kinds.append((item.stimulus.role, item.stimulus.source))
+        clips = []
+        for shown in items:
+            stimulus = shown[0].stimulus
+            clips.append(ClipRecord(role=stimulus.role, source=stimulus.source,
+                                    action=stimulus.action,
+                                    deliveries=[_delivery(item, fetch) for item in shown]))
     finally:
-        person.delete()
-    judged = [i for i, (role, _) in enumerate(kinds) if role == Stimulus.Role.JUDGED]
-    shown = [i for i, (role, _) in enumerate(kinds) if role in (Stimulus.Role.JUDGED,
-                                                                Stimulus.Role.CATCH)]
-    # Real against generated; in a study without real clips (e.g. two text-to-motion
-    # models), the first source by name against the others.
-    sources = sorted({kinds[i][1] for i in judged})
-    told = "real" if "real" in sources or not sources else sources[0]
-    return {
-        "source": audit([rows[i] for i in judged], [kinds[i][1] == told for i in judged]),
-        "catch": audit([rows[i] for i in shown],
-                       [kinds[i][0] == Stimulus.Role.CATCH for i in shown]),
-    }
-
-
-def passed(result: dict) -> bool:
-    return all(part["passed"] for part in result.values())
+        for person in people:
+            person.delete()
+    return assess(clips, deep=deep)

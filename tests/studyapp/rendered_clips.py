@@ -25,8 +25,8 @@ def motions(catch_per_action: int = 2) -> list:
                                  source=source, phase=a + 0.7 * s)
             out.append(figure)
     rng = np.random.default_rng(5)
-    for action in ACTIONS:
-        base = make_figure(frames=FRAMES, speed=1.2, action=action, phase=2.0)
+    for a, action in enumerate(ACTIONS):
+        base = make_figure(frames=FRAMES, speed=1.2, action=action, phase=2.0 + a)
         out += [m.with_joints(m.joints, action=action) for m in
                 perturb.catch_family([base], catch_per_action, rng)]
     return out

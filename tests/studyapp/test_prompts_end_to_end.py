@@ -49,8 +49,8 @@ def test_the_build_holds_every_sources_clip_of_every_prompt_blind(prompt_study):
     judged = Stimulus.objects.judged().filter(study=prompt_study)
     assert sorted((s.source, s.prompt) for s in judged) == sorted(
         (source, prompt) for source in SOURCES for prompt in PROMPTS)
-    catch = prompt_study.stimuli.filter(role="catch")
-    assert sorted(catch.values_list("prompt", flat=True)) == sorted(PROMPTS)
+    catch = prompt_study.stimuli.filter(role="catch")  # two of each source's, per prompt
+    assert sorted(catch.values_list("prompt", flat=True)) == sorted(PROMPTS * 4)
     # Files tell nothing: content-hash names and one size for every clip of the study.
     stimuli = list(prompt_study.stimuli.all())
     assert len({default_storage.size(s.video) for s in stimuli}) == 1
@@ -140,7 +140,9 @@ def test_the_blindness_audit_cannot_tell_the_two_models_apart(prompt_study, live
     out = tmp_path / "audit.json"
     call_command("audit_blindness", study=prompt_study.slug, url=live_server.url,
                  json_out=str(out))
-    result = json.loads(out.read_text())
-    assert result["source"]["n"] == 2 * len(PROMPTS)  # model_a against model_b
-    assert result["source"]["accuracy"] is not None and result["source"]["passed"]
-    assert result["catch"]["n"] == 3 * len(PROMPTS) and result["catch"]["passed"]
+    result = json.loads(out.read_text())  # the deep audit: every family, two deliveries
+    source = result["source: delivery"]
+    assert source["n"] == 2 * len(PROMPTS)  # model_a against model_b
+    assert source["auc"] is not None and source["passed"]
+    assert result["catch: delivery"]["n"] == (2 + 4) * len(PROMPTS)
+    assert all(part["passed"] for part in result.values()), result

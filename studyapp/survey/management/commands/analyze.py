@@ -43,7 +43,8 @@ class Command(BaseCommand):
                                  "(default 1000; 0 = none).")
         parser.add_argument("--seed", type=int, default=0, help="Seed of the bootstrap.")
         parser.add_argument("--no-audit", action="store_true",
-                            help="Skip the blindness audit of the study's clips.")
+                            help="Skip the blindness audit of the study's clips (the deep "
+                                 "audit of audit_blindness, run in this process).")
         parser.add_argument("--real-source", default="real", metavar="NAME",
                             help="The source holding real clips (fake_or_real; default 'real').")
         # Kept for old scripts: SVGs are always written now.
@@ -82,7 +83,7 @@ class Command(BaseCommand):
             results = analyse_all(table, config, participants=participants)
             if not responses and not options["no_audit"]:
                 try:
-                    blindness = audit_study(record, view_fetcher())
+                    blindness = audit_study(record, view_fetcher(), "deep")
                 except AuditUnavailable as error:
                     for result in results:
                         result.notes.append(f"the blindness audit did not run: {error}")
@@ -127,8 +128,8 @@ class Command(BaseCommand):
         for label, part in (result.blindness or {}).items():
             if not part["passed"]:
                 self.stderr.write(self.style.WARNING(
-                    f"Blindness audit: {label} can be told apart from the served files "
-                    f"(accuracy {part['accuracy']:.2f}, chance {part['chance']:.2f})."))
+                    f"Blindness audit: {label} can be told apart from the served files: "
+                    f"{part['says']}."))
         tables = sum(1 for path in written if path.suffix == ".csv")
         figures = sum(1 for path in written if path.suffix == ".png")
         self.stdout.write(f"Wrote report.html, summary.json, {tables} tables (CSV, Markdown, LaTeX) "
