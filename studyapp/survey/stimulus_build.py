@@ -3,9 +3,10 @@
 This is the one way stimuli are made: ``build_stimuli CONFIG``, the admin's build jobs
 and the demo (``studies/demo/*.yaml``) all run it. The study's type says which extra
 clips it needs (:meth:`StudyType.stimulus_roles`: catch, practice, reference, examples,
-anchors); the build makes them from real clips with :mod:`generation.perturb`, renders
-everything with one framing, registers the clips and lets the type finish the study
-(:meth:`StudyType.after_register`, e.g. scoring standards).
+anchors); the build makes them with :mod:`generation.perturb` (catch clips from a spare
+clip of every source, :mod:`studyapp.survey.catch_clips`; the others from real clips),
+renders everything with one framing, registers the clips and lets the type finish the
+study (:meth:`StudyType.after_register`, e.g. scoring standards).
 
 A cache folder (shared between studies by default: ``<var>/stimuli/cache``) holds what is
 keyed on its inputs, so a rebuild only redoes what a changed field touches, and studies
@@ -13,17 +14,12 @@ built from the same sources share their motions and clips:
 
 - ``motions/<source>-<key>.npz``: a source's motions; the key hashes the source's config
   section, the dataset fields, the checkpoint's (or file's) sha256 and the seed;
+- ``motions/<source>-catch-<key>.npz``: the spare clip per action of each source that
+  its catch clips are made from (keyed as the source's motions, one more per action).
 - ``checkpoints/<source>-<key>.pt``: methods without a ``checkpoint`` are trained here
   with the stated budget (``train.iters``, ``train.preset``), keyed on that budget;
 - ``renders/<video_hash>.mp4|png`` and ``renders/index.json``: each clip's render,
   keyed by its motion hash, the style, the size and the framing.
-
-Catch clips come as a family per action (or prompt): :data:`CATCH_PER_BASE` broken
-versions (:func:`generation.perturb.catch_family`) of one base clip per source, drawn as
-that source's judged clips are (one more per action, never a judged one; cached as
-``motions/<source>-catch-<key>.npz``), so their numbers (bone lengths, speeds, jerk) are
-spread as the judged clips' are; the study hands the least used one to each new
-participant (``assignment.pick_catch``).
 
 The framing is fitted to real clips only (``clips_per_source + 3`` per action, drawn
 with the config's seed), never to generated ones: changing a method then re-renders only
@@ -61,6 +57,7 @@ from generation.formats import load_motions, npz
 from generation.sampling import SamplingError, choose
 from rendering import VERSION as RENDERING_VERSION
 from rendering import Framing, get_style, render_set
+from studyapp.survey.catch_clips import CATCH_PER_BASE, catch_clips, prompt_catch_clips
 from studyapp.survey.models import ScoringStandard, Stimulus, Study
 from studyapp.survey.stimuli import Clip, file_hash, register_clips
 from studyapp.survey.stimulus_config import ConfigError, StudyConfig, normalise_prompt, prompt_key
@@ -71,10 +68,6 @@ Role = Stimulus.Role
 EXTRA_REAL = 3
 # Joint jitter of the practice clips after the first (a real clip), as in perturb.
 PRACTICE_NOISE = (0.02, 0.05, 0.1, 0.15, 0.2)
-# Broken versions of each catch base (one base per source and action): with three
-# sources, six catch clips per action, so that participants rarely share one.
-CATCH_PER_BASE = 2
-CATCH_STREAM = 7  # the catch family's random stream, beside the config's seed
 
 
 class BuildError(RuntimeError):
@@ -180,7 +173,7 @@ class Build:
                 self.step(f"sampled {source.name}")
             if c.prompts is None:
                 base, framing = self.real_base()
-                extras = self.extras(base) + self.catch_clips(groups)
+                extras = self.extras(base) + catch_clips(self, groups)
             else:
                 same_skeleton(groups)
                 # As with actions, real clips set the framing when there are any (a change
@@ -189,7 +182,7 @@ class Build:
                         for m in motions]
                 framing = self.pooled_framing(real or [m for _, motions, _ in groups
                                                        for m in motions])
-                extras = self.prompt_extras(groups)
+                extras = prompt_catch_clips(self, groups)
             self.step("framing")
             judged = [(m, meta) for _, motions, meta in groups for m in motions]
             self.bar.total += len(judged) + len(extras)
@@ -353,60 +346,6 @@ class Build:
         return Framing.from_motions([ops.canonical(m, style.dims) for m in motions],
                                     pad=style.pad)
 
-    def prompt_extras(self, groups) -> list[tuple]:
-        """Return the catch clips of a prompts study: per prompt, broken versions of one
-        judged clip of each source (chosen by the seed)."""
-        if not self.roles().get(Role.CATCH):
-            return []
-        rng = np.random.default_rng([self.config.seed, CATCH_STREAM])
-        by_prompt = defaultdict(lambda: defaultdict(list))
-        for source, motions, _ in groups:
-            for motion in motions:
-                by_prompt[motion.action][source.name].append(motion)
-        out = []
-        for per_source in by_prompt.values():
-            bases = [mine[int(rng.integers(len(mine)))] for mine in per_source.values()]
-            out += [(m, Role.CATCH, None)
-                    for m in perturb.catch_family(bases, CATCH_PER_BASE, rng)]
-        return out
-
-    def catch_clips(self, groups) -> list[tuple]:
-        """Return the catch family: per action, ``CATCH_PER_BASE`` broken versions of one
-        base clip of each source (see the module docstring)."""
-        if not self.roles().get(Role.CATCH):
-            return []
-        rng = np.random.default_rng([self.config.seed, CATCH_STREAM])
-        by_action = defaultdict(list)
-        for source, motions, meta in groups:
-            for motion in self.catch_bases(source, motions, meta):
-                by_action[motion.action].append(motion)
-        return [(m, Role.CATCH, None) for action in sorted(by_action)
-                for m in perturb.catch_family(by_action[action], CATCH_PER_BASE, rng)]
-
-    def catch_bases(self, source, judged, meta) -> list:
-        """Return one clip per action of ``source`` that is not judged: drawn as its judged
-        clips are, one more per action (a file's next motion), cached; a judged clip where
-        the source has no other (a file of exactly ``clips_per_source`` per action)."""
-        c = self.config
-        n = c.clips_per_source + 1
-        key = digest({"source": source.section(), "data": self.data_fields(), **meta,
-                      "catch_bases": n})[:16]
-        cached = self.cache / "motions" / f"{source.name}-catch-{key}.npz"
-        if cached.is_file():
-            return npz.load(cached)
-        drawn = self.sample(source, n)
-        taken = {m.content_hash() for m in judged}
-        bases = []
-        for action in dict.fromkeys(m.action for m in judged):
-            fresh = [m for m in drawn if m.action == action and m.content_hash() not in taken]
-            if not fresh:
-                self.log(f"{source.name}: no clip of {action} beyond the judged ones; its catch "
-                         f"clips are broken versions of a judged one")
-                fresh = [m for m in judged if m.action == action]
-            bases.append(fresh[-1])
-        npz.save(cached, bases)
-        return bases
-
     def real_base(self):
         """Return real clips (n + EXTRA_REAL per action) and the framing fitted to them, cached."""
         c = self.config
@@ -433,7 +372,7 @@ class Build:
     def extras(self, base) -> list[tuple]:
         """Return ``(motion, role, score)`` of the clips the study type asks for beyond the
         judged ones, made from real clips not judged (practice: for the first action only;
-        catch clips: :meth:`catch_clips`)."""
+        catch clips: :func:`studyapp.survey.catch_clips.catch_clips`)."""
         roles = self.roles()
         if not roles:
             return []
@@ -452,7 +391,7 @@ class Build:
                     out.append((motion, Role.EXAMPLE, score))
             if roles.get(Role.CATCH):
                 # The draw the one shaken catch clip took before catch clips came as a
-                # family (catch_clips): anchors and practice clips stay as built before.
+                # family (catch_clips.py): anchors and practice clips stay as built before.
                 rng.normal(size=root.joints.shape)
             if roles.get(Role.ANCHOR):
                 out.append((perturb.low_anchor(root, rng), Role.ANCHOR, None))

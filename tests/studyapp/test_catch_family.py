@@ -7,7 +7,8 @@ from pathlib import Path
 import pytest
 
 from studyapp.survey.models import Stimulus, TrialItem
-from studyapp.survey.stimulus_build import CATCH_PER_BASE, Build, build_stimuli
+from studyapp.survey.catch_clips import CATCH_PER_BASE, catch_bases, catch_clips
+from studyapp.survey.stimulus_build import Build, build_stimuli
 from studyapp.survey.stimulus_config import load_config
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -34,13 +35,13 @@ def test_a_build_makes_a_catch_family_of_every_source(built):
     # The bases: one clip of each source per action, none of them judged, cached.
     build = Build(config, tmp_path / "b", cache=tmp_path / "cache")
     groups = [(source, *build.source_motions(source)[:2]) for source in config.sources]
-    family = build.catch_clips(groups)
+    family = catch_clips(build, groups)
     assert len(family) == len(catch) and all(role == "catch" for _, role, _ in family)
     kinds = [motion.meta["broken"] for motion, _, _ in family]
     assert all(a != b for a, b in zip(kinds[::2], kinds[1::2]))  # two kinds per base
     assert len(set(kinds)) >= 3
     bases = {motion.content_hash() for source, motions, meta in groups
-             for motion in build.catch_bases(source, motions, meta)}
+             for motion in catch_bases(build, source, motions, meta)}
     assert len(bases) == 2 * 3 and not bases & judged
     assert len(list((tmp_path / "cache" / "motions").glob("*-catch-*.npz"))) == 3
     # A rebuild draws nothing new and renders nothing.
