@@ -45,6 +45,7 @@ def _header(handle, source: str):
     """Return ``(shape, fortran_order, dtype)`` of the ``.npy`` stream at ``handle``."""
     try:
         version = npy_format.read_magic(handle)
+        # Version 3.0 differs from 2.0 only in its header's encoding (UTF-8 field names).
         read = npy_format.read_array_header_1_0 if version == (1, 0) else \
             npy_format.read_array_header_2_0
         return read(handle)
@@ -55,7 +56,7 @@ def _header(handle, source: str):
 def read_npy(handle, source: str) -> np.ndarray:
     """Return the array of the ``.npy`` stream at ``handle`` (seekable), objects included."""
     start = handle.tell()
-    shape, fortran, dtype = _header(handle, source)
+    shape, _, dtype = _header(handle, source)
     if not dtype.hasobject:
         handle.seek(start)
         try:
