@@ -3,7 +3,8 @@
 Rules, in order:
 
 1. (optional) participants who did not complete the study;
-2. participants who failed more than ``max_failed_catch`` catch trials: all their
+2. participants who failed more than ``max_failed_catch`` attention checks (catch
+   trials and instructed checks: every graded trial but the repeats): all their
    judgements go;
 2b. (optional, ``max_failed_repeats``) participants who answered more than that many
    repeated trials differently the second time: all their judgements go. Counted

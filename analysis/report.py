@@ -12,6 +12,7 @@ import base64
 import html
 import io
 import json
+import re
 from pathlib import Path
 
 import matplotlib
@@ -61,14 +62,29 @@ def write_table(frame: pd.DataFrame, stem: Path, title: str = "") -> list[Path]:
 
 
 def markdown_table(shown: pd.DataFrame, title: str = "") -> str:
-    """Return a pipe table of ``shown`` (strings), numbers right-aligned."""
-    header = [str(c) for c in shown.columns]
+    """Return a pipe table of ``shown`` (strings), numbers right-aligned; every text is
+    written as text (:func:`markdown_text`)."""
+    header = [markdown_text(c) for c in shown.columns]
     align = ["---:" if _numeric(shown[c]) else ":---" for c in shown.columns]
-    lines = [f"**{title}**", ""] if title else []
+    lines = [f"**{markdown_text(title)}**", ""] if title else []
     lines += ["| " + " | ".join(header) + " |", "| " + " | ".join(align) + " |"]
     for row in shown.itertuples(index=False):
-        lines.append("| " + " | ".join(str(v).replace("|", "\\|") for v in row) + " |")
+        lines.append("| " + " | ".join(markdown_text(v) for v in row) + " |")
     return "\n".join(lines) + "\n"
+
+
+def markdown_text(value) -> str:
+    """Return ``value`` as literal text in Markdown (a table cell, a title).
+
+    Source names, prompts and answers come from users: HTML in them is escaped (``<``,
+    ``>``, ``&``), and so is the Markdown that would make a link or image (``[``, ``]``),
+    code, emphasis or a new cell (backslash, backtick, ``*``, ``|``, ``~``, and ``_``
+    where it could start or end emphasis: ``n_judgements`` stays as it is); line breaks,
+    which would end the table's row, become spaces.
+    """
+    text = html.escape(" ".join(str(value).splitlines()), quote=False)
+    text = re.sub(r"([\\`*|~\[\]])", r"\\\1", text)
+    return re.sub(r"(?<![A-Za-z0-9])_|_(?![A-Za-z0-9])", r"\\_", text)
 
 
 def latex_table(shown: pd.DataFrame, title: str = "", label: str = "") -> str:

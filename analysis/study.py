@@ -18,7 +18,7 @@ from analysis.stats import small_sample_note
 from analysis.registry import Analysis, Table, get_analysis
 from analysis.tables import AnalysisError, as_boolean
 
-TRIAL_KINDS = ("main", "catch", "repeat")
+TRIAL_KINDS = ("main", "catch", "instructed", "repeat")
 
 
 @dataclass(frozen=True)

@@ -14,8 +14,10 @@ A judgement is one clip of one trial with its answer, in the column of the study
 - ``score`` (mushra, a column the export adds): 0..100 per clip, the hidden reference
   and the low anchor included (``stimulus_role`` ``reference`` / ``anchor``).
 
-``trial_kind`` is ``main``, ``catch`` or ``repeat`` (practice trials are not exported);
-``is_catch`` marks a catch clip and ``catch_passed`` whether its check was passed;
+``trial_kind`` is ``main``, ``catch``, ``instructed`` (an instructed-response check: the
+trial's text said which answer to give) or ``repeat`` (practice trials are not exported);
+only ``main`` rows are judgements. ``is_catch`` marks a catch clip and ``catch_passed``
+whether the trial's check was passed;
 ``duration`` is the clip's length in seconds. Crowd-platform ids (``PROLIFIC_PID``,
 ``workerId``, ... as the platform sent them) follow ``participant`` when a study has them.
 """

@@ -368,7 +368,8 @@ def main(argv=None) -> int:
     name = f"loadtest_{os.getpid()}"
     var = Path(tempfile.mkdtemp(prefix="loadtest-var-"))
     url = create_database(name)
-    env = server_env(url, var, STUDY_ENTRY_RATE_LIMIT="1000000/min")
+    env = server_env(url, var, STUDY_ENTRY_RATE_LIMIT="1000000/min",
+                     STUDY_ENTRY_RATE_LIMIT_PER_STUDY="1000000/min")
     os.environ.update({k: env[k] for k in ("DATABASE_URL", "STUDY_DATABASE_URL", "STUDY_VAR_DIR")})
     os.environ.update(DJANGO_SETTINGS_MODULE="studyapp.settings", DJANGO_DEBUG="1")
     try:

@@ -8,8 +8,10 @@ them under a folder given as ``body_models`` or ``$STUDY_BODY_MODELS``, laid out
     DIR/smpl/SMPL_NEUTRAL.pkl   (and SMPL_MALE.pkl, SMPL_FEMALE.pkl)
     DIR/smplh/SMPLH_MALE.npz    (or .pkl; or AMASS's layout DIR/smplh/male/model.npz)
 
-``smplx``'s SMPL class reads ``.pkl`` files only; SMPL+H also reads ``.npz``. A missing
-file is a :class:`BodyModelError` that names it, where to get it and where to put it.
+The files are read as plain data (:mod:`generation.safe_load`: numpy arrays, and the
+chumpy arrays and scipy sparse matrices of the official SMPL ``.pkl`` files, as arrays)
+and handed to smplx parsed, so nothing in a tampered file runs. A missing file is a
+:class:`BodyModelError` that names it, where to get it and where to put it.
 Tensors stay inside this module: callers get numpy arrays.
 """
 
@@ -22,6 +24,8 @@ from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
+
+from generation import safe_load
 
 ENV_VAR = "STUDY_BODY_MODELS"
 GENDERS = ("neutral", "male", "female")
@@ -91,6 +95,7 @@ class BodyModel:
     def __init__(self, kind: str, gender: str, path: Path):
         import smplx
         import torch
+        from smplx.utils import Struct
 
         self.kind, self.gender, self.path = kind, gender, Path(path)
         options = {"gender": gender, "batch_size": 1}
@@ -100,9 +105,19 @@ class BodyModel:
         else:
             build = smplx.SMPL
         try:
+            # The file is read as data here and handed over parsed: smplx's own reading
+            # would unpickle it (and run whatever a tampered file asks for).
+            data = safe_load.load_data(self.path)
+        except safe_load.RefusedObject as exc:
+            raise BodyModelError(str(exc)) from None
+        except safe_load.DataFileError as exc:
+            raise BodyModelError(f"{exc}; {WHERE[kind]}") from None
+        try:
+            if not isinstance(data, dict) or not all(isinstance(key, str) for key in data):
+                raise TypeError(f"it holds {type(data).__name__}, not a dict of arrays by name")
             with contextlib.redirect_stdout(io.StringIO()):  # smplx prints shape warnings
-                self._model = build(str(self.path), **options).eval()
-        except Exception as exc:  # pickle, zip and key errors of a damaged file
+                self._model = build(str(self.path), data_struct=Struct(**data), **options).eval()
+        except Exception as exc:  # missing keys and wrong shapes of a damaged file
             raise BodyModelError(f"{self.path} is not a readable {kind.upper()} model file "
                                  f"({type(exc).__name__}: {exc}); {WHERE[kind]}") from exc
         self._torch = torch

@@ -75,7 +75,10 @@ MIDDLEWARE = [
 
 # New participants per IP address (entry link and consent); generous for shared NATs.
 STUDY_ENTRY_RATE_LIMIT = os.environ.get("STUDY_ENTRY_RATE_LIMIT", "120/min")
-# Failed admin logins per IP address; past it the login page answers 429 for the window.
+# New participants (consents) per study and IP address: one address cannot fill a study.
+STUDY_ENTRY_RATE_LIMIT_PER_STUDY = os.environ.get("STUDY_ENTRY_RATE_LIMIT_PER_STUDY", "60/h")
+# Failed admin logins per IP address (counted in the database); past it the login page
+# answers 429 for the window.
 STUDY_LOGIN_RATE_LIMIT = os.environ.get("STUDY_LOGIN_RATE_LIMIT", "10/h")
 # An answer is taken only this many times the clips' length after its page was served
 # (and once every clip was fetched whole). 1: as long as the clips play. Tests of other

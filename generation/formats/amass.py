@@ -45,7 +45,7 @@ def load(path: str | Path, body_models: str | Path | None = None, gender: str | 
 
 
 def _one(path: Path, body_models, gender, action, with_vertices: bool, source: str) -> Motion:
-    data = read_npz(path, "AMASS pose parameters", allow_pickle=True)
+    data = read_npz(path, "AMASS pose parameters", objects=True)
     need_keys(data, ("poses", "trans"), path, LAYOUT)
     poses = check_shape(data["poses"], lambda s: len(s) == 2 and s[1] in KINDS and s[0] > 0,
                         path, "poses", "(T, 156) (SMPL+H) or (T, 72) (SMPL) axis-angle")

@@ -18,11 +18,11 @@ What is looked at, in order (the result's ``notes`` say what was found and why):
 from __future__ import annotations
 
 import inspect
-import zipfile
 from pathlib import Path
 
 import numpy as np
 
+from generation import safe_load
 from generation.formats.base import FormatError, MotionList, get_format, natural_key
 from generation.motion import Motion
 
@@ -70,20 +70,22 @@ def _same(file: Path, example: Path) -> bool:
 
 def _detect_npz(path: Path) -> tuple[str, str]:
     try:
-        with np.load(path, allow_pickle=True) as data:
-            keys = set(data.files)
-            if {"joints", "actions", "skeleton"} <= keys:
-                return "npz", "an .npz with joints, actions and skeleton (the interchange file)"
-            if "arr_0" in keys:
-                content = data["arr_0"]
-                if content.dtype == object and content.shape == ():
-                    content = content.item()
-                if isinstance(content, dict) and {"prompt", "motion"} <= set(content):
-                    return "motioncritic", "an .npz whose arr_0 holds prompt and motion"
-            if {"poses", "trans"} <= keys:
-                return "amass", "an .npz with poses and trans (AMASS)"
-    except (OSError, ValueError, zipfile.BadZipFile) as exc:
-        raise FormatError(f"{path} is not a readable .npz file ({exc})") from exc
+        keys = set(safe_load.npz_names(path))
+        data = safe_load.load_npz(path, only=["arr_0"]) if "arr_0" in keys else {}
+    except safe_load.RefusedObject as exc:
+        raise FormatError(str(exc)) from None
+    except safe_load.DataFileError as exc:
+        raise FormatError(f"{exc}; cannot tell its format") from None
+    if {"joints", "actions", "skeleton"} <= keys:
+        return "npz", "an .npz with joints, actions and skeleton (the interchange file)"
+    if "arr_0" in keys:
+        content = data["arr_0"]
+        if isinstance(content, np.ndarray) and content.dtype == object and content.shape == ():
+            content = content.item()
+        if isinstance(content, dict) and {"prompt", "motion"} <= set(content):
+            return "motioncritic", "an .npz whose arr_0 holds prompt and motion"
+    if {"poses", "trans"} <= keys:
+        return "amass", "an .npz with poses and trans (AMASS)"
     raise FormatError(f"{path}: an .npz with keys {', '.join(sorted(keys))}, which no format "
                       "has; pass --format")
 
@@ -92,17 +94,20 @@ def _detect_npy(path: Path, classes_path) -> tuple[str, str]:
     from generation.formats.humanml3d_vec import joints_of_features
 
     try:
-        value = np.load(path, allow_pickle=True, mmap_mode=None)
-    except Exception as exc:  # numpy raises several types for a damaged file
-        raise FormatError(f"{path} is not a readable .npy file ({exc})") from exc
-    if value.dtype == object and value.shape == ():
-        content = value.item()
+        shape, dtype = safe_load.npy_header(path)
+        if dtype.hasobject:
+            value = safe_load.load_npy(path)
+    except safe_load.RefusedObject as exc:
+        raise FormatError(str(exc)) from None
+    except safe_load.DataFileError as exc:
+        raise FormatError(f"{exc}; cannot tell its format") from None
+    if dtype.hasobject:
+        content = value.item() if value.shape == () else value
         if isinstance(content, dict) and {"vertices", "faces"} <= set(content):
             return "mdm", "a dict with vertices and faces (MDM's *_smpl_params.npy)"
         if isinstance(content, dict) and "motion" in content:
             return "mdm", "a dict with motion and text (MDM's results.npy)"
         raise FormatError(f"{path}: holds a {type(content).__name__}, which no format has")
-    shape = value.shape
     if len(shape) == 5 and shape[3] == 3:
         return "actor", f"an array of shape {shape}: (samples, actions, vertices, 3, T)"
     if len(shape) == 2 and joints_of_features(shape[1]):

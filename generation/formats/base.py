@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from generation import safe_load
 from generation.motion import MotionError
 from generation.registry import Registry
 from generation.skeletons import get_skeleton
@@ -65,15 +66,26 @@ def list_formats() -> list[str]:
 # --- readers -----------------------------------------------------------------------------
 
 
-def read_npy(path: Path, what: str, allow_pickle: bool = False):
-    """Return what a ``.npy`` file holds, or raise :class:`FormatError` naming the file."""
+def read_npy(path: Path, what: str, objects: bool = False):
+    """Return what a ``.npy`` file holds, or raise :class:`FormatError` naming the file.
+
+    ``objects``: the file may hold Python objects (MDM's dicts); they are read as plain
+    data only (:mod:`generation.safe_load`), never by running the file's pickle.
+    """
     path = Path(path)
     if not path.is_file():
         raise FormatError(f"{path} does not exist; expected a .npy file of {what}")
+    if objects:
+        try:
+            return safe_load.load_npy(path)
+        except safe_load.RefusedObject as exc:
+            raise FormatError(str(exc)) from None
+        except safe_load.DataFileError as exc:
+            raise FormatError(f"{exc}; expected a .npy file of {what}") from None
     try:
-        return np.load(path, allow_pickle=allow_pickle)
+        return np.load(path, allow_pickle=False)
     except ValueError as exc:
-        if not allow_pickle and "allow_pickle" in str(exc):
+        if "allow_pickle" in str(exc):
             raise FormatError(f"{path} holds Python objects, not an array of {what}; is it "
                               "another format (e.g. mdm's results.npy)?") from None
         raise FormatError(f"{path} is not a readable .npy file of {what} ({exc})") from exc
@@ -81,13 +93,23 @@ def read_npy(path: Path, what: str, allow_pickle: bool = False):
         raise FormatError(f"{path} is not a readable .npy file of {what} ({exc})") from exc
 
 
-def read_npz(path: Path, what: str, allow_pickle: bool = False) -> dict:
-    """Return the arrays of a ``.npz`` file by key, or raise :class:`FormatError`."""
+def read_npz(path: Path, what: str, objects: bool = False) -> dict:
+    """Return the arrays of a ``.npz`` file by key, or raise :class:`FormatError`.
+
+    ``objects``: members may hold Python objects, read as plain data only.
+    """
     path = Path(path)
     if not path.is_file():
         raise FormatError(f"{path} does not exist; expected a .npz file of {what}")
+    if objects:
+        try:
+            return safe_load.load_npz(path)
+        except safe_load.RefusedObject as exc:
+            raise FormatError(str(exc)) from None
+        except safe_load.DataFileError as exc:
+            raise FormatError(f"{exc}; expected a .npz file of {what}") from None
     try:
-        with np.load(path, allow_pickle=allow_pickle) as data:
+        with np.load(path, allow_pickle=False) as data:
             return {key: data[key] for key in data.files}
     except Exception as exc:  # numpy raises many types for a broken zip
         raise FormatError(f"{path} is not a readable .npz file of {what} ({exc})") from exc

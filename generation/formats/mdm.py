@@ -78,7 +78,7 @@ def load(path: str | Path, skeleton: str | None = None, action: str | None = Non
 
 def read_results(path: Path) -> dict:
     """Return the dict of a ``results.npy``, checked for its keys."""
-    data = pickled_dict(read_npy(path, "MDM results", allow_pickle=True), path, RESULTS_LAYOUT)
+    data = pickled_dict(read_npy(path, "MDM results", objects=True), path, RESULTS_LAYOUT)
     need_keys(data, ("motion",), path, RESULTS_LAYOUT)
     if not any(key in data for key in ("text", "action_text", "action")):
         raise FormatError(f"{path}: no key 'text' (nor 'action_text', 'action'); expected "
@@ -134,7 +134,7 @@ def _texts(data: dict, count: int, path: Path) -> list[str | None]:
 def load_params(path: Path, skeleton=None, action=None, file_fps=None, body_models=None,
                 source: str = SOURCE) -> MotionList:
     """Read one ``*_smpl_params.npy`` (one motion with its SMPL mesh)."""
-    data = pickled_dict(read_npy(path, "MDM SMPL parameters", allow_pickle=True), path,
+    data = pickled_dict(read_npy(path, "MDM SMPL parameters", objects=True), path,
                         PARAMS_LAYOUT)
     need_keys(data, ("vertices", "faces"), path, PARAMS_LAYOUT)
     vertices = check_shape(data["vertices"], lambda s: len(s) == 3 and s[1] == 3 and s[2] > 0,

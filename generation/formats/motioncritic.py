@@ -44,7 +44,7 @@ def load(path: str | Path, body_models: str | Path | None = None, file_fps: floa
 
 def read(path: Path) -> dict:
     """Return the dict of a MotionCritic file, checked for its keys."""
-    arrays = read_npz(path, "MotionCritic motions", allow_pickle=True)
+    arrays = read_npz(path, "MotionCritic motions", objects=True)
     need_keys(arrays, ("arr_0",), path, LAYOUT)
     data = pickled_dict(arrays["arr_0"], path, LAYOUT)
     need_keys(data, ("prompt", "motion"), path, LAYOUT)

@@ -5,7 +5,7 @@ Studies are created, edited, opened and closed here, and previewed as a particip
 the admin cannot change collected data.
 """
 
-from django.contrib import admin
+from django.contrib import admin, messages
 from django.db import models
 from django.db.models import Count, Q
 from django.forms import Textarea
@@ -77,6 +77,7 @@ class StudyAdmin(admin.ModelAdmin):
                     "trials_per_participant",
                     "practice",
                     "catch_trials",
+                    "instructed_checks",
                     "max_failed_catch",
                     "repeat_trials",
                     "ask_demographics",
@@ -93,6 +94,13 @@ class StudyAdmin(admin.ModelAdmin):
 
     def get_queryset(self, request):
         return Study.objects.with_counts()
+
+    def save_model(self, request, obj, form, change):
+        """Save the study, then say what its crowd platform's rules advise against (the
+        refusals, e.g. a missing completion code, are the form's errors)."""
+        super().save_model(request, obj, form, change)
+        for warning in obj.crowd_warnings():
+            self.message_user(request, warning, messages.WARNING)
 
     @admin.display(ordering="n_started")
     def started(self, obj):
@@ -229,7 +237,8 @@ class StimulusAdmin(admin.ModelAdmin):
 class TrialInline(admin.TabularInline):
     model = Trial
     fields = [
-        "index", "kind", "action", "answers", "catch_passed", "shown_at", "answered_at", "time_ms"
+        "index", "kind", "action", "answers", "instruction", "catch_passed", "shown_at",
+        "answered_at", "time_ms",
     ]
     readonly_fields = fields
     extra = 0
@@ -263,6 +272,7 @@ class ParticipantAdmin(admin.ModelAdmin):
         "seed",
         "created_at",
         "consented_at",
+        "active_at",
         "completed_at",
         "outcome",
         "completion_code",
@@ -282,13 +292,13 @@ class ParticipantAdmin(admin.ModelAdmin):
                 ),
                 failed_catch=Count(
                     "trials",
-                    filter=Q(trials__kind=Trial.Kind.CATCH, trials__catch_passed=False),
+                    filter=Q(trials__kind__in=Trial.CHECK_KINDS, trials__catch_passed=False),
                     distinct=True,
                 ),
             )
         )
 
-    @admin.display(description="Failed catch trials", ordering="failed_catch")
+    @admin.display(description="Failed attention checks", ordering="failed_catch")
     def failed_catch(self, obj):
         return obj.failed_catch
 

@@ -19,6 +19,8 @@ from django.core.exceptions import NON_FIELD_ERRORS
 MAX_PLAYS = 100_000
 MAX_EVENTS = 500
 MAX_EVENTS_BYTES = 40_000
+MAX_EVENTS_DEPTH = 2  # a list of events, each a list
+MAX_NUMBER_DIGITS = 12
 EVENTS = ("play", "pause", "seek", "ended", "hidden", "visible", "blur", "focus", "waiting",
           "error", "truncated")
 
@@ -51,14 +53,26 @@ def field_name(name: str, criterion_index: int, criterion: Criterion) -> str:
 
 
 def parse_events(text: str) -> list:
-    """Return the page's event log, ``[[ms, event, position], ...]``; ValueError if malformed."""
+    """Return the page's event log, ``[[ms, event, position], ...]``; ValueError if malformed.
+
+    The text is bounded before it is parsed: at most ``MAX_EVENTS_BYTES`` of UTF-8, lists
+    (or objects) nested at most ``MAX_EVENTS_DEPTH`` deep (Python's JSON parser recurses
+    once per level: a tampered post nested thousands deep must not reach it), numbers of
+    at most ``MAX_NUMBER_DIGITS`` digits, and no NaN or Infinity.
+    """
     if not text:
         return []
-    if len(text) > MAX_EVENTS_BYTES:
-        raise ValueError("the event log is too long")
+    if len(text.encode("utf-8", "surrogatepass")) > MAX_EVENTS_BYTES:
+        raise ValueError(f"the event log is longer than {MAX_EVENTS_BYTES} bytes")
+    if nesting(text, MAX_EVENTS_DEPTH) > MAX_EVENTS_DEPTH:
+        raise ValueError(f"the event log nests deeper than {MAX_EVENTS_DEPTH} levels "
+                         "(a list of [milliseconds, name, clip position] events)")
     try:
-        events = json.loads(text)
-    except ValueError:
+        events = json.loads(text, parse_int=_short_int, parse_float=_short_float,
+                            parse_constant=_no_constant)
+    except ValueError as exc:
+        if str(exc).startswith("the event log"):
+            raise
         raise ValueError("the event log is not JSON") from None
     if not isinstance(events, list) or len(events) > MAX_EVENTS:
         raise ValueError(f"the event log must be a list of at most {MAX_EVENTS} events")
@@ -76,6 +90,48 @@ def parse_events(text: str) -> list:
             raise ValueError("a logged event names no valid clip position")
         out.append([ms, name, position])
     return out
+
+
+def nesting(text: str, limit: int) -> int:
+    """Return how deep the JSON ``text`` nests lists and objects, counting no further than
+    ``limit + 1``; brackets inside strings do not count."""
+    depth = deepest = 0
+    in_string = escaped = False
+    for char in text:
+        if in_string:
+            if escaped:
+                escaped = False
+            elif char == "\\":
+                escaped = True
+            elif char == '"':
+                in_string = False
+        elif char == '"':
+            in_string = True
+        elif char in "[{":
+            depth += 1
+            if depth > deepest:
+                deepest = depth
+                if deepest > limit:
+                    break
+        elif char in "]}":
+            depth -= 1
+    return deepest
+
+
+def _short_int(digits: str) -> int:
+    if len(digits.lstrip("-")) > MAX_NUMBER_DIGITS:
+        raise ValueError(f"the event log holds a number of more than {MAX_NUMBER_DIGITS} digits")
+    return int(digits)
+
+
+def _short_float(digits: str) -> float:
+    if len(digits) > 2 * MAX_NUMBER_DIGITS:
+        raise ValueError(f"the event log holds a number of more than {MAX_NUMBER_DIGITS} digits")
+    return float(digits)
+
+
+def _no_constant(name: str):
+    raise ValueError(f"the event log holds {name}, which is no number of milliseconds")
 
 
 class TrialForm(forms.Form):

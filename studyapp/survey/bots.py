@@ -7,7 +7,10 @@ a trial page the bot fetches every clip the page shows, whole, as a browser does
 at least as long as the clips play (the server refuses answers sooner), reports each clip
 played once, and answers through the study type (``StudyType.bot_answer``). Pages never
 say where a clip comes from; a policy that needs the source gets it from the database by
-the clip's token (the command runs beside the database), never from the page.
+the clip's token (the command runs beside the database), never from the page. On an
+instructed check the bot gives the answer asked for (``StudyType.obey``; the instruction
+is read from the database too, as a person reads it on the page), except the
+inattentive one.
 
 Policies (``POLICIES``):
 
@@ -22,7 +25,8 @@ Policies (``POLICIES``):
   Best of K and MUSHRA read each clip's utility (log strength, centred, plus a Gumbel
   draw): the clip of highest utility is picked; a slider is set to ``50 + 25 (u - 1)``.
 - ``inattentive``: at random, except that every catch trial is answered wrongly (the
-  broken clip treated as the best): the participant ends with the failed-attention outcome.
+  broken clip treated as the best) and every instructed check with another answer than
+  the one asked for: the participant ends with the failed-attention outcome.
 - ``decline``: does not consent (the no-consent outcome); ``screen-out``: consents but
   fails the study's screening questions (the screened-out outcome).
 """
@@ -42,7 +46,7 @@ from dataclasses import dataclass, field
 from html.parser import HTMLParser
 
 from studyapp.survey.forms import AGE_RANGES, GENDERS
-from studyapp.survey.models import Stimulus, TrialItem
+from studyapp.survey.models import Stimulus, Trial, TrialItem
 
 CATCH = "catch"  # the pseudo-source bots see for a catch clip
 CATCH_STRENGTH = 0.05
@@ -140,6 +144,25 @@ def item_info(tokens) -> dict[str, tuple]:
             for token, role, source, stimulus_role, duration in rows}
 
 
+def instruction_of(tokens) -> dict:
+    """Return the instruction of the trial showing the items ``tokens`` ({} for a trial
+    that is no instructed check)."""
+    trial = Trial.objects.filter(items__token__in=tokens, kind=Trial.Kind.INSTRUCTED).first()
+    return trial.instruction if trial is not None else {}
+
+
+def contrary(study, instruction: dict, n_judged: int, rng) -> dict:
+    """Return another instruction of the study's type about the same clip (or about a
+    clip at all, when that is all it names): an answer to it never passes
+    ``instruction`` (``StudyType.instruct``)."""
+    for _ in range(1000):
+        other = study.kind.instruct(study, n_judged, rng)
+        same_clip = other.get("position") == instruction.get("position")
+        if other != instruction and (same_clip or set(instruction) == {"position"}):
+            return other
+    raise SimulationError(f"no other instruction than {instruction} to disobey")
+
+
 # Policies
 
 
@@ -148,6 +171,7 @@ class Policy:
 
     consents = True
     passes_screening = True
+    follows_instructions = True
 
     def __init__(self, rng: random.Random, strengths: dict | None = None, sources=()):
         self.rng = rng
@@ -194,7 +218,10 @@ class PreferReal(Policy):
 
 
 class Inattentive(Policy):
-    """At random, but a broken clip always looks best: every catch trial is failed."""
+    """At random, but a broken clip always looks best and instructions go unread: every
+    catch trial and instructed check is failed."""
+
+    follows_instructions = False
 
     def utility(self, source):
         return 10.0 if source == CATCH else self.rng.gauss(0.0, 1.0)
@@ -382,9 +409,21 @@ class Bot:
         page = TrialPage.read(form, judged)
         page.sources = {token: info[token][0] for token in judged}
         answer = self.study.kind.bot_answer(page, self.policy)
+        instruction = instruction_of(tokens)
+        if instruction:
+            answer = self.follow(page, instruction, answer)
         answer = self.every_criterion(answer)
         plays = {f"plays_{t}": "1" for t in tokens}
         return plays | answer
+
+    def follow(self, page, instruction: dict, answer: dict) -> dict:
+        """Give the answer an instructed check asks for, or, for a policy that does not
+        read instructions, one asked for by another instruction about the same clip
+        (which never passes; see ``StudyType.instruct``)."""
+        kind = self.study.kind
+        if not self.policy.follows_instructions:
+            instruction = contrary(self.study, instruction, len(page.tokens), self.rng)
+        return kind.obey(page, instruction, answer)
 
     def every_criterion(self, answer: dict) -> dict:
         """Answer the study's other criteria as the first (names prefixed ``key.``)."""
@@ -409,13 +448,17 @@ def person_id(run, i: int) -> str:
 
 def entry_url(study, url: str, person: str) -> str:
     """Return the participant link of ``study`` on server ``url``, for crowd id ``person``
-    (in the study's platform's id parameter, with Prolific's study and session ids)."""
+    (in the study's platform's id parameter, with Prolific's study id, the study's own
+    when it has one, and a session id of 24 hex digits made from ``person``)."""
     parts = urllib.parse.urlsplit(url)
     path = parts.path if "/s/" in parts.path else study.get_absolute_url()
     platform = study.platform
     query = urllib.parse.parse_qsl(parts.query) + [(platform.id_params[0], person)]
     if "SESSION_ID" in platform.extra_params:
-        query += [("STUDY_ID", f"study-{study.pk}"), ("SESSION_ID", f"session-{person[:8]}")]
+        study_id = platform.prolific_study_id or hashlib.sha1(
+            f"study-{study.pk}".encode()).hexdigest()[:24]
+        session = hashlib.sha1(f"session-{person}".encode()).hexdigest()[:24]
+        query += [("STUDY_ID", study_id), ("SESSION_ID", session)]
     return urllib.parse.urlunsplit(
         (parts.scheme, parts.netloc, path, urllib.parse.urlencode(query), "")
     )

@@ -86,7 +86,9 @@ def responses_frame(study: Study) -> pd.DataFrame:
     position.
 
     A judgement is a judged clip of an answered trial, whatever the study type; practice
-    trials are left out, catch and repeated trials kept with their ``trial_kind``.
+    trials are left out, catch, instructed and repeated trials kept with their
+    ``trial_kind`` (and ``catch_passed``: the check passed), which the analysis leaves
+    out of the judgements.
     Reference and example clips are never judgements, so never rows. Crowd-platform ids
     (``Participant.external_ids``) become columns right after ``participant``; times are
     ISO 8601 strings; ``events`` is the page's log of the trial as JSON
@@ -180,8 +182,9 @@ def participants_frame(study: Study) -> pd.DataFrame:
     ``outcome`` is ``completed``, ``failed_attention`` (the study's catch rule, decided
     after the last answer), ``no_consent``, ``screened_out``, ``timed_out`` or blank
     (still taking part); ``completion_code`` the code they were given.
-    ``failed_catch`` counts failed catch trials, ``inconsistent_repeats`` repeated
-    trials answered differently. Crowd-platform ids follow ``participant``; the
+    ``n_catch`` and ``failed_catch`` count the attention checks answered and failed
+    (catch and instructed trials alike, as ``max_failed_catch`` does),
+    ``inconsistent_repeats`` repeated trials answered differently. Crowd-platform ids follow ``participant``; the
     demographic answers (blank when not asked or not given) come last.
     """
     participants = list(Participant.objects.with_checks().filter(study=study).order_by("pk"))

@@ -10,7 +10,9 @@ nothing) and simulated participants (each page knows how a bot fills it in:
 
 The server decides whether a trial's clips were watched: an answer is taken only once
 every clip the trial shows was fetched to its end from this server and the clips'
-playing time has passed since the trial page was served.
+playing time has passed since the trial page was served. It also decides who holds a
+place: a participant past the study's time limit, or idle (no answer) past its idle
+limit, gets the timed-out page on every later request (:meth:`Participant.timed_out`).
 """
 
 from __future__ import annotations
@@ -118,7 +120,8 @@ class DatabaseStore:
 
     def enroll(self, request, study, outcome: str = ""):
         ids, key = self.pending_ids(request, study)
-        if not key and study.platform.require_id:
+        platform = study.platform
+        if not key and (platform.require_id or platform.strict_ids):
             raise Unavailable("no_id")  # the consent page was posted without the entry link
         participant = Participant.objects.enroll(
             study, ids, key, request.headers.get("User-Agent", ""), outcome=outcome
@@ -275,7 +278,8 @@ class Consent(Page):
         try:
             participant = store.enroll(request, study, outcome=form.outcome())
         except Unavailable as exc:
-            detail = study.platform.id_params[0] if exc.reason == "no_id" else ""
+            detail = {"no_id": study.platform.id_params[0],
+                      "session_taken": study.platform.session_param}.get(exc.reason, "")
             return unavailable(request, study, exc.reason, detail=detail)
         return super().post(request, store, study, participant)
 
@@ -436,6 +440,8 @@ def render_trial(request, store, study, trial, items, number, total, n_practice,
         "player": player,
         **extra,
     }
+    if trial.kind == Trial.Kind.INSTRUCTED:
+        context["instruction"] = kind.instruction_sentence(study, trial, judged)
     context.update(kind.trial_context(study, trial, items))
     return render(request, kind.template_name(), context)
 
@@ -452,6 +458,9 @@ def enter(request, study, store=None):
         return unavailable(request, study, refused.reason, status=400, detail=refused.detail)
     participant = store.participant(request, study)
     if participant is not None and key not in ("", participant.external_key):
+        if study.platform.strict_ids and not store.preview:
+            # This browser took part under another id: a made-up id to start again.
+            return unavailable(request, study, "other_id", status=403)
         participant = None  # another person on the same browser
     if participant is None:
         participant = Participant.objects.find(study, key)
@@ -463,6 +472,9 @@ def enter(request, study, store=None):
         set_browser_state(request, study, {"x": ids, "k": key})
         if study.status != Study.Status.OPEN:
             return unavailable(request, study, "closed")
+        if Participant.objects.sharing_ids(study, ids, key):
+            return unavailable(request, study, "session_taken", status=403,
+                               detail=study.platform.session_param)
         if study.is_full():
             return unavailable(request, study, "full")
     elif store.timed_out(participant):

@@ -19,7 +19,7 @@ from datetime import timedelta
 from django.core.exceptions import ValidationError
 from django.core.validators import MaxValueValidator, MinValueValidator
 from django.db import connection, models, transaction
-from django.db.models import Count, F, OuterRef, Q, Subquery
+from django.db.models import Count, Exists, F, OuterRef, Q, Subquery
 from django.db.models.functions import Coalesce
 from django.urls import reverse
 from django.utils import timezone
@@ -132,9 +132,14 @@ class Study(models.Model):
     catch_trials = models.PositiveSmallIntegerField(
         default=0, help_text="Trials per participant with a broken clip (stimuli marked catch)."
     )
+    instructed_checks = models.PositiveSmallIntegerField(
+        default=0, help_text="Trials per participant whose text says which answer to give "
+        "(instructed-response attention checks)."
+    )
     max_failed_catch = models.PositiveSmallIntegerField(
-        default=0, help_text="More failed catch trials than this: the outcome is a failed "
-        "attention check (its own completion code)."
+        default=1, help_text="More failed attention checks (catch and instructed trials) than "
+        "this: the outcome is a failed attention check (its own completion code). 1: a "
+        "participant fails after two, as Prolific allows."
     )
     repeat_trials = models.PositiveSmallIntegerField(
         default=0, help_text="Main trials shown again later, to measure consistency."
@@ -154,7 +159,7 @@ class Study(models.Model):
         default=dict, blank=True,
         help_text='Crowd platform: {"platform": "prolific", "codes": {"completed": ..., '
         '"failed_attention": ..., "no_consent": ..., "screened_out": ...}, '
-        '"time_limit_minutes": 30}; see README, "Crowd platforms".',
+        '"time_limit_minutes": 30, "idle_minutes": 10}; see README, "Crowd platforms".',
     )
     instructions = models.TextField(blank=True)
     consent_text = models.TextField(blank=True)
@@ -204,12 +209,39 @@ class Study(models.Model):
         except KeyError:
             return  # the study_type field reports the unknown type
         errors = kind.clean_study(self)
-        try:
-            self.platform
-        except ValueError as exc:
-            errors["crowd"] = str(exc)
+        problem = self.crowd_problem()
+        if problem:
+            errors["crowd"] = problem
         if errors:
             raise ValidationError(errors)
+
+    def crowd_problem(self) -> str:
+        """Return what is wrong with the crowd settings for this study ("" when nothing):
+        a bad setting, or an outcome the study can end with that lacks its code."""
+        try:
+            platform = self.platform
+            platform.check_codes(self.coded_outcomes(), self.n_checks())
+        except ValueError as exc:
+            return str(exc)
+        return ""
+
+    def crowd_warnings(self) -> list[str]:
+        """Return what the platform's rules advise against (e.g. too few checks)."""
+        try:
+            platform = self.platform
+        except ValueError:
+            return []
+        return platform.warnings(self.kind.minutes, self.n_checks(), self.max_failed_catch)
+
+    def n_checks(self) -> int:
+        """Return the attention checks of a session: catch and instructed trials."""
+        return (self.catch_trials or 0) + (self.instructed_checks or 0)
+
+    def coded_outcomes(self) -> list[str]:
+        """Return the outcomes with a completion code this study can end with."""
+        from studyapp.survey.crowd import outcomes_of
+
+        return outcomes_of(self.n_checks(), bool((self.crowd or {}).get("screening")))
 
     def shown_instructions(self) -> str:
         """Return the instructions, or the study type's default when left blank."""
@@ -223,8 +255,12 @@ class Study(models.Model):
         return self.kind.option(self, name)
 
     def time_limit(self) -> timedelta | None:
-        minutes = (self.crowd or {}).get("time_limit_minutes")
-        return timedelta(minutes=minutes) if minutes else None
+        """Return how long after consent a participant may finish (None: no limit)."""
+        return self.platform.time_limit(self.kind.minutes)
+
+    def idle_limit(self) -> timedelta | None:
+        """Return how long a participant may go without answering a trial (None: ever)."""
+        return self.platform.idle_limit()
 
     def is_full(self) -> bool:
         """Whether finished and active participants fill ``max_participants``."""
@@ -313,14 +349,31 @@ class ParticipantManager(models.Manager):
 
     def holding_a_place(self, study: Study):
         """Return the participants who count against ``max_participants``: finished, or
-        consented and still within the study's time limit."""
+        consented, still within the study's time limit and not idle."""
         people = self.filter(study=study, consented_at__isnull=False)
         finished = Q(completed_at__isnull=False)
-        active = Q(completed_at__isnull=True, outcome="")
-        limit = study.time_limit()
+        return people.filter(finished | self._active(study, timezone.now()))
+
+    @staticmethod
+    def _active(study: Study, now) -> Q:
+        """Return who is taking part now: consented, unfinished, within the time limit and
+        the idle limit (the last answer, or consent, recent enough)."""
+        active = Q(completed_at__isnull=True, outcome="", consented_at__isnull=False)
+        limit, idle = study.time_limit(), study.idle_limit()
         if limit is not None:
-            active &= Q(consented_at__gt=timezone.now() - limit)
-        return people.filter(finished | active)
+            active &= Q(consented_at__gt=now - limit)
+        if idle is not None:
+            active &= Q(active_at__gt=now - idle) | Q(active_at__isnull=True,
+                                                      consented_at__gt=now - idle)
+        return active
+
+    def release_places(self, study: Study) -> int:
+        """Give the ``timed_out`` outcome to everyone taking part past the time limit or
+        the idle limit (their later requests get the timed-out page); return how many.
+        Called with the study row locked, before places are counted: no daemon needed."""
+        lost = self.filter(study=study, completed_at__isnull=True, outcome="",
+                           consented_at__isnull=False).exclude(self._active(study, timezone.now()))
+        return lost.update(outcome=Participant.Outcome.TIMED_OUT)
 
     def enroll(self, study: Study, external_ids: dict, key: str, user_agent: str = "",
                outcome: str = "") -> "Participant":
@@ -337,8 +390,12 @@ class ParticipantManager(models.Manager):
                 return existing
             if study.status != Study.Status.OPEN:
                 raise Unavailable("closed")
-            if not outcome and study.is_full():
-                raise Unavailable("full")
+            if self.sharing_ids(study, external_ids, key):
+                raise Unavailable("session_taken")
+            if not outcome and study.max_participants is not None:
+                self.release_places(study)
+                if study.is_full():
+                    raise Unavailable("full")
             now = timezone.now()
             return self.create(
                 study=study,
@@ -346,11 +403,23 @@ class ParticipantManager(models.Manager):
                 external_key=key,
                 seed=secrets.randbits(62),
                 consented_at=None if outcome else now,
+                active_at=None if outcome else now,
                 completed_at=now if outcome else None,
                 outcome=outcome,
                 completion_code=study.platform.code_for(outcome) if outcome else "",
                 user_agent=user_agent[:300],
             )
+
+    def sharing_ids(self, study: Study, external_ids: dict, key: str) -> bool:
+        """Whether another participant of ``study`` came with one of the ids that must be
+        unique (a Prolific ``SESSION_ID`` with ``strict_ids``)."""
+        unique = study.platform.unique_ids(external_ids)
+        if not unique:
+            return False
+        same = Q()
+        for name, value in unique.items():
+            same |= Q(**{f"external_ids__{name}": value})
+        return self.filter(study=study).filter(same).exclude(external_key=key).exists()
 
     def start(self, participant: "Participant") -> None:
         """Create the participant's trials once, balanced against everyone before them."""
@@ -368,6 +437,7 @@ class ParticipantManager(models.Manager):
                     prompt=plan.prompt,
                     kind=plan.kind,
                     repeat_of=created.get(id(plan.repeat_of)),
+                    instruction=plan.instruction,
                 )
                 created[id(plan)] = trial
                 TrialItem.objects.bulk_create(plan.items(trial))
@@ -402,7 +472,8 @@ class ParticipantManager(models.Manager):
         participant.refresh_from_db(fields=["demographics"])
 
     def mark_timed_out(self, participant: "Participant") -> None:
-        """Record that the participant ran out of time (as the platform times them out)."""
+        """Record that the participant ran out of time or sat idle too long (as the
+        platform times them out); the place is free again, and no code is given."""
         if self.filter(pk=participant.pk, outcome="", completed_at=None).update(
             outcome=Participant.Outcome.TIMED_OUT
         ):
@@ -413,7 +484,7 @@ class ParticipantManager(models.Manager):
         completion code: the platform's code of that outcome, or a random code."""
         study = participant.study
         failed = Trial.objects.filter(
-            participant=participant, kind=Trial.Kind.CATCH, catch_passed=False
+            participant=participant, kind__in=Trial.CHECK_KINDS, catch_passed=False
         ).count()
         outcome = (
             Participant.Outcome.FAILED_ATTENTION
@@ -428,12 +499,14 @@ class ParticipantManager(models.Manager):
             participant.outcome = outcome
 
     def with_checks(self):
-        """Annotate judgements and the catch / repeat trials answered and failed."""
+        """Annotate judgements, the attention checks (catch and instructed trials, as
+        ``n_catch``, ``failed_catch``) and the repeated trials, answered and failed."""
         answered = Q(trials__answered_at__isnull=False)
         failed = Q(trials__catch_passed=False)
 
         def trials(kind, also):
-            return Count("trials", filter=also & Q(trials__kind=kind), distinct=True)
+            kinds = Q(trials__kind__in=kind) if isinstance(kind, tuple) else Q(trials__kind=kind)
+            return Count("trials", filter=also & kinds, distinct=True)
 
         return self.annotate(
             n_judgements=Count(
@@ -442,8 +515,8 @@ class ParticipantManager(models.Manager):
                 & ~Q(trials__kind=Trial.Kind.PRACTICE)
                 & Q(trials__items__role=TrialItem.Role.JUDGED),
             ),
-            n_catch=trials(Trial.Kind.CATCH, answered),
-            failed_catch=trials(Trial.Kind.CATCH, failed),
+            n_catch=trials(Trial.CHECK_KINDS, answered),
+            failed_catch=trials(Trial.CHECK_KINDS, failed),
             n_repeat=trials(Trial.Kind.REPEAT, answered),
             inconsistent_repeats=trials(Trial.Kind.REPEAT, failed),
         )
@@ -466,6 +539,9 @@ class Participant(models.Model):
     seed = models.BigIntegerField(help_text="Seed of this participant's random order.")
     created_at = models.DateTimeField(auto_now_add=True)
     consented_at = models.DateTimeField(null=True, blank=True)
+    active_at = models.DateTimeField(
+        null=True, blank=True, help_text="Consent or the last answer: idle since then."
+    )
     completed_at = models.DateTimeField(null=True, blank=True)
     outcome = models.CharField(
         max_length=20, choices=Outcome.choices, blank=True, help_text="Blank while taking part."
@@ -496,13 +572,17 @@ class Participant(models.Model):
         return self.completed_at is not None
 
     def timed_out(self, now=None) -> bool:
-        """Whether the study's time limit passed before the participant finished."""
+        """Whether the study's time limit passed before the participant finished, or they
+        answered no trial for the study's idle limit."""
         if self.outcome == self.Outcome.TIMED_OUT:
             return True
-        limit = self.study.time_limit()
-        if limit is None or self.completed_at is not None or self.consented_at is None:
+        if self.completed_at is not None or self.consented_at is None or self.outcome:
             return False
-        return (now or timezone.now()) - self.consented_at > limit
+        now = now or timezone.now()
+        limit, idle = self.study.time_limit(), self.study.idle_limit()
+        if limit is not None and now - self.consented_at > limit:
+            return True
+        return idle is not None and now - (self.active_at or self.consented_at) > idle
 
     def current_trial(self):
         """Return the first unanswered trial, or None."""
@@ -517,7 +597,7 @@ class Participant(models.Model):
         """Return whether the participant failed the study's attention checks."""
         if self.outcome:
             return self.outcome == self.Outcome.FAILED_ATTENTION
-        failed = self.trials.filter(kind=Trial.Kind.CATCH, catch_passed=False).count()
+        failed = self.trials.filter(kind__in=Trial.CHECK_KINDS, catch_passed=False).count()
         return failed > self.study.max_failed_catch
 
 
@@ -534,7 +614,8 @@ class TrialManager(models.Manager):
         """Store a checked answer (:class:`~studyapp.survey.answers.Answer`) of a trial once.
 
         A practice trial keeps only its plays and events: its answer is no judgement. A
-        catch or repeated trial is graded by the study type into ``catch_passed``.
+        catch, instructed or repeated trial is graded by the study type into
+        ``catch_passed``. The participant's ``active_at`` moves on (they are not idle).
         ``items`` are the trial's items as read in this request (with their stimuli);
         ``trial.shown_at`` must be as read in this request (a trial never shown counts
         from now). When this answer is the participant's last, the outcome and the
@@ -562,11 +643,17 @@ class TrialManager(models.Manager):
                 item.answers = {} if practice else answer.items.get(item.pk, {})
             TrialItem.objects.bulk_update(items, ["plays", "answers"])
             participant = trial.participant
-            if trial.kind in (Trial.Kind.CATCH, Trial.Kind.REPEAT):
+            if trial.kind in Trial.GRADED_KINDS:
                 passed = participant.study.kind.grade(trial, items)
                 self.filter(pk=trial.pk).update(catch_passed=passed)
                 trial.catch_passed = passed
-            if not participant.trials.filter(answered_at__isnull=True).exists():
+            # One statement: the participant is active now, unless that was their last
+            # answer (no unanswered trial left), when they finish.
+            unanswered = Trial.objects.filter(participant=OuterRef("pk"), answered_at__isnull=True)
+            if Participant.objects.filter(pk=participant.pk).filter(Exists(unanswered)).update(
+                    active_at=now):
+                participant.active_at = now
+            else:
                 Participant.objects.finish(participant, now)
         return True
 
@@ -576,7 +663,12 @@ class Trial(models.Model):
         PRACTICE = "practice", "Practice (not a judgement)"
         MAIN = "main", "Main"
         CATCH = "catch", "Catch (a broken clip)"
+        INSTRUCTED = "instructed", "Instructed-response check (the text says what to answer)"
         REPEAT = "repeat", "Repeat of an earlier trial"
+
+    # Attention checks (counted against ``max_failed_catch``), and every graded kind.
+    CHECK_KINDS = (Kind.CATCH, Kind.INSTRUCTED)
+    GRADED_KINDS = (Kind.CATCH, Kind.INSTRUCTED, Kind.REPEAT)
 
     participant = models.ForeignKey(Participant, on_delete=models.CASCADE, related_name="trials")
     index = models.PositiveIntegerField(help_text="Order in the participant's session.")
@@ -587,7 +679,12 @@ class Trial(models.Model):
         default=dict, blank=True, help_text="Answers on the trial itself, per criterion."
     )
     catch_passed = models.BooleanField(
-        null=True, blank=True, help_text="Catch: broken clip spotted; repeat: answered as before."
+        null=True, blank=True, help_text="Catch: broken clip spotted; instructed: the answer "
+        "asked for given; repeat: answered as before."
+    )
+    instruction = models.JSONField(
+        default=dict, blank=True, help_text="Instructed check: the answer asked for, as the "
+        "study type reads it (e.g. {\"position\": 1})."
     )
     repeat_of = models.ForeignKey(
         "self", on_delete=models.CASCADE, null=True, blank=True, related_name="repeats"
@@ -809,3 +906,31 @@ class BuildJob(models.Model):
 
     def __str__(self):
         return f"build {self.pk}: {self.config_path} ({self.status})"
+
+
+class FailedLoginManager(models.Manager):
+    def record(self, address: str, now=None, keep=timedelta(days=1)) -> None:
+        """Count one failed admin login from ``address``; forget those older than ``keep``."""
+        now = now or timezone.now()
+        self.create(address=address[:64], failed_at=now)
+        self.filter(failed_at__lt=now - keep).delete()
+
+    def since(self, address: str, start) -> int:
+        """Return the failed logins from ``address`` since ``start``."""
+        return self.filter(address=address[:64], failed_at__gte=start).count()
+
+
+class FailedLogin(models.Model):
+    """One failed admin login, by address: the login throttle counts these in the
+    database, so it holds across workers without Redis and while the cache is down."""
+
+    address = models.CharField(max_length=64)
+    failed_at = models.DateTimeField()
+
+    objects = FailedLoginManager()
+
+    class Meta:
+        indexes = [models.Index(fields=["address", "failed_at"])]
+
+    def __str__(self):
+        return f"{self.address} at {self.failed_at:%Y-%m-%d %H:%M:%S}"

@@ -139,6 +139,7 @@ def plan(study: Study) -> list[dict]:
             "kind": p.kind,
             "stimuli": [stimulus.pk for stimulus in p.stimuli],
             "shown": [[stimulus.pk, role, required] for stimulus, role, required in p.shown],
+            "instruction": p.instruction,
         }
         for p in plans
     ]
@@ -150,7 +151,8 @@ def unsaved_trial(participant, planned: dict, index: int):
     stimuli = Stimulus.objects.in_bulk(ids)
     first = stimuli[planned["stimuli"][0]] if planned["stimuli"] else None
     trial = Trial(index=index, action=planned["action"], kind=planned["kind"],
-                  prompt=first.prompt if first else "")
+                  prompt=first.prompt if first else "",
+                  instruction=planned.get("instruction") or {})
     trial.previewer = participant  # not a model instance: never assigned as the FK
     items = [
         TrialItem(trial=trial, stimulus=stimuli[pk], position=position)

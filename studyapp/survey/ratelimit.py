@@ -2,20 +2,26 @@
 on failed logins to the admin.
 
 ``STUDY_ENTRY_RATE_LIMIT`` (default ``"120/min"``; ``"N/s"``, ``"N/min"``, ``"N/h"``)
-counts requests per address in fixed windows of the period. The counts live in
-Django's cache: per process with the default local-memory cache, shared by every
-worker with Redis (``STUDY_CACHE_URL``, docs/PRODUCTION.md), where the limit is exact.
-When the cache cannot be reached, requests are let through (and logged): the limit
-stops scripts, and an outage of it must not stop the study.
+counts requests to the entry link and consent per address, over every study.
+``STUDY_ENTRY_RATE_LIMIT_PER_STUDY`` (default ``"60/h"``) counts consents (the posts that
+make a participant) per study and address, so one address cannot fill one study's
+places. Both count in fixed windows of the period, in Django's cache: per process with
+the default local-memory cache, shared by every worker with Redis (``STUDY_CACHE_URL``,
+docs/PRODUCTION.md), where the limit is exact. When the cache cannot be reached,
+requests are let through (and logged): the limit stops scripts, and an outage of it must
+not stop the study.
 
-``STUDY_LOGIN_RATE_LIMIT`` (default ``"10/h"``) counts failed admin logins per address;
-past it, the login page answers 429 until the window ends (a success does not reset the
-window: guessing stays slow).
+``STUDY_LOGIN_RATE_LIMIT`` (default ``"10/h"``) counts failed admin logins per address
+in the database (:class:`~studyapp.survey.models.FailedLogin`), not the cache: exact
+across workers without Redis, and still on while the cache is down. Past it, the login
+page answers 429 until the window ends (a success does not reset the window: guessing
+stays slow).
 """
 
 import logging
 import math
 import time
+from datetime import datetime, timezone
 
 from django.conf import settings
 from django.core.cache import cache
@@ -24,6 +30,7 @@ from django.http import HttpResponse
 log = logging.getLogger(__name__)
 
 DEFAULT = "120/min"
+STUDY_DEFAULT = "60/h"
 LOGIN_DEFAULT = "10/h"
 PERIODS = {"s": 1, "sec": 1, "min": 60, "m": 60, "h": 3600, "hour": 3600}
 LIMITED = """<!doctype html>
@@ -60,6 +67,14 @@ def _window(key: str, rate: str, now: float | None) -> tuple[str, float, int]:
     return f"{key}:{int(now // period)}", capacity, int(period) + 60
 
 
+def window_start(rate: str, now: float | None = None) -> datetime:
+    """Return when the current fixed window of ``rate`` began."""
+    capacity, refill = parse_rate(rate)
+    period = capacity / refill
+    now = time.time() if now is None else now
+    return datetime.fromtimestamp(now // period * period, tz=timezone.utc)
+
+
 def allow(key: str, rate: str | None = None, now: float | None = None) -> bool:
     """Count one request against ``key`` in the current window; False past the limit.
 
@@ -82,24 +97,29 @@ def allow(key: str, rate: str | None = None, now: float | None = None) -> bool:
     return count <= capacity
 
 
-def spent(key: str, rate: str, now: float | None = None) -> bool:
-    """Whether ``key`` has used up ``rate`` in the current window (without counting)."""
-    window, capacity, _ = _window(key, rate, now)
-    try:
-        return (cache.get(window) or 0) >= capacity
-    except Exception as error:  # fail open, as allow() does
-        log.warning("login limit not applied, the cache is unavailable: %s", error)
-        return False
-
-
 def login_rate() -> str:
     return getattr(settings, "STUDY_LOGIN_RATE_LIMIT", LOGIN_DEFAULT)
 
 
+def study_rate() -> str:
+    return getattr(settings, "STUDY_ENTRY_RATE_LIMIT_PER_STUDY", STUDY_DEFAULT)
+
+
+def logins_spent(address: str, now: float | None = None) -> bool:
+    """Whether ``address`` has used up the failed logins of the current window."""
+    from studyapp.survey.models import FailedLogin
+
+    rate = login_rate()
+    capacity, _ = parse_rate(rate)
+    return FailedLogin.objects.since(address, window_start(rate, now)) >= capacity
+
+
 def count_failed_login(sender, credentials=None, request=None, **kwargs):
     """Count a failed login against the address it came from (``user_login_failed``)."""
+    from studyapp.survey.models import FailedLogin
+
     if request is not None:
-        allow(f"ratelimit:login:{client_ip(request)}", login_rate())
+        FailedLogin.objects.record(client_ip(request))
 
 
 def retry_after(rate: str | None = None, now: float | None = None) -> int:
@@ -129,18 +149,23 @@ def too_many(rate: str | None = None, page: str = LIMITED) -> HttpResponse:
     return response
 
 
+def consents(request) -> bool:
+    """Whether ``request`` posts a study's consent page (which makes a participant)."""
+    match = request.resolver_match
+    return (match is not None and match.view_name == "survey:page"
+            and match.kwargs.get("name") == "consent" and request.method == "POST")
+
+
 def creates_participants(request) -> bool:
     match = request.resolver_match
     if match is None:
         return False
-    if match.view_name == "survey:entry":
-        return True
-    return (match.view_name == "survey:page" and match.kwargs.get("name") == "consent"
-            and request.method == "POST")
+    return match.view_name == "survey:entry" or consents(request)
 
 
 class EntryRateLimitMiddleware:
-    """Apply the limit to the entry link and the consent POST only."""
+    """Apply the entry limits to the entry link and the consent POST, and the login
+    limit to the admin's login POST."""
 
     def __init__(self, get_response):
         self.get_response = get_response
@@ -149,10 +174,15 @@ class EntryRateLimitMiddleware:
         return self.get_response(request)
 
     def process_view(self, request, view_func, view_args, view_kwargs):
-        if creates_participants(request) and not allow(f"ratelimit:entry:{client_ip(request)}"):
+        address = client_ip(request)
+        if creates_participants(request) and not allow(f"ratelimit:entry:{address}"):
             return too_many()
+        if consents(request):
+            slug = request.resolver_match.kwargs.get("slug", "")
+            if not allow(f"ratelimit:study:{slug}:{address}", study_rate()):
+                return too_many(study_rate())
         match = request.resolver_match
         if (request.method == "POST" and match is not None and match.view_name == "admin:login"
-                and spent(f"ratelimit:login:{client_ip(request)}", login_rate())):
+                and logins_spent(address)):
             return too_many(login_rate(), LOGINS)
         return None

@@ -53,7 +53,8 @@ from django.db import transaction
 from tqdm import tqdm
 
 from generation import ops, perturb
-from generation.formats import load_motions, npz
+from generation.formats import FormatError, load_motions, npz
+from generation.motion import MotionError
 from generation.sampling import SamplingError, choose
 from rendering import VERSION as RENDERING_VERSION
 from rendering import Framing, get_style, render_set
@@ -292,8 +293,7 @@ class Build:
         else:
             options = {k: (str(self.config.path(v)) if k == "classes_path" else v)
                        for k, v in source.options.items()}
-            loaded = load_motions(c.path(source.file), source.format,
-                                  fps=c.fps or self.dataset.clip_fps, **options)
+            loaded = self.file_motions(source, fps=c.fps or self.dataset.clip_fps, **options)
             motions = []
             for action in self.actions():
                 mine = [m for m in loaded if m.action == action][:n]
@@ -303,6 +303,15 @@ class Build:
                                   f"{', '.join(self.actions())}; set the actions, or the file's "
                                   f"'action' option")
         return [m.with_joints(m.joints, source=source.name, meta=dict(m.meta)) for m in motions]
+
+    def file_motions(self, source, **options) -> list:
+        """Return the motions of a file source; a file that cannot be read (or that holds
+        anything but data) is a :class:`ConfigError` naming the source."""
+        try:
+            return load_motions(self.config.path(source.file), source.format, **options)
+        except (FormatError, MotionError) as exc:
+            raise ConfigError(f"sources: file {source.file!r} of source {source.name!r}: "
+                              f"{exc}") from None
 
     def prompt_motions(self, source) -> list:
         """Return ``clips_per_source`` motions of ``source`` for each prompt, in prompt order:
@@ -332,7 +341,7 @@ class Build:
         else:
             options = {k: (str(c.path(v)) if k == "classes_path" else v)
                        for k, v in source.options.items()}
-            takes = list(load_motions(c.path(source.file), source.format, fps=fps, **options))
+            takes = list(self.file_motions(source, fps=fps, **options))
             known = [m.text for m in takes if m.text]
             rng = None  # a file's motions are taken in its order
         return motions_for_prompts(c.prompts, takes, c.clips_per_source, frames, where, known,

@@ -22,7 +22,8 @@ import yaml
 from generation.datasets.humanml3d import normalise as normalise_prompt  # as captions match
 from generation.formats import list_formats
 from rendering import list_styles
-from studyapp.survey.crowd import make_platform
+from studyapp.survey.crowd import CHECKS_OVER_MINUTES, make_platform, outcomes_of
+from studyapp.survey.models import Study
 from studyapp.survey.study_types import get_study_type, list_study_types
 from studyapp.survey.study_types.base import COMMON_OPTIONS, check_criteria
 
@@ -83,6 +84,9 @@ class StudyConfig:
     # Text prompts instead of actions (``prompts`` or ``prompts_from``): each trial shows
     # one prompt and every source's clips of it.
     prompts: list[str] | None = None
+    # What the crowd platform's rules advise against (the build goes on; the command
+    # prints them), e.g. too few attention checks for Prolific.
+    warnings: list[str] = field(default_factory=list)
 
     def path(self, value: str) -> Path:
         return (self.folder / value).resolve()
@@ -202,7 +206,7 @@ def parse(raw: dict, folder: Path) -> StudyConfig:
     if player == "webgl" and style == "stick2d":
         raise ConfigError("render.player: webgl draws 3D figures; use style stick or mesh, or "
                           "player video for stick2d clips")
-    study_type, options, type_options = _study(raw.get("study") or {})
+    study_type, options, type_options, warnings = _study(raw.get("study") or {})
     sources = _sources(raw.get("sources"), seed, iters, preset)
     fps = raw.get("fps")
     if fps is not None and (isinstance(fps, bool) or not isinstance(fps, (int, float)) or fps <= 0):
@@ -230,11 +234,18 @@ def parse(raw: dict, folder: Path) -> StudyConfig:
         type_options=type_options,
         folder=folder,
         prompts=prompts,
+        warnings=warnings,
     )
 
 
-def _study(raw) -> tuple[str, dict, dict]:
-    """Return the study type, its common fields and its own options, checked."""
+def _study(raw) -> tuple[str, dict, dict, list[str]]:
+    """Return the study type, its common fields and its own options, checked, and the
+    crowd platform's warnings.
+
+    A Prolific study estimated over 5 minutes whose config names neither
+    ``catch_trials`` nor ``instructed_checks`` gets two instructed checks (Prolific's
+    policy); every outcome it can end with must have its code (:mod:`.crowd`).
+    """
     if not isinstance(raw, dict):
         raise ConfigError(f"study: {raw!r} must be a mapping like {{type: ranking}}")
     raw = dict(raw)
@@ -261,13 +272,27 @@ def _study(raw) -> tuple[str, dict, dict]:
         options[name] = value
     try:
         own = kind.check_options(own)
-        make_platform(options.get("crowd"))
+        platform = make_platform(options.get("crowd"))
     except ValueError as exc:
         raise ConfigError(f"study.{exc}") from None
     problem = check_criteria(options.get("criteria"))
     if problem:
         raise ConfigError(f"study.{problem}")
-    return study_type, options, own
+    given = "catch_trials" in options or "instructed_checks" in options
+    if not given and platform.default_checks(kind.minutes):
+        options["instructed_checks"] = platform.default_checks(kind.minutes)
+    checks = (options.get("catch_trials") or 0) + (options.get("instructed_checks") or 0)
+    try:
+        platform.check_codes(outcomes_of(checks, bool(platform.screening)), checks)
+    except ValueError as exc:
+        default = "" if given or not checks else (
+            f" (study.instructed_checks defaults to {checks} for this platform in a study "
+            f"over {CHECKS_OVER_MINUTES} minutes)")
+        raise ConfigError(f"study.{exc}{default}") from None
+    max_failed = options.get("max_failed_catch")
+    if max_failed is None:
+        max_failed = Study._meta.get_field("max_failed_catch").default
+    return study_type, options, own, platform.warnings(kind.minutes, checks, max_failed)
 
 
 def _sources(raw, seed, iters, preset) -> list[Source]:

@@ -88,6 +88,15 @@ def _quick_watch(settings):
     settings.STUDY_WATCH_TIME_FACTOR = 0.0
 
 
+@pytest.fixture(autouse=True)
+def _fresh_rate_limits():
+    """Start every test with no entries counted: the per-process cache outlives a test,
+    and tests reuse study slugs (the limit per study and address would carry over)."""
+    from django.core.cache import cache
+
+    cache.clear()
+
+
 @pytest.fixture(scope="session")
 def clips(tmp_path_factory) -> list:
     """Return 2 actions x 3 sources of real, distinct, playable clips (written once)."""

@@ -18,6 +18,7 @@ actions run).
 from __future__ import annotations
 
 import json
+import math
 import re
 import secrets
 import threading
@@ -296,9 +297,14 @@ class FakeProlific:
                                       or isinstance(value, bool) or value < least):
                 problem(field, f"Ensure this value is a number greater than or equal to {least}.")
         limit = body.get("maximum_allowed_time")
-        if limit is not None and (not isinstance(limit, int)
-                                  or limit < (body.get("estimated_completion_time") or 0)):
-            problem("maximum_allowed_time", "Must be at least the estimated completion time.")
+        estimate = body.get("estimated_completion_time") or 0
+        least = math.ceil(2 + estimate + 2 * math.sqrt(estimate)) if isinstance(
+            estimate, (int, float)) and estimate > 0 else 0
+        if limit is not None and (not isinstance(limit, int) or limit < least):
+            # Prolific's help centre: the least maximum time is 2 + X + 2 sqrt(X) for an
+            # estimated completion time of X minutes.
+            problem("maximum_allowed_time", f"Must be at least {least} minutes for this "
+                                            f"estimated completion time.")
         codes = body.get("completion_codes") or []
         if not isinstance(codes, list):
             problem("completion_codes", "Expected a list.")

@@ -253,11 +253,11 @@ def test_every_preset_builds_with_small_counts(tmp_path, media_root, preset, dat
 
 @pytest.mark.django_db
 def test_a_rebuild_keeps_crowd_settings_stored_since(tmp_path, media_root):
-    crowd = {"platform": "prolific", "codes": {"completed": "AAAA1111"}}
+    crowd = {"platform": "prolific", "codes": {"completed": "AAAA1111", "no_consent": "N0",
+                                               "failed_attention": "BBBB2222"}}
     build_stimuli(parse(small(study={"type": "ranking", "crowd": crowd}), tmp_path), tmp_path / "b")
     study = Study.objects.get(slug="tiny-ranking")
-    stored = {**study.crowd, "prolific_study_id": "6" * 24,
-              "codes": {"completed": "AAAA1111", "failed_attention": "BBBB2222"}}
+    stored = {**study.crowd, "prolific_study_id": "6" * 24}
     Study.objects.filter(pk=study.pk).update(crowd=stored)  # as `prolific create` does
     build_stimuli(parse(small(study={"type": "ranking", "crowd": {**crowd, "time_limit_minutes": 20}}),
                         tmp_path), tmp_path / "b")

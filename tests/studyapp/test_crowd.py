@@ -26,22 +26,32 @@ PROLIFIC = {"platform": "prolific", "codes": CODES, "time_limit_minutes": 30,
             "screening": [{"question": "Can you see moving figures clearly on this screen?",
                            "answers": ["Yes", "No"], "accept": ["Yes"]}]}
 PID = "5f3a9c2e1b4d6a7f8e9c0b1a"
+STUDY = "60aaca280709ee40ec37d488"
+
+
+def ids(pid, session=None):
+    """Return Prolific's three ids of an entry link: ``pid`` and a session of its own."""
+    return {"PROLIFIC_PID": pid, "STUDY_ID": STUDY,
+            "SESSION_ID": session or pid[::-1]}
 
 
 @pytest.fixture
 def prolific_study(media_root, clips, extra_clips):
+    # Two attention checks of both kinds: failing both fails (max_failed_catch 1).
     return make_study("ranking", clips, extra_clips, slug="on-prolific", catch=True,
-                      crowd=PROLIFIC)
+                      instructed_checks=1, crowd=PROLIFIC)
 
 
 def test_prolific_ids_are_normalised_and_one_id_takes_a_study_once(prolific_study, make_bot):
     bot = make_bot(prolific_study)
-    bot.enter(PROLIFIC_PID=f"  {PID.upper()} ", STUDY_ID="s1", SESSION_ID="x1")
+    session = "ABCDEF" * 4
+    bot.enter(PROLIFIC_PID=f"  {PID.upper()} ", STUDY_ID=STUDY.upper(), SESSION_ID=session)
     bot.consent(screen_0="Yes")
     person = Participant.objects.get()
-    assert person.external_ids == {"PROLIFIC_PID": PID, "STUDY_ID": "s1", "SESSION_ID": "x1"}
+    assert person.external_ids == {"PROLIFIC_PID": PID, "STUDY_ID": STUDY,
+                                   "SESSION_ID": session.lower()}
     again = make_bot(prolific_study)  # another browser, the same person in other letters
-    response = again.enter(PROLIFIC_PID=PID.upper())
+    response = again.enter(**ids(PID.upper(), session))
     assert response.redirect_chain[-1][0].endswith("/instructions/")  # resumes
     again.consent(screen_0="Yes")
     assert Participant.objects.count() == 1
@@ -100,22 +110,22 @@ def test_places_count_finished_and_active_people_and_the_time_limit_frees_them(
         prolific_study, make_bot):
     Study.objects.filter(pk=prolific_study.pk).update(max_participants=1)
     first = make_bot(prolific_study)
-    first.join(PROLIFIC_PID=PID)
+    first.join(**ids(PID))
     first.consent(screen_0="Yes")
     second = make_bot(prolific_study)
-    assert b"This study is full" in second.enter(PROLIFIC_PID="a" * 24).content
+    assert b"This study is full" in second.enter(**ids("a" * 24)).content
     declined = make_bot(prolific_study)  # saying no takes no place
-    declined.enter(PROLIFIC_PID="b" * 24)
+    declined.enter(**ids("b" * 24))
     declined.client.post(declined.url("consent"), {"decline": "1"})
     Participant.objects.filter(external_key__endswith=PID).update(
         consented_at=timezone.now() - timedelta(minutes=31))
-    second.enter(PROLIFIC_PID="a" * 24)
+    second.enter(**ids("a" * 24))
     second.consent(screen_0="Yes")
     assert Participant.objects.filter(consented_at__isnull=False).count() == 2
     late = first.answer({"trial": "1"})
     assert late.status_code == 410 and b"time for this study has run out" in late.content
     assert Participant.objects.get(external_key__endswith=PID).outcome == "timed_out"
-    assert b"run out" in first.enter(PROLIFIC_PID=PID).content
+    assert b"run out" in first.enter(**ids(PID)).content
 
 
 def test_a_generic_platform_sends_people_to_its_completion_url(media_root, clips, make_bot):

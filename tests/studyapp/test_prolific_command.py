@@ -238,7 +238,8 @@ def reviewed(fake, study):
     study.save()
     for name, (pid, outcome, code) in cases.items():
         if outcome is not None:
-            person(study, pid, outcome, failed_catch=1 if name == "excluded" else 0)
+            failed = {"excluded": 1, "failed": 2}.get(name, 0)
+            person(study, pid, outcome, failed_catch=failed)
         came_back(fake, remote, pid, code)
     person(study, "8" * 24)
     fake.start(remote["id"], "8" * 24)  # still active on Prolific
@@ -266,7 +267,7 @@ def test_review_dry_run_shows_every_decision_and_sends_nothing(fake, study, revi
         reviewed["timed_out"]: "left alone",
         reviewed["active"]: "nothing to do",
     }
-    assert "failed 1 of 1 catch trial(s), more than 0" in out
+    assert "failed 1 of 1 attention check(s), more than 0" in out
     assert "not a participant of ours" in out and "still taking part in our study" in out
     assert ("Dry run: would 1 approve, 2 request return, 0 reject; 5 untouched. Nothing was "
             "sent.") in out
@@ -295,9 +296,11 @@ def test_review_rejects_failed_attention_when_asked(fake, study, reviewed):
         prolific("review", "--study", study.slug, "--reject-failed", "--reject-message", "No.")
     out = prolific("review", "--study", study.slug, "--reject-failed",
                    "--max-failed-catch", "0")
-    assert "1 approve, 0 request return, 2 reject" in out
+    # Prolific allows a rejection only after two failed checks: one is asked to return.
+    assert "1 approve, 1 request return, 1 reject" in out
     assert status_of(fake, reviewed["failed"])[0] == "REJECTED"
-    assert status_of(fake, reviewed["excluded"])[0] == "REJECTED"
+    assert status_of(fake, reviewed["excluded"]) == ("AWAITING REVIEW", True)
+    assert "1 failed check(s): Prolific allows a rejection only after 2" in out
     reject = fake.requests("POST", "/transition/")[-1]["body"]
     assert reject["action"] == "REJECT" and reject["rejection_category"] == "FAILED_CHECK"
     assert len(reject["message"]) >= 100
@@ -386,6 +389,34 @@ def test_review_decisions_follow_the_analysis_rules():
     assert strict.why == "answered 2 repeated trial(s) differently, more than 1"
     with pytest.raises(ValueError, match="0 or more"):
         review.Rules(max_failed_catch=-1)
+    # Our participant came with another session than this submission: left to the researcher.
+    other = review.decide(submission, {"a" * 24: {**row, "SESSION_ID": "f" * 24}}, review.Rules())
+    assert other.action == review.LEAVE and f"session {'f' * 24}" in other.why
+    assert review.decide(submission, {"a" * 24: {**row, "SESSION_ID": "S1"}},
+                         review.Rules()).action == review.APPROVE
+
+
+def test_participants_whose_ids_prolific_does_not_know_are_flagged(fake, study):
+    remote = created(study, fake)
+    known = person(study, "a" * 24, "completed")
+    submission, _ = fake.start(remote["id"], "a" * 24)
+    known.external_ids = {"PROLIFIC_PID": "a" * 24, "SESSION_ID": submission["id"]}
+    known.save()
+    stranger = person(study, "b" * 24, "completed")  # never started on Prolific
+    wrong = person(study, "c" * 24, "completed")
+    fake.start(remote["id"], "c" * 24)
+    wrong.external_ids = {"PROLIFIC_PID": "c" * 24, "SESSION_ID": "d" * 24}
+    wrong.save()
+    out = prolific("review", "--study", study.slug, "--dry-run")
+    flagged = [line for line in out.splitlines() if line.startswith("flagged:")]
+    assert flagged == [
+        f"flagged: participant {stranger.pk} (outcome completed): no submission of {'b' * 24} "
+        f"on Prolific; a made-up id? Their answers stay in the export with their ids.",
+        f"flagged: participant {wrong.pk} (outcome completed): {'c' * 24} has no submission "
+        f"{'d' * 24} on Prolific; a made-up id? Their answers stay in the export with their ids.",
+    ]
+    listing = prolific("submissions", "--study", study.slug)
+    assert f"flagged: participant {stranger.pk}: no submission of {'b' * 24}" in listing
 
 
 def test_the_readmes_crowd_examples_are_valid_settings():

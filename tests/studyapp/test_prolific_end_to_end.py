@@ -1,10 +1,13 @@
 """Prolific end to end: `prolific create` makes the study on the local server that follows
-Prolific's published API, simulated participants take it through our real pages (bt,
-inattentive and declining bots), come back to Prolific through the redirect our last
-page sent them to, and `prolific review` approves and returns exactly as our exclusions
-say."""
+Prolific's published API, simulated participants open it on Prolific and take it through
+our real pages from the link Prolific gives them (bt, inattentive and declining bots),
+come back to Prolific through the redirect our last page sent them to, and `prolific
+review` approves and returns exactly as our exclusions say. A failed participant who
+comes back under a made-up id gets the completed code, but review still goes by the
+outcome of their real id and flags the made-up one."""
 
-import re
+import random
+import secrets
 from io import StringIO
 
 import pytest
@@ -12,15 +15,13 @@ from django.core.management import call_command
 
 from studyapp.survey import bots
 from studyapp.survey.models import Participant
-from tests.studyapp.conftest import make_study
+from tests.studyapp.conftest import SOURCES, make_study
 from tests.studyapp.prolific_fake import COMPLETE_URL, FakeProlific
 
 pytestmark = [pytest.mark.slow, pytest.mark.django_db(transaction=True)]
 
 TOKEN = "test-token"
-LINE = re.compile(r"^(?P<pid>[0-9a-f]{24}): \d+ trials, outcome (?P<outcome>\w*)"
-                  r"(?:, redirect (?P<redirect>[^,\s]+))?, completion code (?P<code>\S*)$")
-RUNS = {"bt": (11, 2), "inattentive": (12, 1), "decline": (13, 1)}  # policy: (seed, bots)
+RUNS = {"bt": 2, "inattentive": 1, "decline": 1}  # policy: bots
 
 
 def run(*args) -> str:
@@ -29,10 +30,18 @@ def run(*args) -> str:
     return out.getvalue()
 
 
+def take(study, policy, url, seed):
+    """A bot of ``policy`` with its own cookies takes the study from ``url``."""
+    rng = random.Random(seed)
+    bot = bots.Bot(study, bots.POLICIES[policy](rng, {}, SOURCES), rng, pace=0)
+    return bot, bot.run(url)
+
+
 def test_prolific_study_from_creation_to_review(transactional_db, media_root, clips, extra_clips,
                                                 live_server, monkeypatch):
+    # One catch trial and one instructed check: failing both is a failed attention check.
     study = make_study("ranking", clips, extra_clips, slug="prolific-e2e", catch=True,
-                       trials_per_participant=2, max_participants=10)
+                       instructed_checks=1, trials_per_participant=2, max_participants=10)
     with FakeProlific(token=TOKEN) as fake:
         monkeypatch.setenv("PROLIFIC_TOKEN", TOKEN)
         monkeypatch.setenv("PROLIFIC_API_URL", fake.url)
@@ -42,30 +51,47 @@ def test_prolific_study_from_creation_to_review(transactional_db, media_root, cl
         study.refresh_from_db()
         remote = fake.studies[study.crowd["prolific_study_id"]]
         assert remote["external_study_url"].startswith(f"{live_server.url}/s/{study.slug}/?")
+        assert remote["maximum_allowed_time"] == study.crowd["time_limit_minutes"] == 30
 
-        came_back = {}
-        for policy, (seed, n) in RUNS.items():
-            for i in range(1, n + 1):  # they open the study on Prolific first
-                fake.start(remote["id"], bots.person_id(seed, i))
-            out = run("simulate_participants", "--study", study.slug, "--url", live_server.url,
-                      "--policy", policy, "--seed", str(seed), "--n", str(n), "--pace", "0")
-            for line in out.splitlines()[:-1]:
-                bot = LINE.match(line).groupdict()
-                assert bot["redirect"] == f"{COMPLETE_URL}?cc={bot['code']}"
-                fake.arrive(bot["pid"], bot["redirect"])
-                came_back[bot["pid"]] = (policy, bot["outcome"], bot["code"])
+        came_back, seed = {}, 0
+        for policy, n in RUNS.items():
+            for _ in range(n):
+                seed += 1
+                pid = secrets.token_hex(12)
+                _, url = fake.start(remote["id"], pid)  # they open the study on Prolific
+                bot, outcome = take(study, policy, url, seed)
+                assert outcome.exit_url == f"{COMPLETE_URL}?cc={outcome.completion_code}"
+                fake.arrive(pid, outcome.exit_url)
+                came_back[pid] = (policy, outcome.completion_code, bot, url)
         assert len(came_back) == 4
 
         ours = {p.external_ids["PROLIFIC_PID"]: p for p in Participant.objects.filter(study=study)}
         codes = study.crowd["codes"]
-        for pid, (policy, outcome, code) in came_back.items():
-            assert ours[pid].outcome == outcome and code == codes[outcome]
-        outcomes = {policy: outcome for policy, outcome, _ in came_back.values()}
+        for pid, (policy, code, _, _) in came_back.items():
+            assert code == codes[ours[pid].outcome]
+        outcomes = {policy: ours[pid].outcome for pid, (policy, *_) in came_back.items()}
         assert outcomes == {"bt": "completed", "inattentive": "failed_attention",
                             "decline": "no_consent"}
+        failed_pid, (_, _, failed_bot, failed_url) = next(
+            (pid, entry) for pid, entry in came_back.items() if entry[0] == "inattentive")
+
+        # The failed participant tries again: the same browser with a made-up id is
+        # refused; a fresh browser with a made-up id and session (the real study id)
+        # gets in and completes.
+        made_up = secrets.token_hex(12)
+        forged = (failed_url.replace(failed_pid, made_up)
+                  .replace(next(s["id"] for s in fake.submissions.values()
+                                if s["participant"] == failed_pid), secrets.token_hex(12)))
+        with pytest.raises(bots.SimulationError, match="HTTP 403"):
+            failed_bot.run(forged)
+        _, again = take(study, "bt", forged, 99)
+        assert again.completion_code == codes["completed"]
 
         dry = run("prolific", "review", "--study", study.slug, "--dry-run")
         assert "would 2 approve, 1 request return, 0 reject; 1 untouched" in dry
+        stranger = Participant.objects.get(external_key=f"PROLIFIC_PID:{made_up}")
+        assert (f"flagged: participant {stranger.pk} (outcome completed): no submission of "
+                f"{made_up} on Prolific") in dry
         run("prolific", "review", "--study", study.slug)
         statuses = {s["participant"]: (s["status"], bool(s["return_requested"]))
                     for s in fake.submissions.values()}

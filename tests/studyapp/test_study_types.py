@@ -206,7 +206,7 @@ def test_demographics_are_optional_and_stored_once(study_of, make_bot):
 @pytest.mark.parametrize("study_type", TYPES)
 @pytest.mark.parametrize("spotted", [True, False])
 def test_a_catch_trial_is_graded(study_of, make_bot, study_type, spotted):
-    study = study_of(study_type, catch=True)
+    study = study_of(study_type, catch=True, max_failed_catch=0)  # one failure fails
     bot = join(make_bot, study)
     trials = list(bot.participant().trials.order_by("index"))
     catch = [t for t in trials if t.kind == "catch"]
@@ -455,7 +455,7 @@ def test_nothing_a_participant_receives_names_a_source(study_of, make_bot, study
 
 
 def test_admin_opens_closes_and_shows_progress(study_of, make_bot, admin_client):
-    study = study_of("rating_standards", catch=True)
+    study = study_of("rating_standards", catch=True, max_failed_catch=0)
     bot = join(make_bot, study)
     bot.finish(ratings={0: 5, 1: 5, 2: 5})  # the broken clip gets 5 wherever it is
     listing = admin_client.get("/admin/survey/study/")

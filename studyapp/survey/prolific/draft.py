@@ -17,6 +17,11 @@ screened_out       OTHER                   REQUEST_RETURN, reason "Screened out.
                                            with FIXED_SCREEN_OUT_PAYMENT (a fixed
                                            screen-out payment; not every workspace has it)
 =================  ======================  =========================================
+
+``timed_out`` has no code: Prolific times people out itself. The draft's maximum allowed
+time is the study's ``crowd.time_limit_minutes``, by default
+:func:`~studyapp.survey.crowd.prolific_time_limit` of the estimated time (stored in the
+study by ``create``, so both time people out alike).
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ import math
 import secrets
 from dataclasses import dataclass
 
-from studyapp.survey.crowd import OUTCOMES
+from studyapp.survey.crowd import OUTCOMES, prolific_minimum_time, prolific_time_limit
 
 PLACEHOLDERS = ("?PROLIFIC_PID={{%PROLIFIC_PID%}}&STUDY_ID={{%STUDY_ID%}}"
                 "&SESSION_ID={{%SESSION_ID%}}")
@@ -73,6 +78,15 @@ def fill_codes(study) -> tuple[dict, list[str]]:
             codes[outcome] = new_code(set(codes.values()))
             made.append(outcome)
     return codes, made
+
+
+def time_limit_of(study, minutes: int) -> int | None:
+    """Return the maximum allowed time of the draft (None: Prolific's own): the study's
+    ``time_limit_minutes``, else the default for a Prolific study of ``minutes``."""
+    crowd = study.crowd or {}
+    if "time_limit_minutes" in crowd:
+        return crowd["time_limit_minutes"]
+    return prolific_time_limit(minutes)
 
 
 def external_url(study, base_url: str) -> str:
@@ -152,10 +166,12 @@ def draft_payload(study, codes: dict, options: DraftOptions) -> dict:
         "filters": [],
         "submissions_config": {"max_submissions_per_participant": 1},
     }
-    limit = (study.crowd or {}).get("time_limit_minutes")
+    limit = time_limit_of(study, minutes)
     if limit:
-        if limit < minutes:
-            raise ValueError(f"crowd.time_limit_minutes {limit} is shorter than the estimated "
-                             f"{minutes} minutes: raise it or pass --minutes")
+        least = prolific_minimum_time(minutes)
+        if limit < least:
+            raise ValueError(f"crowd.time_limit_minutes {limit} is shorter than Prolific "
+                             f"allows for the estimated {minutes} minutes (at least 2 + X + "
+                             f"2 sqrt(X) = {least}): raise it or pass --minutes")
         payload["maximum_allowed_time"] = limit
     return payload

@@ -13,8 +13,16 @@ code a submission carries (a code can be copied); it rests on our participant's
   part with us) or timed out: left for the researcher (never acted on);
 - completed and kept by the exclusion rules: approved;
 - failed the attention checks (their outcome, or an exclusion rule): a return is asked
-  for, or with ``reject_failed`` the submission is rejected (category FAILED_CHECK);
-- declined consent or screened out: a return is asked for, unless it already was.
+  for, or with ``reject_failed`` the submission is rejected (category FAILED_CHECK) when
+  at least two checks were failed (Prolific allows a rejection only then; with fewer, a
+  return is asked for);
+- declined consent or screened out: a return is asked for, unless it already was;
+- of a participant of ours who came with another ``SESSION_ID`` than this submission's
+  id: left for the researcher.
+
+:func:`unknown_ids` lists our participants whose ids Prolific does not know: no
+submission of that ``PROLIFIC_PID`` in the study, or none with their ``SESSION_ID``
+(someone who made an id up to take the study again).
 
 Run twice, the second run finds every submission it acted on already approved,
 rejected or with its return requested, and does nothing.
@@ -22,8 +30,10 @@ rejected or with its return requested, and does nothing.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+from studyapp.survey.crowd import MIN_CHECKS
 from studyapp.survey.export import participants_frame
 from studyapp.survey.models import Participant
 
@@ -46,7 +56,7 @@ class Rules:
     2b), with the thresholds ``analyze`` takes as ``--max-failed-catch`` and
     ``--max-failed-repeats`` (None: repeats are counted, not applied)."""
 
-    max_failed_catch: int = 0
+    max_failed_catch: int = 1
     max_failed_repeats: int | None = None
 
     def __post_init__(self):
@@ -75,6 +85,13 @@ class Decision:
                    or "")
 
 
+def text(value) -> str:
+    """Return a table cell as text ("" for a missing one)."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return ""
+    return str(value).strip()
+
+
 def participant_index(study) -> dict[str, dict]:
     """Return ``{Prolific id: our participant's row}`` (pk, outcome, code, checks)."""
     table = participants_frame(study)
@@ -82,9 +99,27 @@ def participant_index(study) -> dict[str, dict]:
     if "PROLIFIC_PID" not in table.columns:
         return out
     for row in table.to_dict("records"):
-        pid = str(row.get("PROLIFIC_PID") or "").strip().lower()
+        pid = text(row.get("PROLIFIC_PID")).lower()
         if pid:
             out[pid] = row
+    return out
+
+
+def unknown_ids(study, submissions: list[dict]) -> list[tuple[dict, str]]:
+    """Return ``(row, why)`` of each participant of ours whose ids Prolific does not know:
+    no submission of their ``PROLIFIC_PID`` in this study, or none whose id is their
+    ``SESSION_ID`` (a made-up id, to take the study again)."""
+    sessions: dict[str, set] = {}
+    for s in submissions:
+        pid = str(s.get("participant_id") or s.get("participant") or "").lower()
+        sessions.setdefault(pid, set()).add(str(s.get("id", "")).lower())
+    out = []
+    for pid, row in participant_index(study).items():
+        session = text(row.get("SESSION_ID")).lower()
+        if pid not in sessions:
+            out.append((row, f"no submission of {pid} on Prolific"))
+        elif session and session not in sessions[pid]:
+            out.append((row, f"{pid} has no submission {session} on Prolific"))
     return out
 
 
@@ -92,7 +127,7 @@ def exclusion(row: dict, config: Rules) -> str:
     """Return why the analysis' participant rules exclude ``row`` ("" when they keep it)."""
     failed = int(row.get("failed_catch") or 0)
     if failed > config.max_failed_catch:
-        return (f"failed {failed} of {int(row.get('n_catch') or 0)} catch trial(s), more "
+        return (f"failed {failed} of {int(row.get('n_catch') or 0)} attention check(s), more "
                 f"than {config.max_failed_catch}")
     limit = config.max_failed_repeats
     changed = int(row.get("inconsistent_repeats") or 0)
@@ -127,6 +162,10 @@ def decide(submission: dict, people: dict[str, dict], config: Rules,
         return decision(LEAVE, "still taking part in our study (no outcome yet)")
     if outcome == Participant.Outcome.TIMED_OUT:
         return decision(LEAVE, "ran out of time in our study")
+    session = text(row.get("SESSION_ID")).lower()
+    if session and session != str(submission.get("id", "")).lower():
+        return decision(LEAVE, f"our participant came with session {session}, not this "
+                               f"submission: review it on Prolific")
     returned = bool(submission.get("return_requested"))
     if outcome in (Participant.Outcome.NO_CONSENT, Participant.Outcome.SCREENED_OUT):
         if returned:
@@ -136,8 +175,12 @@ def decide(submission: dict, people: dict[str, dict], config: Rules,
         else exclusion(row, config)
     if outcome == Participant.Outcome.COMPLETED and not why:
         return decision(APPROVE, "completed")
-    if reject_failed:
+    failed = int(row.get("failed_catch") or 0)
+    if reject_failed and failed >= MIN_CHECKS:
         return decision(REJECT, why)
+    if reject_failed:
+        why += (f"; {failed} failed check(s): Prolific allows a rejection only after "
+                f"{MIN_CHECKS}, so a return is asked for")
     if returned:
         return decision(NOTHING, f"{why}: return already requested")
     return decision(RETURN, why)

@@ -14,6 +14,9 @@ its key:
 - how an answer is checked (:meth:`check_answer`), stored (:meth:`item_value`,
   :meth:`trial_value`), graded (:meth:`catch_passed`, :meth:`consistent`) and exported
   (:attr:`export_columns`, :meth:`export_values`);
+- its instructed-response checks: a trial whose text says which answer to give
+  (:meth:`instruct` picks it, :meth:`instruction_text` says it, :meth:`obeyed` grades it,
+  :meth:`obey` gives it, for bots and tests);
 - how a simulated participant answers (:meth:`bot_answer`) and which analysis reads its
   table (:attr:`analysis`, registered in ``analysis/``).
 
@@ -47,7 +50,7 @@ The anonymous answers may be published for research."""
 # Options every type has (Study fields), as a build config names them.
 COMMON_OPTIONS = {
     "clips_per_trial": int, "trials_per_participant": int, "practice": bool,
-    "catch_trials": int, "max_failed_catch": int, "repeat_trials": int,
+    "catch_trials": int, "instructed_checks": int, "max_failed_catch": int, "repeat_trials": int,
     "ask_demographics": bool, "max_participants": int, "completion_url": str,
     "instructions": str, "data_note": str, "criteria": list, "crowd": dict,
 }
@@ -65,8 +68,9 @@ class Option:
 
 @dataclass(eq=False)
 class TrialPlan:
-    """One trial to create: its action, the judged stimuli in display order, its kind, and
-    the stimuli shown beside them (``shown``: ``(stimulus, role, required)``).
+    """One trial to create: its action, the judged stimuli in display order, its kind, the
+    stimuli shown beside them (``shown``: ``(stimulus, role, required)``) and, for an
+    instructed check, the answer its text asks for (``instruction``).
 
     Plans compare by identity, so a repeat can point at the plan it repeats.
     """
@@ -76,6 +80,7 @@ class TrialPlan:
     kind: str = Trial.Kind.MAIN
     repeat_of: "TrialPlan | None" = None
     shown: list = field(default_factory=list)
+    instruction: dict = field(default_factory=dict)
 
     @property
     def prompt(self) -> str:
@@ -228,8 +233,8 @@ class StudyType:
         """Return the trials of a new participant; called with the study row locked.
 
         Main trials first draw on ``rng`` exactly as a session without extras would,
-        so the practice, catch and repeated trials never change which clips a
-        participant judges.
+        so the practice, catch, instructed and repeated trials never change which clips
+        a participant judges. Catch and instructed checks are placed alike (never first).
         """
         pool = assignment.Pool.of(study)
         main = self.plan_main(study, pool, rng)
@@ -239,6 +244,11 @@ class StudyType:
             for stimulus in assignment.pick_catch(pool.catches, study.catch_trials, rng)
             if (plan := self.plan_catch(study, pool, stimulus, rng)) is not None
         ]
+        for _ in range(study.instructed_checks if main else 0):
+            plan = self.plan_instructed(study, pool, rng)
+            if plan is not None:
+                plan.instruction = self.instruct(study, len(plan.stimuli), rng)
+                catch.append(plan)
         session = assignment.arrange(main, catch, study.repeat_trials, rng)
         plans = ([practice] if practice else []) + session
         self.add_shown(study, pool, [p for p in plans if p.repeat_of is None], rng)
@@ -291,6 +301,22 @@ class StudyType:
             pool.positions[(seated.source, position)] += 1
         return TrialPlan(stimulus.action, stimuli, Trial.Kind.CATCH)
 
+    def plan_instructed(self, study, pool, rng) -> TrialPlan | None:
+        """Return a trial of judged clips of one action for an instructed check (its
+        instruction is added by :meth:`instruct`); it looks like any other trial."""
+        actions = sorted(pool.table)
+        if not actions:
+            return None
+        action = rng.choice(actions)
+        chosen = assignment.choose_balanced(pool.table[action], Counter(), rng,
+                                            self.items_per_trial(study))
+        if len(chosen) < self.min_items:
+            return None
+        stimuli = assignment.order_positions(chosen, pool.positions, rng)
+        for position, seated in enumerate(stimuli):
+            pool.positions[(seated.source, position)] += 1
+        return TrialPlan(action, stimuli, Trial.Kind.INSTRUCTED)
+
     def add_shown(self, study, pool, plans, rng) -> None:
         """Add the clips shown beside the judged ones (a reference, examples) to ``plans``
         (every plan but repeats, which show what their original showed)."""
@@ -304,6 +330,14 @@ class StudyType:
     def trial_context(self, study, trial, items) -> dict:
         """Return extra template context for the trial page."""
         return {}
+
+    def instruction_sentence(self, study, trial, judged) -> str:
+        """Return what an instructed check's page says (the first criterion's answer)."""
+        text = self.instruction_text(study, trial.instruction, judged)
+        criteria = self.criteria(study)
+        if len(criteria) > 1:
+            text += f" (in the question \u201c{criteria[0].text}\u201d)"
+        return f"This is an attention check: {text}"
 
     def item_field(self, study, item, label: str, n_items: int):
         """Return the form field of one judged clip's answer (prefix ``item_prefix``)."""
@@ -337,6 +371,8 @@ class StudyType:
         judged = [item for item in items if item.role == TrialItem.Role.JUDGED]
         if trial.kind == Trial.Kind.CATCH:
             return self.catch_passed(Graded(trial, judged, key))
+        if trial.kind == Trial.Kind.INSTRUCTED:
+            return self.obeyed(Graded(trial, judged, key), trial.instruction)
         if trial.kind == Trial.Kind.REPEAT and trial.repeat_of_id:
             before = trial.repeat_of
             earlier = list(before.items.filter(role=TrialItem.Role.JUDGED).select_related("stimulus"))
@@ -349,6 +385,31 @@ class StudyType:
 
     def consistent(self, before: "Graded", now: "Graded") -> bool:
         """Return whether a repeated trial got the same answer as the trial it repeats."""
+        raise NotImplementedError
+
+    # --- instructed-response checks ------------------------------------------------
+    # An instruction is a small mapping; ``position`` (when it has one) names the clip it
+    # is about. Two different instructions about the same clip (or without a clip)
+    # never accept the same answer, so an answer given to another one always fails.
+
+    def instruct(self, study, n_judged: int, rng) -> dict:
+        """Return the answer an instructed check of ``n_judged`` clips asks for (stored
+        in ``Trial.instruction``), drawn with ``rng``; it says nothing of the clips."""
+        raise NotImplementedError
+
+    def instruction_text(self, study, instruction: dict, judged) -> str:
+        """Return the words telling the participant exactly which answer to give
+        (``judged``: the trial's judged items in screen order)."""
+        raise NotImplementedError
+
+    def obeyed(self, answered: "Graded", instruction: dict) -> bool:
+        """Return whether the answer is the one ``instruction`` asked for."""
+        raise NotImplementedError
+
+    def obey(self, page, instruction: dict, answer: dict) -> dict:
+        """Return ``answer`` (the first criterion's fields, as :meth:`bot_answer` gives
+        them) changed to give what ``instruction`` asks; ``page.tokens`` are the judged
+        clips in screen order."""
         raise NotImplementedError
 
     # --- export ---------------------------------------------------------------------
@@ -388,6 +449,10 @@ class Graded:
     def value(self, item):
         return (item.answers or {}).get(self.key)
 
+    def at(self, position: int):
+        """Return the judged item at ``position`` (an instructed check's clip)."""
+        return next(item for item in self.items if item.position == position)
+
     def catch(self):
         """Return the broken clip of a catch trial."""
         return next(item for item in self.items if item.stimulus.role == Stimulus.Role.CATCH)
@@ -419,6 +484,11 @@ def scores_consistent(before: "Graded", now: "Graded", max_change) -> bool:
     earlier = before.by_stimulus()
     return all(abs(now.value(item) - before.value(earlier[item.stimulus_id])) <= max_change
                for item in now.items)
+
+
+def judged_at(judged, position: int):
+    """Return the item of ``judged`` shown at ``position``."""
+    return next(item for item in judged if item.position == position)
 
 
 def clip_label(position: int) -> str:

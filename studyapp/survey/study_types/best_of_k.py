@@ -10,7 +10,7 @@ trial: the position of the chosen clip, or ``"all_good"`` / ``"all_bad"``.
 from django import forms
 
 from studyapp.survey.answers import Criterion
-from studyapp.survey.study_types.base import Option, StudyType, registry
+from studyapp.survey.study_types.base import Option, StudyType, judged_at, registry
 
 ALL_GOOD, ALL_BAD = "all_good", "all_bad"
 NONE_BEST = {ALL_GOOD: "All good", ALL_BAD: "All bad"}
@@ -90,6 +90,19 @@ class BestOfK(StudyType):
     def consistent(self, before, now):
         """The same clip is picked again (or the same "all good"/"all bad")."""
         return picked(before.choice, before.items) == picked(now.choice, now.items)
+
+    def instruct(self, study, n_judged, rng):
+        return {"position": rng.randrange(n_judged)}
+
+    def instruction_text(self, study, instruction, judged):
+        label = self.item_label(judged_at(judged, instruction["position"]))
+        return f"choose {label} as the best, whatever you think of it."
+
+    def obeyed(self, answered, instruction):
+        return answered.choice == instruction["position"]
+
+    def obey(self, page, instruction, answer):
+        return answer | {"pick": page.tokens[instruction["position"]]}
 
     def export_values(self, trial_answer, item_answer, item, items):
         """``pick`` per clip: ``best`` (the picked clip), ``other``, ``all_good``, ``all_bad``."""

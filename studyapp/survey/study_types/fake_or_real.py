@@ -15,7 +15,7 @@ from django import forms
 
 from studyapp.survey import assignment
 from studyapp.survey.answers import Criterion
-from studyapp.survey.study_types.base import StudyType, TrialPlan, registry
+from studyapp.survey.study_types.base import StudyType, TrialPlan, judged_at, registry
 
 REAL = "real"
 VERDICTS = [("real", "Real"), ("generated", "Generated")]
@@ -130,6 +130,24 @@ class FakeOrReal(StudyType):
         earlier = before.by_stimulus()
         return all(now.value(item) == before.value(earlier[item.stimulus_id])
                    for item in now.items)
+
+    def instruct(self, study, n_judged, rng):
+        return {"position": rng.randrange(n_judged), "verdict": rng.choice(VERDICTS)[0]}
+
+    def instruction_text(self, study, instruction, judged):
+        said = dict(VERDICTS)[instruction["verdict"]]
+        if len(judged) == 1:
+            return f"answer \u201c{said}\u201d for this clip, whatever you think of it."
+        label = self.item_label(judged_at(judged, instruction["position"]))
+        return f"answer \u201c{said}\u201d for {label}, whatever you think of it."
+
+    def obeyed(self, answered, instruction):
+        value = answered.value(answered.at(instruction["position"]))
+        return value is (instruction["verdict"] == REAL)
+
+    def obey(self, page, instruction, answer):
+        token = page.tokens[instruction["position"]]
+        return answer | {f"judged_{token}": instruction["verdict"]}
 
     def export_values(self, trial_answer, item_answer, item, items):
         return {"judged_real": item_answer}

@@ -18,7 +18,14 @@ from django import forms
 from studyapp.survey.answers import Criterion
 from studyapp.survey.models import Stimulus
 from studyapp.survey import assignment
-from studyapp.survey.study_types.base import Option, StudyType, TrialPlan, registry, scores_consistent
+from studyapp.survey.study_types.base import (
+    Option,
+    StudyType,
+    TrialPlan,
+    judged_at,
+    registry,
+    scores_consistent,
+)
 
 SCALE = (0, 100)
 # The recommendation's five labelled intervals, top first.
@@ -109,6 +116,14 @@ class Mushra(StudyType):
             self._hide(plan, pool, rng)
         return plan
 
+    def plan_instructed(self, study, pool, rng):
+        """An instructed check shows the hidden reference and low anchor too, as every
+        trial does."""
+        plan = super().plan_instructed(study, pool, rng)
+        if plan is not None:
+            self._hide(plan, pool, rng)
+        return plan
+
     @staticmethod
     def _hide(plan, pool, rng):
         """Put the action's hidden reference and low anchor among a catch trial's clips,
@@ -141,6 +156,25 @@ class Mushra(StudyType):
     def consistent(self, before, now):
         """No clip's score moves by more than MAX_CHANGE."""
         return scores_consistent(before, now, MAX_CHANGE)
+
+    # --- instructed-response checks ---------------------------------------------------
+
+    def instruct(self, study, n_judged, rng):
+        """Ask for one end of a slider: 0 or 100 is easy to give exactly."""
+        return {"position": rng.randrange(n_judged), "score": rng.choice(SCALE)}
+
+    def instruction_text(self, study, instruction, judged):
+        label = self.item_label(judged_at(judged, instruction["position"]))
+        end = "left" if instruction["score"] == SCALE[0] else "right"
+        return (f"move the slider of {label} all the way to the {end}, to "
+                f"{instruction['score']}, whatever you think of it.")
+
+    def obeyed(self, answered, instruction):
+        return answered.value(answered.at(instruction["position"])) == instruction["score"]
+
+    def obey(self, page, instruction, answer):
+        token = page.tokens[instruction["position"]]
+        return answer | {f"score_{token}": str(instruction["score"])}
 
     def export_values(self, trial_answer, item_answer, item, items):
         return {"score": item_answer}

@@ -87,6 +87,19 @@ class Pairwise(StudyType):
         """The same clip is preferred again (or the same tie chosen)."""
         return chosen(before.choice, before.items) == chosen(now.choice, now.items)
 
+    def instruct(self, study, n_judged, rng):
+        return {"choice": rng.choice(["left", "right"])}
+
+    def instruction_text(self, study, instruction, judged):
+        return (f"choose \u201c{CHOICES[instruction['choice']]}\u201d, whatever you think of "
+                f"the clips.")
+
+    def obeyed(self, answered, instruction):
+        return answered.choice == instruction["choice"]
+
+    def obey(self, page, instruction, answer):
+        return answer | {"choice": instruction["choice"]}
+
     def export_values(self, trial_answer, item_answer, item, items):
         return {"choice": trial_answer}
 

@@ -121,6 +121,19 @@ class PairwiseGraded(StudyType):
             return was is None and is_now is None
         return abs(was - is_now) <= MAX_CHANGE and was * is_now >= 0
 
+    def instruct(self, study, n_judged, rng):
+        return {"choice": rng.choice(SCALE)[0]}
+
+    def instruction_text(self, study, instruction, judged):
+        said = next(text for value, text, _ in SCALE if value == instruction["choice"])
+        return f"choose \u201c{said}\u201d on the scale, whatever you think of the clips."
+
+    def obeyed(self, answered, instruction):
+        return answered.choice == instruction["choice"]
+
+    def obey(self, page, instruction, answer):
+        return answer | {"choice": instruction["choice"]}
+
     def export_values(self, trial_answer, item_answer, item, items):
         return {"choice": trial_answer, "grade": grade_of(trial_answer, item["position"])}
 

@@ -9,7 +9,7 @@ from collections import Counter
 from django import forms
 
 from studyapp.survey.answers import Criterion
-from studyapp.survey.study_types.base import StudyType, registry
+from studyapp.survey.study_types.base import StudyType, judged_at, registry
 
 # A repeated ranking is consistent when clips move by at most this many places on average.
 MAX_MEAN_RANK_CHANGE = 1.0
@@ -73,6 +73,24 @@ class Ranking(StudyType):
         moves = [abs(now.value(item) - before.value(earlier[item.stimulus_id]))
                  for item in now.items]
         return sum(moves) / len(moves) <= MAX_MEAN_RANK_CHANGE
+
+    def instruct(self, study, n_judged, rng):
+        return {"position": rng.randrange(n_judged), "rank": rng.randint(1, n_judged)}
+
+    def instruction_text(self, study, instruction, judged):
+        label = self.item_label(judged_at(judged, instruction["position"]))
+        return f"give {label} rank {instruction['rank']}, whatever you think of it."
+
+    def obeyed(self, answered, instruction):
+        return answered.value(answered.at(instruction["position"])) == instruction["rank"]
+
+    def obey(self, page, instruction, answer):
+        """Swap ranks so that the clip asked about has the rank asked for."""
+        wanted = f"rank_{page.tokens[instruction['position']]}"
+        rank = str(instruction["rank"])
+        holder = next(name for name, value in answer.items()
+                      if name.startswith("rank_") and value == rank)
+        return answer | {holder: answer[wanted], wanted: rank}
 
     def export_values(self, trial_answer, item_answer, item, items):
         return {"rank": item_answer}

@@ -8,7 +8,7 @@ template ``rating.html`` beside this module.
 from django import forms
 
 from studyapp.survey.answers import Criterion
-from studyapp.survey.study_types.base import StudyType, scores_consistent
+from studyapp.survey.study_types.base import StudyType, judged_at, scores_consistent
 
 SCALE = [
     (1, "Not realistic at all"),
@@ -54,6 +54,20 @@ class RatingStudy(StudyType):
     def consistent(self, before, now):
         """No clip's score changes by more than one."""
         return scores_consistent(before, now, MAX_CHANGE)
+
+    def instruct(self, study, n_judged, rng):
+        return {"position": rng.randrange(n_judged), "score": rng.choice(SCALE)[0]}
+
+    def instruction_text(self, study, instruction, judged):
+        label = self.item_label(judged_at(judged, instruction["position"]))
+        return f"give {label} a score of {instruction['score']}, whatever you think of it."
+
+    def obeyed(self, answered, instruction):
+        return answered.value(answered.at(instruction["position"])) == instruction["score"]
+
+    def obey(self, page, instruction, answer):
+        token = page.tokens[instruction["position"]]
+        return answer | {f"rating_{token}": str(instruction["score"])}
 
     def export_values(self, trial_answer, item_answer, item, items):
         return {"rating": item_answer}

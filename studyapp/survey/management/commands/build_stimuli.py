@@ -27,6 +27,8 @@ class Command(BaseCommand):
     def handle(self, *args, **options):
         try:
             config = load_config(options["config"], options["overrides"])
+            for warning in config.warnings:
+                self.stderr.write(f"Warning: {warning}")
             folder, cache = default_folders(config, options["out"], options["cache"])
             result = build_stimuli(config, folder, log=self.stdout.write,
                                    dry_run=options["dry_run"], cache=cache)

@@ -1,3 +1,4 @@
+import ipaddress
 import secrets
 from pathlib import Path
 
@@ -9,11 +10,28 @@ from django.db import transaction
 from django.urls import reverse
 
 from studyapp.survey.models import Participant, Study
-from studyapp.survey.site import DEFAULT_ADDR, AddressError, check_free, record_served, url_of
+from studyapp.survey.site import (
+    DEFAULT_ADDR,
+    AddressError,
+    check_free,
+    record_served,
+    split_addr,
+    url_of,
+)
 from studyapp.survey.stimulus_build import BuildError, build_stimuli, default_folders
 from studyapp.survey.stimulus_config import ConfigError, load_config
 
 DEMO_CONFIGS = Path(settings.BASE_DIR) / "studies" / "demo"
+
+
+def is_loopback(host: str) -> bool:
+    """Return whether ``host`` (a name or an address) is this machine's loopback only."""
+    if host.lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False  # another name: it may resolve to any interface
 
 
 def demo_configs(folder: Path = DEMO_CONFIGS) -> list[Path]:
@@ -45,7 +63,8 @@ class Command(BaseCommand):
         "Build the demo studies (studies/demo/*.yaml, one study of every type, through the "
         "same build as build_stimuli: synthetic demo data, two methods whose tiny "
         "checkpoints ship with the code) and serve them at 127.0.0.1:8000 (--addr "
-        "HOST:PORT elsewhere). A second run reuses what was built."
+        "HOST:PORT elsewhere; on anything but loopback with DEBUG off). A second run reuses "
+        "what was built."
     )
 
     def add_arguments(self, parser):
@@ -123,4 +142,17 @@ class Command(BaseCommand):
         self.stdout.write(self.style.SUCCESS("\n".join(lines)))
         if not options["no_serve"]:
             record_served(options["addr"])
-            call_command("runserver", options["addr"], use_reloader=False)
+            self.serve(options["addr"])
+
+    def serve(self, addr: str) -> None:
+        """Serve at ``addr``: with Django's debug pages (settings, paths, tracebacks) on
+        loopback only; listening on anything else, with ``DEBUG`` off."""
+        host, _ = split_addr(addr)
+        if not is_loopback(host):
+            settings.DEBUG = False
+            self.stdout.write(
+                f"demo: listening on {host}, so DEBUG is off (no debug pages with settings and "
+                f"paths); other machines reach it by the names in DJANGO_ALLOWED_HOSTS (now "
+                f"{','.join(settings.ALLOWED_HOSTS)})")
+        # DEBUG off: runserver serves the static files only when asked (insecure_serving).
+        call_command("runserver", addr, use_reloader=False, insecure_serving=not settings.DEBUG)

@@ -63,18 +63,22 @@ class Command(BaseCommand):
         listing.add_argument("--json", action="store_true", help="One JSON object per line.")
 
         check = command("review", "Approve completed submissions and ask failed-attention "
-                                  "ones to return (or reject them), by our exclusions.")
+                                  "ones to return (or reject them), by our exclusions; flag "
+                                  "our participants whose ids Prolific does not know.")
         failed = check.add_mutually_exclusive_group()
         failed.add_argument("--return-failed", dest="reject_failed", action="store_false",
                             help="Ask participants who failed the attention checks to return "
                                  "their submission (the default).")
         failed.add_argument("--reject-failed", dest="reject_failed", action="store_true",
-                            help="Reject them instead (category FAILED_CHECK).")
+                            help="Reject them instead (category FAILED_CHECK), if they "
+                                 "failed at least two checks (Prolific's rule; with fewer, "
+                                 "a return is asked for).")
         check.set_defaults(reject_failed=False)
         check.add_argument("--reject-message", default=review.DEFAULT_REJECT_MESSAGE,
                            help="What a rejected participant reads (at least 100 characters).")
         check.add_argument("--max-failed-catch", type=int, help="Exclude participants who "
-                           "failed more than N catch trials (default: the study's own rule).")
+                           "failed more than N attention checks, catch and instructed "
+                           "trials (default: the study's own rule).")
         check.add_argument("--max-failed-repeats", type=int, help="Also exclude participants "
                            "who answered more than N repeated trials differently.")
         check.add_argument("--dry-run", action="store_true",
@@ -133,9 +137,15 @@ class Command(BaseCommand):
             minutes = payload["estimated_completion_time"]
             self.stdout.write(f"Reward {payload['reward']} cents: {minutes} minutes at "
                               f"{options['hourly_cents']} cents an hour (--reward-cents sets it).")
-        if not (study.crowd or {}).get("time_limit_minutes"):
-            self.stdout.write("The study has no crowd.time_limit_minutes: Prolific applies its "
-                              "own maximum time; set the same limit here so both agree.")
+        limit = payload.get("maximum_allowed_time")
+        if limit is None:
+            self.stdout.write("The study has no time limit (crowd.time_limit_minutes: null): "
+                              "Prolific applies its own maximum time.")
+        elif "time_limit_minutes" not in (study.crowd or {}):
+            self.stdout.write(f"Time limit {limit} minutes (3 x the estimated "
+                              f"{payload['estimated_completion_time']}, at least Prolific's "
+                              f"minimum): sent as Prolific's maximum allowed time and stored "
+                              f"as crowd.time_limit_minutes, so both time people out alike.")
         if options["dry_run"]:
             if made:
                 self.stdout.write(f"Would generate completion codes for {', '.join(made)} "
@@ -145,7 +155,10 @@ class Command(BaseCommand):
             return
         created = Client.from_env().create_study(payload)
         crowd.update(platform="prolific", codes=codes, prolific_study_id=created["id"])
+        crowd.setdefault("time_limit_minutes", limit)
         _save_crowd(study, crowd)
+        for warning in study.crowd_warnings():
+            self.stderr.write(f"Warning: {warning}")
         if made:
             self.stdout.write(f"Generated completion codes for {', '.join(made)} and stored "
                               f"them in the study's crowd settings: "
@@ -198,6 +211,8 @@ class Command(BaseCommand):
         self.stdout.write("\t".join(header))
         for row in rows:
             self.stdout.write("\t".join("" if row[k] is None else str(row[k]) for k in header))
+        for row, why in review.unknown_ids(study, submissions):
+            self.stdout.write(f"flagged: participant {int(row['participant'])}: {why}")
 
     def do_review(self, study, options):
         message = options["reject_message"]
@@ -225,6 +240,11 @@ class Command(BaseCommand):
                 d.action, f"{verb}{d.action}")
             self.stdout.write(f"{label}: {d.prolific_id} ({who}, submission {d.submission_id}"
                               f", {d.submission.get('status')}): {d.why}{note}")
+        for row, why in review.unknown_ids(study, submissions):
+            self.stdout.write(f"flagged: participant {int(row['participant'])} "
+                              f"(outcome {review.text(row.get('outcome')) or 'taking part'}): "
+                              f"{why}; a made-up id? Their answers stay in the export with "
+                              f"their ids.")
         if not options["dry_run"]:
             self._act(client, decisions, message)
         done = ", ".join(f"{counts.get(a, 0)} {a}" for a in
@@ -323,9 +343,8 @@ def _prolific_id(study) -> str:
 def _save_crowd(study, crowd: dict) -> None:
     """Store ``crowd`` on ``study`` after the same checks as the admin's."""
     study.crowd = crowd
-    try:
-        study.platform  # validates the settings
-    except ValueError as error:
-        raise CommandError(f"cannot store the crowd settings: {error}") from None
+    problem = study.crowd_problem()  # the admin's checks: settings, a code per outcome
+    if problem:
+        raise CommandError(f"cannot store the crowd settings: {problem}")
     study.save(update_fields=["crowd"])
 

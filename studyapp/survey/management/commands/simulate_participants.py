@@ -22,8 +22,9 @@ class Command(BaseCommand):
         "Play a study through its real pages with N simulated participants (bots), several "
         "at once. Each bot fetches every clip as a browser does and waits as long as the "
         "clips play (the server refuses answers sooner). Policies: random, prefer-real, bt "
-        "(Bradley-Terry strengths per source), inattentive (fails every catch trial), "
-        "decline (no consent), screen-out (fails the screening questions); see "
+        "(Bradley-Terry strengths per source), inattentive (fails every catch trial and "
+        "instructed check), decline (no consent), screen-out (fails the screening "
+        "questions); see "
         "studyapp/survey/bots.py. Sources come from the database, never the page."
     )
 
