@@ -57,6 +57,8 @@ BENDING = math.radians(25)
 # How near a catch clip's numbers stay to its base's (catch_family): the mean squared
 # log ratio of its profile, 0.1 being about 30 % off on average.
 NEAR = 0.1
+# What a kind used once more in the family weighs against the family's drift (catch_family).
+SPREAD = 0.02
 EPS = 1e-9
 
 
@@ -116,6 +118,8 @@ class Body:
 
     @classmethod
     def of(cls, motion: Motion) -> "Body":
+        """Return the body of ``motion``'s skeleton: limbs are its sided chains (legs from
+        the root, arms from elsewhere), the neck the centre chain reaching highest."""
         skeleton = get_skeleton(motion.skeleton)
         parents = skeleton.parents
         children: dict[int, list[int]] = {}
@@ -400,22 +404,28 @@ def broken(motion: Motion, kind: str, rng, source: str = "broken") -> Motion:
 def profile(joints: np.ndarray, body: Body, fps: float) -> np.ndarray:
     """Return what a script measures of a clip's numbers, each as a positive number:
     the figure's height (the vertical extent of a frame: mean, spread, least, most), how
-    high its lowest, highest and mean points are above the floor, its extent along each
+    high its lowest point is above the floor (mean and spread over frames, how far it
+    sinks below), how high its highest and mean points are (and the mean's share of the
+    height), its extent along each
     horizontal axis, how far its centre goes, and the mean, spread, 90th percentile and
     most of the joints' speeds, accelerations and jerk."""
     up = joints @ body.up  # (T, J)
     heights = up.max(axis=1) - up.min(axis=1)
     scale = max(float(np.median(heights)), EPS)
     floor = np.percentile(up.min(axis=1), 10)  # as the framing puts clips on the floor
+    lowest = up.min(axis=1) - floor
     lengths = [heights.mean(), heights.std(), heights.min(), heights.max(),
-               up.min(axis=1).mean() - floor, up.max() - floor, up.mean() - floor]
+               lowest.mean(), lowest.std(), -lowest.min(), up.max() - floor,
+               up.mean() - floor]
     flat = joints - up[..., None] * body.up
     lengths += list(np.ptp(flat.reshape(-1, joints.shape[-1]), axis=0))
     centre = joints.mean(axis=1)
     lengths.append(np.linalg.norm(np.diff(centre, axis=0), axis=-1).sum() if len(joints) > 1
                    else 0.0)
-    # Lengths are compared from a hundredth of the figure's height up, rates as they are.
+    # Lengths are compared from a hundredth of the figure's height up, rates as they are;
+    # where the body's mass sits in its height, as a share.
     out = [abs(value) + 0.01 * scale for value in lengths]
+    out.append((up.mean() - floor) / max(heights.mean(), EPS) + 0.01)
     for order in (1, 2, 3):
         if len(joints) > order:
             rate = np.linalg.norm(np.diff(joints, order, axis=0), axis=-1) * fps ** order
@@ -425,24 +435,40 @@ def profile(joints: np.ndarray, body: Body, fps: float) -> np.ndarray:
     return np.asarray(out, dtype=float)
 
 
+def _shift(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Return profile ``a``'s log ratios to profile ``b``."""
+    floor = 1e-9 * (np.abs(b).max() + 1e-9)
+    return np.log((np.abs(a) + floor) / (np.abs(b) + floor))
+
+
 def _unlike(a: np.ndarray, b: np.ndarray) -> float:
     """Return how far two profiles are apart: the mean squared log ratio."""
-    floor = 1e-9 * (np.abs(b).max() + 1e-9)
-    return float((np.log((np.abs(a) + floor) / (np.abs(b) + floor)) ** 2).mean())
+    return float((_shift(a, b) ** 2).mean())
 
 
 def catch_family(bases: list[Motion], per_base: int, rng, source: str = "broken",
                  tries: int = 6) -> list[Motion]:
-    """Return ``per_base`` broken versions of each base (catch clips), of different kinds.
+    """Return ``per_base`` broken versions of each base (catch clips), of different kinds,
+    base after base (see :func:`catch_candidates`)."""
+    return [m for versions in catch_candidates(bases, per_base, rng, source, tries)
+            for m in versions]
 
-    Every kind that fits a base is drawn ``tries`` times (parameters from ``rng``) and
-    its version whose numbers (:func:`profile`) are nearest the base's is its
-    candidate; of the candidates within ``NEAR`` of the base (at least the
-    ``per_base`` nearest), those of the kinds least used so far in the family are kept.
+
+def catch_candidates(bases: list[Motion], per_base: int, rng, source: str = "broken",
+                     tries: int = 6) -> list[list[Motion]]:
+    """Return, per base, ``per_base`` broken versions of it, of different kinds.
+
+    Every kind that fits a base is drawn ``tries`` times (parameters from ``rng``); a
+    version is a candidate when its numbers (:func:`profile`) stay within ``NEAR`` of
+    the base's (else the nearest few are). Each pick is the candidate that keeps the
+    family's numbers, summed over the versions kept so far, nearest their bases' (a
+    version that makes the figure shorter is balanced by one that makes it taller), a
+    kind the base has not had yet, the kinds least used so far in the family first.
     Catch clips are then spread in their numbers as the clips they are made from are,
     and in their kinds as widely as that allows.
     """
     made, used = [], {kind: 0 for kind in KINDS}
+    drift = None  # the family's summed log ratios to its bases
     for base in bases:
         body = Body.of(base)
         target = profile(base.joints.astype(np.float64), body, base.fps)
@@ -450,22 +476,25 @@ def catch_family(bases: list[Motion], per_base: int, rng, source: str = "broken"
         for kind in kinds_for(base):
             for _ in range(tries):
                 motion = broken(base, kind, rng, source)
-                distance = _unlike(profile(motion.joints.astype(np.float64), body, base.fps),
-                                   target)
-                candidates.append((distance, kind, motion))
-        nearest = {}  # kind -> (distance, motion), its nearest version
-        for distance, kind, motion in candidates:
-            if kind not in nearest or distance < nearest[kind][0]:
-                nearest[kind] = (distance, motion)
-        ranked = sorted(nearest, key=lambda k: nearest[k][0])
-        near = [k for k in ranked if nearest[k][0] <= NEAR]
-        if len(near) < per_base:
-            near = ranked[:per_base]
-        for _ in range(min(per_base, len(near))):
-            kind = min(near, key=lambda k: (used[k], nearest[k][0]))
-            made.append(nearest[kind][1])
-            used[kind] += 1
-            near.remove(kind)
+                shift = _shift(profile(motion.joints.astype(np.float64), body, base.fps),
+                               target)
+                candidates.append((float((shift ** 2).mean()), kind, shift, motion))
+        candidates.sort(key=lambda c: c[0])
+        near = [c for c in candidates if c[0] <= NEAR]
+        if len({c[1] for c in near}) < per_base:
+            kinds = list(dict.fromkeys(c[1] for c in candidates))[:per_base]
+            near = [c for c in candidates if c[0] <= NEAR or c[1] in kinds]
+        drift = np.zeros_like(target) if drift is None else drift
+        made.append([])
+        for _ in range(per_base):
+            if not near:
+                break
+            pick = min(near, key=lambda c: float(((drift + c[2]) ** 2).mean())
+                       + SPREAD * used[c[1]])
+            made[-1].append(pick[3])
+            used[pick[1]] += 1
+            drift = drift + pick[2]
+            near = [c for c in near if c[1] != pick[1]]
     return made
 
 

@@ -174,7 +174,7 @@ class Build:
                 self.step(f"sampled {source.name}")
             if c.prompts is None:
                 base, framing = self.real_base()
-                extras = self.extras(base) + catch_clips(self, groups)
+                extras = self.extras(base) + catch_clips(self, groups, framing)
             else:
                 same_skeleton(groups)
                 # As with actions, real clips set the framing when there are any (a change
@@ -183,7 +183,7 @@ class Build:
                         for m in motions]
                 framing = self.pooled_framing(real or [m for _, motions, _ in groups
                                                        for m in motions])
-                extras = prompt_catch_clips(self, groups)
+                extras = prompt_catch_clips(self, groups, framing)
             self.step("framing")
             judged = [(m, meta) for _, motions, meta in groups for m in motions]
             self.bar.total += len(judged) + len(extras)

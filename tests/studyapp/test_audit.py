@@ -130,8 +130,8 @@ def test_the_demo_passes_the_deep_audit_and_shaken_catch_clips_fail_it(
     assert set(result) >= {"source: payload", "catch: payload"}
     assert result["source: payload"]["kind"] == "content"  # the motion itself: told, not failed
     # The attack of before: catch clips shaken, bones stretching; the payload tells them.
-    monkeypatch.setattr(perturb, "catch_family", lambda bases, per, rng, *a, **k: [
-        perturb.jitter(m, 0.25, rng, "broken") for m in bases for _ in range(per)])
+    monkeypatch.setattr(perturb, "catch_candidates", lambda bases, per, rng, *a, **k: [
+        [perturb.jitter(m, 0.25, rng, "broken") for _ in range(per)] for m in bases])
     config = load_config(DEMO_CONFIGS / "ranking.yaml", overrides + ["slug=shaken"])
     shaken = build_stimuli(config, tmp_path / "b2", cache=tmp_path / "cache").study
     result, text, error = audit(shaken, live_server.url, tmp_path)

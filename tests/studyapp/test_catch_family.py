@@ -35,7 +35,7 @@ def test_a_build_makes_a_catch_family_of_every_source(built):
     # The bases: one clip of each source per action, none of them judged, cached.
     build = Build(config, tmp_path / "b", cache=tmp_path / "cache")
     groups = [(source, *build.source_motions(source)[:2]) for source in config.sources]
-    family = catch_clips(build, groups)
+    family = catch_clips(build, groups, build.real_base()[1])
     assert len(family) == len(catch) and all(role == "catch" for _, role, _ in family)
     kinds = [motion.meta["broken"] for motion, _, _ in family]
     assert all(a != b for a, b in zip(kinds[::2], kinds[1::2]))  # two kinds per base
@@ -69,3 +69,34 @@ def test_the_dry_run_counts_the_family(db, media_root, tmp_path):
     lines = []
     Build(config, tmp_path / "b", log=lines.append, cache=tmp_path / "cache").run(dry_run=True)
     assert f"{CATCH_PER_BASE * 3} catch" in lines[-1]
+
+
+def test_the_versions_kept_match_the_judged_clips_payload_numbers(built):
+    """Of four versions per base, the two kept bring the family's payload numbers (mean and
+    mean square, standardised on the judged clips) nearer the judged clips' than the two
+    nearest their base would."""
+    import numpy as np
+
+    from generation import perturb
+    from studyapp.survey.catch_clips import _numbers, keep_like
+
+    config, _, tmp_path = built
+    build = Build(config, tmp_path / "b", cache=tmp_path / "cache")
+    groups = [(source, *build.source_motions(source)[:2]) for source in config.sources]
+    framing = build.real_base()[1]
+    judged = [m for _, motions, _ in groups for m in motions]
+    bases = [m for source, motions, meta in groups
+             for m in catch_bases(build, source, motions, meta)]
+    candidates = perturb.catch_candidates(bases, 4, np.random.default_rng(0))
+    rows = _numbers(judged, framing)
+    names = sorted(rows[0])
+    table = np.array([[r[n] for n in names] for r in rows])
+    mean, spread = table.mean(axis=0), np.where(table.std(axis=0) > 0, table.std(axis=0), 1)
+
+    def mismatch(motions):
+        z = (np.array([[r[n] for n in names] for r in _numbers(motions, framing)]) - mean) / spread
+        return float((z.mean(axis=0) ** 2).sum() + (((z ** 2).mean(axis=0) - 1) ** 2).sum())
+
+    kept = keep_like(judged, candidates, framing)
+    assert len(kept) == 2 * len(bases)
+    assert mismatch(kept) < mismatch([m for versions in candidates for m in versions[:2]])
