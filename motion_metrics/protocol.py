@@ -229,8 +229,8 @@ def _summary(values: np.ndarray) -> dict:
     finite = values[np.isfinite(values)]
     if finite.size == 0:
         return {"mean": None, "ci": None, "std": None, "values": [None] * len(values)}
-    mean, ci = M.mean_ci(finite)
-    return {"mean": mean, "ci": ci, "std": float(finite.std()),
+    mean, ci = M.mean_ci(finite)  # a t interval over the repeats (none of one repeat)
+    return {"mean": mean, "ci": ci if np.isfinite(ci) else None, "std": float(finite.std()),
             "values": [float(v) if np.isfinite(v) else None for v in values]}
 
 

@@ -138,4 +138,6 @@ class Command(BaseCommand):
 def _cell(summary) -> str:
     if not summary or summary["mean"] is None or not math.isfinite(summary["mean"]):
         return "-"
+    if summary.get("ci") is None:
+        return f"{summary['mean']:.4g}"
     return f"{summary['mean']:.4g} ± {summary['ci']:.2g}"
