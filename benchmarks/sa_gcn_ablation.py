@@ -8,7 +8,7 @@ Run (what docs/SA_GCN_COLLAPSE.md reports):
 Every cell trains ``sa_gcn`` on h36m2d (training subjects S1, S5, S6, S7, S8; held-out
 S9, as ``benchmark_methods``) with the ``demo`` preset's sizes and learning rate and the
 cell's switches, once per seed, for ``--iters`` iterations through the benchmark's own
-training loop (:func:`motion_metrics.benchmark.train_within_budget`). Cells cross the
+training loop (:func:`generation.methods.budget.train_within_budget`). Cells cross the
 initialisation (torch's ``default`` or ``he``) with the conditioning (Eq. 1 alone,
 the mismatched-label term, the authors' class head), with the attention's departures
 (LayerNorm on Q/K, gated residual, extra self-loop) all on and all off. Each last
@@ -37,7 +37,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from generation.datasets import get_dataset
 from generation.formats import npz
 from generation.recognition import ActionClassifier, Split
-from motion_metrics.benchmark import H36M_TEST, H36M_TRAIN, Recipe, t_interval, train_within_budget
+from generation.methods.budget import train_within_budget
+from generation.methods.schedule import Recipe
+from motion_metrics.benchmark import H36M_TEST, H36M_TRAIN, t_interval
 from motion_metrics.evaluate import evaluate
 
 INITS = ("default", "he")

@@ -249,10 +249,26 @@ def test_iteration_budget_shortens_first_phases_of_default_recipes():
     assert recipe_for("skeleton_gan", None, 80).describe() == "demo (pretrain_iters=40)"
     assert recipe_for("two_stage_gan", None, 80).changes == {"pose_iterations": 40}
     assert recipe_for("odmo", None, 100).changes == {"teacher_forcing_iters": 75}
-    assert recipe_for("odmo", None, 1000).changes == {"teacher_forcing_iters": 300}
+    assert recipe_for("odmo", None, 2000).changes == {}  # the demo preset's 1,000 fit in 75 %
     assert recipe_for("skeleton_gan", None, None).changes == {}
-    assert recipe_for("skeleton_gan", {"skeleton_gan": "demo"}, 80).changes == {}
+    # A preset named for the method takes the same schedule.
+    assert recipe_for("skeleton_gan", {"skeleton_gan": "paper"}, 80).changes == {"pretrain_iters": 40}
     assert recipe_for("a2m", None, 80) == Recipe()
+
+
+def test_full_schedule_refuses_a_budget_inside_the_first_phase():
+    """The study builds' and ``train``'s other rule: the preset's phases as they are, and a
+    budget that ends inside the first is refused, naming the phase and the fix."""
+    from generation.methods.schedule import ScheduleError, recipe_for as schedule
+
+    with pytest.raises(ScheduleError, match=r"c_skeleton_gan pretrains its frame decoder for its "
+                                            r"first 10,000 iterations \(pretrain_iters of the paper "
+                                            r"preset\); 2,000 iterations end inside that phase"):
+        schedule("c_skeleton_gan", "paper", 2000, "full")
+    assert schedule("c_skeleton_gan", "paper", 12_000, "full").changes == {}
+    assert schedule("a2m", "paper", 10, "full") == Recipe("paper")
+    with pytest.raises(ScheduleError, match="unknown schedule 'fast'"):
+        schedule("a2m", "paper", 10, "fast")
 
 
 def test_training_resumes_to_a_larger_budget(tmp_path):
