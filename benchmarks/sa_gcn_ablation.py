@@ -127,6 +127,7 @@ def main():
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--attention", default=",".join(ATTENTION),
                         help="blocks to run: attention_on, attention_off")
+    parser.add_argument("--cells", help="only these cells, e.g. attention_off/he/eq1,...")
     parser.add_argument("--classifier", type=Path, help="evaluate with this classifier checkpoint")
     parser.add_argument("--out", type=Path, help="write the table (and results.json beside it)")
     args = parser.parse_args()
@@ -139,7 +140,10 @@ def main():
     classifier = ActionClassifier.load(args.classifier) if args.classifier else None
     key = classifier_key(args.classifier) if args.classifier else None
     results = {}
-    for name, changes in cells(args.attention.split(",")).items():
+    chosen = cells(args.attention.split(","))
+    if args.cells:
+        chosen = {name: chosen[name] for name in args.cells.split(",")}
+    for name, changes in chosen.items():
         folder = args.work / args.iters.__str__() / name.replace("/", "-")
         results[name] = {}
         for seed in seeds:
