@@ -65,6 +65,7 @@ class StudyResult:
     design: str = ""
     criterion: str = ""  # the question analysed, when a trial asked several
     blindness: dict | None = None  # the blindness audit of the served clips, when run
+    appendix: list[Table] = field(default_factory=list)  # tables the caller adds (e.g. stimuli)
 
     @property
     def tables(self) -> list[Table]:
@@ -84,7 +85,7 @@ class StudyResult:
                 "blindness", "Blindness audit: a classifier of what the browser receives per "
                 "clip (sizes, headers, MP4 boxes and frames), cross-validated accuracy against "
                 "chance", pd.DataFrame(rows)))
-        return self.analysis.tables + extra
+        return self.analysis.tables + extra + self.appendix
 
     def summary(self) -> dict:
         """Return the content of ``summary.json``: per source score, interval and N, and the order."""

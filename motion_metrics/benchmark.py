@@ -55,6 +55,7 @@ from generation import recognition
 from generation.motion import MotionError
 from generation.recognition import ActionClassifier, ClassifierError, one_thread, train_classifier
 from generation.skeletons import get_skeleton
+from motion_metrics.checkpoint_metrics import sample_for_metrics
 from motion_metrics.evaluate import EvaluationError, evaluate, training_mmd
 from motion_metrics.protocol import MMD_PROTOCOLS
 from scipy import stats
@@ -534,7 +535,7 @@ def _run_seed(method, setting, data, classifier, train, recipe, budget, iters, f
         return entry
     try:
         start = time.perf_counter()
-        motions = model.sample([action for action in classifier.actions for _ in range(n)], seed=seed)
+        motions = sample_for_metrics(model, classifier.actions, n, seed)  # as a build measures
         npz.save(folder / f"{stem}.npz", motions)
         values = evaluate(data, motions, classifier, setting.metrics, repeats, seed,
                           mmd_protocol=mmd_protocol)

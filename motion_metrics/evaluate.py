@@ -60,7 +60,7 @@ def evaluate(dataset: Dataset | str, motions: Sequence[Motion], classifier: Acti
              metrics: Sequence[str] | None = None, repeats: int = 20, seed: int = 0, *,
              real_modes=None, end_targets=None, data_root=None, diversity_pairs: int = 200,
              multimodality_pairs: int = 20, bandwidths=BANDWIDTHS,
-             mmd_protocol: str = "heldout") -> dict:
+             mmd_protocol: str = "heldout", split=None) -> dict:
     """Return every metric's mean, 95 % CI and per-repeat values, with the Real values beside.
 
     The ``bootstrap`` protocol: ``motions`` are resampled in each repeat, and Real compares
@@ -74,12 +74,14 @@ def evaluate(dataset: Dataset | str, motions: Sequence[Motion], classifier: Acti
     ``mmd_protocol`` is how MMD_avg and MMD_seq are measured (``MMD_PROTOCOLS``):
     ``heldout`` (the default, the protocol's draws against the held-out clips) or
     ``paper`` (:func:`motion_metrics.protocol.paper_mmd`: against the training clips,
-    standardised, equal counts); the result names it under ``mmd_protocol``.
+    standardised, equal counts); the result names it under ``mmd_protocol``. ``split``
+    (a :class:`generation.recognition.Split`) says which real clips are held out when no
+    classifier brings its own.
     """
     return _evaluate(dataset, list(motions), classifier, metrics, repeats, seed, "bootstrap",
                      real_modes=real_modes, end_targets=end_targets, data_root=data_root,
                      diversity_pairs=diversity_pairs, multimodality_pairs=multimodality_pairs,
-                     bandwidths=bandwidths, mmd_protocol=mmd_protocol)
+                     bandwidths=bandwidths, mmd_protocol=mmd_protocol, split=split)
 
 
 def evaluate_model(dataset: Dataset | str, model, classifier: ActionClassifier | None = None,
@@ -151,7 +153,7 @@ def training_mmd(motions: Sequence[Motion], train_clips: Sequence[Motion], metri
 
 def _evaluate(dataset, motions: list[Motion], classifier, metrics, repeats, seed, protocol_name,
               *, more=None, real_modes, end_targets, data_root, diversity_pairs, multimodality_pairs,
-              bandwidths, mmd_protocol="heldout") -> dict:
+              bandwidths, mmd_protocol="heldout", split=None) -> dict:
     """Evaluate one set of motions (``bootstrap``), or ``motions`` then ``more(r)`` per repeat ``r``."""
     if mmd_protocol not in protocol.MMD_PROTOCOLS:
         raise EvaluationError(f"unknown MMD protocol {mmd_protocol!r}; choose one of: "
@@ -172,7 +174,10 @@ def _evaluate(dataset, motions: list[Motion], classifier, metrics, repeats, seed
     else:
         names = data.actions()
     clips = data.clips(frames=frames, fps=fps, actions=actions)
-    split = classifier.split if classifier is not None and classifier.split else make_split(data, clips)
+    if classifier is not None and classifier.split:
+        split = classifier.split
+    elif split is None:
+        split = make_split(data, clips)
     train, test = split.divide(clips)
     index = {name: i for i, name in enumerate(names)}
     sets = {}

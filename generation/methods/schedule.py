@@ -114,5 +114,5 @@ def check_budget(method: str, preset: str, iters: int, length: int) -> None:
         raise ScheduleError(
             f"{method} {phase.what} for its first {length:,} iterations ({phase.field} of the "
             f"{preset} preset); {iters:,} iterations end inside that phase. Give more than "
-            f"{length:,} iterations, or the benchmark schedule (its first phase then takes "
+            f"{length:,} iterations, or schedule: benchmark (the phase then takes "
             f"{phase.share:.0%} of the budget, as benchmark_methods trains it)")
