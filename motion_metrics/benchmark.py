@@ -29,6 +29,7 @@ from __future__ import annotations
 import json
 import os
 import platform
+import shutil
 import time
 from dataclasses import dataclass, replace
 from datetime import datetime, timezone
@@ -42,14 +43,14 @@ from tqdm import tqdm
 from generation.datasets import get_dataset
 from generation.datasets.base import DATASETS
 from generation.formats import npz
-from generation.methods import Method, MethodError, list_methods
+from generation.methods import Method, MethodError, get_method, list_methods
 from generation.methods.budget import (
     candidate_path,
     read_json,
     train_within_budget,
     write_json,
 )
-from generation.methods.schedule import Recipe
+from generation.methods.schedule import Recipe, departures
 from generation.methods.schedule import recipe_for as schedule_recipe
 from generation import recognition
 from generation.motion import MotionError
@@ -194,9 +195,38 @@ def recipe_for(method: str, presets: dict[str, str] | None = None,
     return schedule_recipe(method, (presets or {}).get(method, "demo"), iters, "benchmark")
 
 
-def run_stem(method: str, seed: int, selection: Selection = LAST) -> str:
-    """Return the file name (without suffix) of ``method``'s run with training ``seed`` (and ``selection``)."""
-    return f"{method}-seed{seed}{selection.key()}"
+def run_stem(method: str, seed: int, selection: Selection = LAST, iters: int | None = None) -> str:
+    """Return the file name (without suffix) of ``method``'s run with training ``seed``, budget
+    ``iters`` (none for a time budget) and ``selection``."""
+    budget = "" if iters is None else f"-it{iters}"
+    return f"{method}-seed{seed}{budget}{selection.key()}"
+
+
+def start_from_shorter(folder: Path, method: str, seed: int, selection: Selection, iters: int) -> None:
+    """Copy the longest finished shorter run of the same method and seed to this budget's files.
+
+    :func:`generation.methods.budget.train_within_budget` then resumes it to ``iters`` if
+    its recipe and config are this budget's too (a method whose first phase takes a share of
+    the budget has another config at another budget, and trains afresh): a budget sweep
+    trains a method without phases once, to its largest budget, keeping every budget's
+    checkpoint.
+    """
+    target = folder / f"{run_stem(method, seed, selection, iters)}.pt"
+    if target.is_file():
+        return
+    shorter = []
+    for record_path in folder.glob(f"{method}-seed{seed}-it*{selection.key()}.json"):
+        budget = record_path.stem[len(f"{method}-seed{seed}-it"):].removesuffix(selection.key())
+        record = read_json(record_path)
+        if budget.isdigit() and int(budget) < iters and record.get("finished"):
+            shorter.append((int(budget), record_path))
+    if shorter:
+        _, record_path = max(shorter)
+        shutil.copyfile(record_path.with_suffix(".pt"), target)
+        shutil.copyfile(record_path, target.with_suffix(".json"))
+        candidates = record_path.with_suffix(".candidates")  # best-mmd-seq: its scored candidates
+        if candidates.is_dir():
+            shutil.copytree(candidates, target.with_suffix(".candidates"), dirs_exist_ok=True)
 
 
 def candidate_score(model: Method, train: Sequence, n: int, seed: int) -> float:
@@ -223,7 +253,7 @@ def select_checkpoint(model: Method, record: dict, folder: Path, clips, selectio
     every ``selection.every`` iterations stays on disk, for a later, longer run.
     """
     seed = record["signature"]["seed"]
-    stem = run_stem(record["signature"]["method"], seed, selection)
+    stem = run_stem(record["signature"]["method"], seed, selection, record.get("iters"))
     finish = type(model).fit is not Method.fit
     final = model.iteration
     state = record.setdefault("selection", {"scores": {}, "seconds": 0.0})
@@ -287,6 +317,10 @@ def combine_seeds(runs: Sequence[dict]) -> dict:
             "seeds": [{"seed": run["seed"], "mean": row.get("mean"), "ci": row.get("ci")}
                       for run, row in zip(runs, rows)],
         }
+        held = [(row.get("heldout") or {}).get("mean") for row in rows]
+        held = [m for m in held if m is not None and np.isfinite(m)]
+        if held:  # the authors' MMD protocol: the same motions against the held-out clips
+            out[name]["heldout"] = {"mean": float(np.mean(held)), "ci_seeds": t_interval(held)}
     return out
 
 
@@ -454,6 +488,11 @@ def _run_setting(setting, methods, presets, budget, iters, folder, repeats, seed
         out["methods"][method] = entry
         if out["real"] is None and entry.get("real"):
             out["real"] = entry["real"]
+        done = [run for run in entry.get("runs") or [] if run.get("metrics")]
+        if "000_table_1" in setting.tables and out.get("real_a2m") is None and done:
+            # Action2Motion's own Real row: two draws of the held-out clips.
+            out["real_a2m"] = _real_of_two_draws(data, folder, method, done[0], classifier,
+                                                 setting, repeats, selection, iters)
         if out["protocol"] is None and entry.get("protocol"):
             out["protocol"] = entry["protocol"]
         say(_summary_line(name, method, entry))
@@ -464,7 +503,8 @@ def _run_method(method, setting, data, classifier, train, presets, budget, iters
                 repeats, seeds, n, checkpoint_every, bar, *, mmd_protocol, selection) -> dict:
     """Train, sample and evaluate one method once per seed; errors are recorded, not raised."""
     recipe = recipe_for(method, presets, iters)
-    entry = {"recipe": recipe.describe(), "runs": []}
+    entry = {"recipe": recipe.describe(), "runs": [],
+             "departures": departures(recipe.config(get_method(method)))}
     for seed in seeds:
         bar.set_description(f"{setting.dataset}: {method} (seed {seed})")
         entry["runs"].append(_run_seed(method, setting, data, classifier, train, recipe, budget,
@@ -500,7 +540,9 @@ def _run_seed(method, setting, data, classifier, train, recipe, budget, iters, f
               seed, n, checkpoint_every, bar, *, mmd_protocol, selection) -> dict:
     """Train, select a checkpoint of, sample and evaluate one method with one training seed."""
     entry = {"seed": seed}
-    stem = run_stem(method, seed, selection)
+    stem = run_stem(method, seed, selection, iters)
+    if iters is not None:
+        start_from_shorter(folder, method, seed, selection, iters)
 
     def tick(text):
         bar.set_postfix_str(text, refresh=True)
@@ -540,7 +582,10 @@ def _run_seed(method, setting, data, classifier, train, recipe, budget, iters, f
         values = evaluate(data, motions, classifier, setting.metrics, repeats, seed,
                           mmd_protocol=mmd_protocol)
         found = {
-            "metrics": {key: {"mean": row["mean"], "ci": row["ci"]}
+            "metrics": {key: {"mean": row["mean"], "ci": row["ci"],
+                              **({"heldout": {"mean": row["heldout"]["mean"],
+                                              "ci": row["heldout"]["ci"]}}
+                                 if row.get("heldout") else {})}
                         for key, row in values["metrics"].items()},
             "real": {key: {"mean": row["real"]["mean"], "ci": row["real"]["ci"]}
                      for key, row in values["metrics"].items() if row["real"]},
@@ -555,6 +600,19 @@ def _run_seed(method, setting, data, classifier, train, recipe, budget, iters, f
     write_json(folder / f"{stem}.json", record)
     entry.update(found)
     return entry
+
+
+def _real_of_two_draws(data, folder, method, run, classifier, setting, repeats, selection,
+                       iters) -> dict | None:
+    """Return the Real values of Action2Motion's definition (held-out against held-out clips)."""
+    path = folder / f"{run_stem(method, run['seed'], selection, iters)}.npz"
+    if not path.is_file():
+        return None
+    metrics = [m for m in setting.metrics if not m.startswith("mmd_")]
+    values = evaluate(data, npz.load(path), classifier, metrics, repeats, run["seed"],
+                      real_reference="test")
+    return {key: {"mean": row["real"]["mean"], "ci": row["real"]["ci"]}
+            for key, row in values["metrics"].items() if row["real"]}
 
 
 def _summary_line(dataset: str, method: str, entry: dict) -> str:

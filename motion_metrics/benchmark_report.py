@@ -211,21 +211,24 @@ def _setting(result: dict, setting: dict) -> list[str]:
 
 def _training_table(setting: dict) -> list[str]:
     best = (setting.get("selection") or {}).get("rule") == "best-mmd-seq"
-    lines = ["Training within the budget (values per training seed, in the order of the seeds):", "",
-             "| method | preset | parameters | iterations | "
+    lines = ["Training within the budget (values per training seed, in the order of the seeds; "
+             "departures: the preset's switches that the paper's method does not have):", "",
+             "| method | preset | departures from the paper | parameters | iterations | "
              + ("evaluated (lowest MMD_seq) | " if best else "")
              + "train (s, wall) | train (s, CPU) | after training (s) |",
-             "|---|---|---:|---:|" + ("---:|" if best else "") + "---:|---:|---:|"]
+             "|---|---|---|---:|---:|" + ("---:|" if best else "") + "---:|---:|---:|"]
     for method, entry in setting["methods"].items():
         runs = [run for run in entry.get("runs") or [] if run.get("seconds") is not None]
+        departures = ", ".join(f"{k}={v}" for k, v in (entry.get("departures") or {}).items()) or "none"
         if not runs:
-            lines.append(f"| `{method}` | {entry['recipe']} | | | | | |" + (" |" if best else ""))
+            lines.append(f"| `{method}` | {entry['recipe']} | {departures} | | | | | |"
+                         + (" |" if best else ""))
             continue
         chosen = (" / ".join("–" if run.get("chosen") is None else f"{run['chosen']:,}" for run in runs)
                   + " | ") if best else ""
         finish = [run.get("finish_seconds") for run in runs]
         lines.append(
-            f"| `{method}` | {entry['recipe']} | {entry['parameters']:,} | "
+            f"| `{method}` | {entry['recipe']} | {departures} | {entry['parameters']:,} | "
             f"{_per_seed_counts([run['iterations'] for run in runs])} | {chosen}"
             + " / ".join(f"{run['seconds']:.0f}" for run in runs) + " | "
             + " / ".join(f"{run['cpu_seconds']:.0f}" for run in runs) + " | "
@@ -289,13 +292,18 @@ def _paper_cell(table: PaperTable, method: str | None, metric: str) -> str:
 def _metric_table(setting: dict, metrics: list[str], tables: list[PaperTable]) -> list[str]:
     """Return a table with, per metric, our column and one column per paper table reporting it."""
     columns = []
+    authors = setting.get("mmd_protocol") == "authors"
     for metric in metrics:
         columns += [(metric, None), (metric, "samples")]
+        if authors and metric.startswith("mmd_"):
+            columns.append((metric, "heldout"))
         columns += [(metric, table) for table in tables if metric in table.metrics]
         if metric == "accuracy" and "004_table_2" in setting["tables"]:
             columns.append((metric, TABLES["004_table_2"]))
-    header = ["method"] + [NAMES.get(m, m) + " (± seeds, t)" if t is None else
-                           "± samples" if t == "samples" else SHORT.get(t.key, t.key)
+    header = ["method"] + [(NAMES.get(m, m) + (" training clips" if authors and m.startswith("mmd_")
+                                               else "") + " (± seeds, t)") if t is None else
+                           "± samples" if t == "samples" else
+                           "held-out clips (± seeds, t)" if t == "heldout" else SHORT.get(t.key, t.key)
                            for m, t in columns]
     name = setting.get("protocol") or "bootstrap"
     mmd = setting.get("mmd_protocol") or "heldout"
@@ -306,8 +314,14 @@ def _metric_table(setting: dict, metrics: list[str], tables: list[PaperTable]) -
              "| " + " | ".join(header) + " |", "|---|" + "---:|" * len(columns)]
     real = setting.get("real") or {}
     cells = [_cell(real.get(m), key="none") if t is None else _spread(real.get(m)) if t == "samples"
-             else _paper_cell(t, None, m) for m, t in columns]
+             else "" if t == "heldout" else _paper_cell(t, None, m) for m, t in columns]
     lines.append("| **Real** (held-out vs training clips) | " + " | ".join(cells) + " |")
+    two_draws = setting.get("real_a2m") or {}
+    if two_draws and any(m in two_draws for m in metrics):
+        cells = [_cell(two_draws.get(m), key="none") if t is None else _spread(two_draws.get(m))
+                 if t == "samples" else "" for m, t in columns]
+        lines.append("| **Real** (two draws of held-out clips: A2M's definition, its tables' Real row) | "
+                     + " | ".join(cells) + " |")
     firsts = {metric: _first(setting, metric) for metric in metrics}
     marked = False
     for method, entry in setting["methods"].items():
@@ -325,6 +339,8 @@ def _metric_table(setting: dict, metrics: list[str], tables: list[PaperTable]) -
                 cells.append(cell)
             elif t == "samples":
                 cells.append("" if entry.get("error") else _spread(ours.get(m)))
+            elif t == "heldout":
+                cells.append("" if entry.get("error") else _cell((ours.get(m) or {}).get("heldout")))
             else:
                 cells.append(_paper_cell(t, method, m))
         lines.append(f"| `{method}` | " + " | ".join(cells) + " |")

@@ -358,11 +358,16 @@ def _nanmean(rows: np.ndarray) -> np.ndarray:
 
 
 # MMD protocols: ``heldout`` is :func:`run`'s (distinct drawn motions against every
-# held-out clip of the action, raw coordinates); ``paper`` is :func:`paper_mmd`'s.
+# held-out clip of the action, raw coordinates); ``paper`` is :func:`paper_mmd`'s;
+# ``authors`` is :func:`motion_metrics.authors_mmd.authors_mmd`'s.
 MMD_PROTOCOLS = {
     "heldout": "distinct drawn motions against every held-out clip of the action, raw coordinates",
     "paper": "per action, equal numbers of generated motions and training clips drawn without "
              "replacement in each repeat and paired, coordinates standardised by the training clips",
+    "authors": "SA-GCN's code: poses centred on the hip in every frame, scaled by depth (estimated "
+               "from the figure's size), standardised by the training clips; per class 100 "
+               "generated motions paired with 100 training clips (the authors' number) and with "
+               "held-out clips, drawn afresh in each repeat",
 }
 
 

@@ -116,3 +116,19 @@ def check_budget(method: str, preset: str, iters: int, length: int) -> None:
             f"{preset} preset); {iters:,} iterations end inside that phase. Give more than "
             f"{length:,} iterations, or schedule: benchmark (the phase then takes "
             f"{phase.share:.0%} of the budget, as benchmark_methods trains it)")
+
+
+def departures(config) -> dict:
+    """Return the switches of ``config`` that differ from its paper preset's.
+
+    Switches are the true-or-false and named fields and the extra loss weights
+    (``*_weight``): departures from the paper's method (sa_gcn's attention and
+    conditioning, ODMO's ``exact_end``), not the sizes and learning rates of a smaller preset.
+    """
+    paper = type(config).preset("paper")
+    out = {}
+    for name, value in config.to_dict().items():
+        switch = isinstance(value, (bool, str)) or name.endswith("_weight")
+        if switch and value != getattr(paper, name):
+            out[name] = value
+    return out
