@@ -570,6 +570,8 @@ def _run_seed(method, setting, data, classifier, train, recipe, budget, iters, f
     tick(f"seed {seed}: sampling and evaluating")
     signature = {"iteration": model.iteration, "n": n, "repeats": repeats, "seed": seed,
                  "metrics": list(setting.metrics), "classifier": classifier.iteration,
+                 "classifier_config": classifier.config.to_dict(),
+                 "classifier_accuracy": classifier.test_accuracy,
                  "split": classifier.split.to_dict(), "mmd_protocol": mmd_protocol}
     cached = record.get("evaluation")
     if cached and cached.get("signature") == json.loads(json.dumps(signature)):
