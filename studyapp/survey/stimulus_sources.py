@@ -66,6 +66,7 @@ class MethodSources:
         self._trained: dict[str, list[Trained]] = {}
         self._classifier = None
         self._classifier_ready = False
+        self._default_split = None
         self.notes: list[str] = []
 
     @property
@@ -195,8 +196,11 @@ class MethodSources:
             if not rest:
                 return None, False
             return Split(test_subjects=rest, train_subjects=tuple(c.subjects)), False
-        clips = data.clips(frames=c.frames or data.clip_frames, fps=c.fps, actions=self.build.actions())
-        return make_split(data, clips), True
+        if self._default_split is None:
+            clips = data.clips(frames=c.frames or data.clip_frames, fps=c.fps,
+                               actions=self.build.actions())
+            self._default_split = make_split(data, clips)
+        return self._default_split, True
 
     def classifier(self):
         """Return the classifier of the feature metrics (given, trained into the cache, or None)."""
