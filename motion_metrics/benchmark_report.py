@@ -17,6 +17,7 @@ from datetime import datetime
 from motion_metrics.paper_numbers import TABLES, PaperTable
 from motion_metrics.protocol import MMD_PROTOCOLS
 
+CLASSIFIER_METRICS = ("fid", "accuracy", "diversity", "multimodality")
 NAMES = {"mmd_avg": "MMD_avg ↓", "mmd_seq": "MMD_seq ↓", "accuracy": "accuracy ↑",
          "fid": "FID ↓", "diversity": "diversity →", "multimodality": "multimodality →"}
 SHORT = {"004_table_1": "004 T1", "003_table_1": "003 T1", "004_table_2": "004 T2",
@@ -310,7 +311,12 @@ def _metric_table(setting: dict, metrics: list[str], tables: list[PaperTable]) -
     mmd_text = (f" MMD protocol: `{mmd}` ({MMD_PROTOCOLS.get(mmd, mmd)})."
                 if any(m.startswith("mmd_") for m in metrics) else "")
     chosen = " " + _selection_text(setting.get("selection"), short=True)
-    lines = [f"Protocol: `{name}` ({PROTOCOLS.get(name, name)}).{mmd_text}{chosen}", "",
+    clf = setting.get("classifier") or {}
+    clf_text = (f" Classifier of {', '.join(m for m in metrics if m in CLASSIFIER_METRICS)}: "
+                f"`{clf.get('preset')}` preset, held-out accuracy {clf['test_accuracy']:.3f}."
+                if clf.get("test_accuracy") is not None
+                and any(m in CLASSIFIER_METRICS for m in metrics) else "")
+    lines = [f"Protocol: `{name}` ({PROTOCOLS.get(name, name)}).{mmd_text}{clf_text}{chosen}", "",
              "| " + " | ".join(header) + " |", "|---|" + "---:|" * len(columns)]
     real = setting.get("real") or {}
     cells = [_cell(real.get(m), key="none") if t is None else _spread(real.get(m)) if t == "samples"

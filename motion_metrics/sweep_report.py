@@ -55,7 +55,11 @@ def _setting_sweep(settings: dict[int, dict]) -> list[str]:
     mmd = first.get("mmd_protocol")
     for metric in metrics:
         label = NAMES.get(metric, metric)
-        where = f" (`{mmd}` MMD protocol)" if metric.startswith("mmd_") else ""
+        clf = first.get("classifier") or {}
+        where = (f" (`{mmd}` MMD protocol" + (", against the training clips" if mmd == "authors" else "")
+                 + ")" if metric.startswith("mmd_") else
+                 f" (classifier: `{clf.get('preset')}` preset, held-out accuracy "
+                 f"{clf.get('test_accuracy', float('nan')):.3f})")
         lines += [f"{label}{where}:", "", "| method | " + " | ".join(f"{b:,} it." for b in budgets)
                   + " | smallest → largest budget |", "|---|" + "---:|" * (len(budgets) + 1)]
         for method in first["methods"]:

@@ -354,7 +354,7 @@ def test_a_budget_sweep_resumes_methods_without_phases_and_reports_every_budget(
     assert "--iters 2,4 --main-iters 2" in text
     assert "2 training iterations per method, setting and training seed" in text
     assert "## Training budget: the same methods and seeds at 2, 4 iterations" in text
-    fid = text[text.index("FID ↓:"):]
+    fid = text[text.index("FID ↓ (classifier: `tiny` preset, held-out accuracy"):]
     row = next(line for line in fid.splitlines() if line.startswith("| `cond_gru` |"))
     assert row.count("±") == 2 and row.rstrip(" |").split("| ")[-1] in (
         "intervals overlap", "better", "worse")
