@@ -130,6 +130,8 @@ def main():
     parser.add_argument("--cells", help="only these cells, e.g. attention_off/he/eq1,...")
     parser.add_argument("--classifier", type=Path, help="evaluate with this classifier checkpoint")
     parser.add_argument("--out", type=Path, help="write the table (and results.json beside it)")
+    parser.add_argument("--evaluate-only", action="store_true",
+                        help="evaluate the runs already trained, train none")
     args = parser.parse_args()
     torch.set_num_threads(1)
     seeds = [int(s) for s in args.seeds.split(",")]
@@ -147,6 +149,10 @@ def main():
         folder = args.work / args.iters.__str__() / name.replace("/", "-")
         results[name] = {}
         for seed in seeds:
+            if args.evaluate_only:
+                done = folder / f"samples-seed{seed}-n{args.n}-it{args.iters}.npz"
+                if not done.is_file():
+                    continue
             motions = train_cell(name, changes, train, actions, folder, args.iters, seed, args.n)
             if classifier is not None:
                 results[name][seed] = evaluate_run(data, motions, classifier, folder, seed, key,
