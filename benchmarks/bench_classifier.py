@@ -34,8 +34,9 @@ VARIANTS = {
     "mirror": ({"mirror": True}, 10),
     "mirror-rotate10": ({"mirror": True, "rotate": 10.0}, 10),
     "temporal64": ({"temporal": 64}, 10),
-    "augmented": (ClassifierConfig.PRESETS["augmented"], 10),
-    "augmented-patience30": (ClassifierConfig.PRESETS["augmented"], 30),
+    "mirror-rotate20": ({"mirror": True, "rotate": 20.0}, 10),
+    "mirror-rotate10-patience20": ({"mirror": True, "rotate": 10.0}, 20),
+    "temporal64-mirror-rotate10": ({"temporal": 64, "mirror": True, "rotate": 10.0}, 10),
 }
 
 

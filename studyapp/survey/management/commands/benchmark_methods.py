@@ -59,9 +59,8 @@ class Command(BaseCommand):
         parser.add_argument("--classifier-iters", type=int, default=500,
                             help="Training iterations of the action classifier.")
         parser.add_argument("--classifier-preset", default="paper",
-                            help="Classifier preset: paper (A2M's GRU), augmented (a temporal "
-                                 "convolution beside it, mirrored and rotated training clips) or "
-                                 "tiny (tests).")
+                            help="Classifier preset: paper (A2M's GRU), augmented (the same GRU "
+                                 "trained on mirrored and rotated clips) or tiny (tests).")
         parser.add_argument("--mmd-protocol", choices=sorted(MMD_PROTOCOLS), default=MMD_PROTOCOL,
                             help="How MMD_avg/MMD_seq are measured: heldout (default: against every "
                                  "held-out clip of the action, raw coordinates), paper (against the "
