@@ -65,6 +65,7 @@ class StudyResult:
     design: str = ""
     criterion: str = ""  # the question analysed, when a trial asked several
     blindness: dict | None = None  # the blindness audit of the served clips, when run
+    appendix: list[Table] = field(default_factory=list)  # tables the caller adds (e.g. stimuli)
 
     @property
     def tables(self) -> list[Table]:
@@ -85,7 +86,7 @@ class StudyResult:
                 "sent (delivery: sizes, headers, boxes, padding; content: true frame sizes, "
                 "the player's joints; hashes of every delivery), a permutation test of "
                 "cross-validated classifiers", pd.DataFrame(rows)))
-        return self.analysis.tables + extra
+        return self.analysis.tables + extra + self.appendix
 
     def summary(self) -> dict:
         """Return the content of ``summary.json``: per source score, interval and N, and the order."""

@@ -5,14 +5,17 @@ Run: .venv/bin/python benchmarks/bench_methods.py [--dataset demo] [--iters 3] [
 Each method is built with its ``paper`` preset on the dataset's clips (60 frames for the
 3D datasets), trained for a warm-up iteration and then ``--iters`` timed iterations; for
 methods trained in two phases (a pretrained frame/pose model first), the second phase is
-timed too. Sampling draws ``--n`` motions of 60 frames (after a warm-up draw). One torch
-thread per process, so figures are per core. Prints a Markdown table.
+timed too. Sampling draws ``--n`` motions of 60 frames (after a warm-up draw), timed in
+wall seconds and in this process's CPU seconds (on a shared machine the second moves
+less with other work). One torch thread per process, so figures are per core. Prints a
+Markdown table.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import sys
 import time
 from pathlib import Path
@@ -43,11 +46,12 @@ def seconds_per_iteration(method, clips, iters):
 
 
 def sampling_rate(method, actions, n, frames):
+    """Return motions per second of wall time and per second of this process's CPU time."""
     method.sample(actions[:1] * 8, frames=frames, seed=1)
     wanted = [actions[i % len(actions)] for i in range(n)]
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     method.sample(wanted, frames=frames, seed=2)
-    return n / (time.perf_counter() - start)
+    return n / (time.perf_counter() - start), n / (time.process_time() - cpu)
 
 
 def main():
@@ -65,9 +69,10 @@ def main():
     names = args.methods.split(",") if args.methods else list_methods()
     print(f"{len(clips)} clips of {args.frames} frames from {args.dataset!r}; "
           f"paper presets; 1 torch thread\n")
+    print(f"load average {os.getloadavg()[0]:.1f} at the start\n")
     print("| method | training s/iteration | second phase s/iteration | "
-          f"sampling motions/s ({args.frames} frames) |")
-    print("|---|---|---|---|")
+          f"sampling motions/s ({args.frames} frames, wall) | motions per CPU second |")
+    print("|---|---|---|---|---|")
     for name in names:
         method = build(name, dataset, clips, args.frames)
         first = seconds_per_iteration(method, clips, args.iters)
@@ -77,8 +82,9 @@ def main():
             staged = build(name, dataset, clips, args.frames, **{phase: 1})
             second = f"{seconds_per_iteration(staged, clips, args.iters):.3f}"
             method = staged
-        rate = sampling_rate(method, method.actions, args.n, args.frames)
-        print(f"| `{name}` | {first:.3f} | {second} | {rate:,.0f} |", flush=True)
+        rate, cpu_rate = sampling_rate(method, method.actions, args.n, args.frames)
+        print(f"| `{name}` | {first:.3f} | {second} | {rate:,.0f} | {cpu_rate:,.0f} |", flush=True)
+    print(f"\nload average {os.getloadavg()[0]:.1f} at the end")
 
 
 if __name__ == "__main__":

@@ -31,8 +31,7 @@ import os
 import platform
 import shutil
 import time
-from contextlib import contextmanager
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Callable, Sequence
@@ -45,10 +44,19 @@ from generation.datasets import get_dataset
 from generation.datasets.base import DATASETS
 from generation.formats import npz
 from generation.methods import Method, MethodError, get_method, list_methods
+from generation.methods.budget import (
+    candidate_path,
+    read_json,
+    train_within_budget,
+    write_json,
+)
+from generation.methods.schedule import Recipe, departures
+from generation.methods.schedule import recipe_for as schedule_recipe
 from generation import recognition
 from generation.motion import MotionError
 from generation.recognition import ActionClassifier, ClassifierError, one_thread, train_classifier
 from generation.skeletons import get_skeleton
+from motion_metrics.checkpoint_metrics import sample_for_metrics
 from motion_metrics.evaluate import EvaluationError, evaluate, training_mmd
 from motion_metrics.protocol import MMD_PROTOCOLS
 from scipy import stats
@@ -57,8 +65,6 @@ H36M_TRAIN = ("S1", "S5", "S6", "S7", "S8")
 H36M_TEST = ("S9",)  # the papers test on S11, which our copy of Human3.6M lacks
 METRICS_2D = ("mmd_avg", "mmd_seq", "accuracy", "fid", "diversity", "multimodality")
 METRICS_3D = ("fid", "accuracy", "diversity", "multimodality")
-# Training runs as one call per resume; this many iterations is never reached.
-UNBOUNDED = 10**9
 DEFAULT_SEEDS = (0, 1, 2)
 # How MMD_avg / MMD_seq are measured by default (motion_metrics.protocol.MMD_PROTOCOLS); tables name it.
 MMD_PROTOCOL = "heldout"
@@ -176,227 +182,51 @@ def setting_for(dataset: str, subjects=None, test_subjects=None) -> Setting:
     return replace(setting, **changes)
 
 
-@dataclass(frozen=True)
-class Recipe:
-    """How a method is built for the budget: a config preset and changes to it."""
-
-    preset: str = "demo"
-    changes: dict = field(default_factory=dict)
-
-    def describe(self) -> str:
-        changed = ", ".join(f"{key}={value}" for key, value in self.changes.items())
-        return f"{self.preset} ({changed})" if changed else self.preset
-
-    def config(self, cls: type[Method]):
-        return replace(cls.Config.preset(self.preset), **self.changes)
-
-
-# The paper presets need hours (A2M: 40,000 iterations; the GAN baselines pretrain for
-# 10,000); the demo presets (smaller networks, batches of 32) learn something in a
-# minute of one core. ODMO's teacher forcing decays over 300 iterations instead of
-# 1,000, since a minute holds about 400.
-RECIPES = {
-    "odmo": Recipe("demo", {"teacher_forcing_iters": 300}),
-    "odmo_conv": Recipe("demo", {"teacher_forcing_iters": 300}),
-}
-
-
-# Under an iteration budget, a first phase (pretraining a pose or frame model, or ODMO's
-# teacher forcing) takes a share of the iterations rather than its fixed count, so every
-# method reaches its second phase within the budget: the config field and its share.
-PHASES = {
-    "skeleton_gan": ("pretrain_iters", 0.5),
-    "c_skeleton_gan": ("pretrain_iters", 0.5),
-    "two_stage_gan": ("pose_iterations", 0.5),
-    "odmo": ("teacher_forcing_iters", 0.75),
-    "odmo_conv": ("teacher_forcing_iters", 0.75),
-}
-
-
 def recipe_for(method: str, presets: dict[str, str] | None = None,
                iters: int | None = None) -> Recipe:
-    """Return the recipe of ``method``; a preset named in ``presets`` replaces it (no changes).
+    """Return the recipe ``benchmark_methods`` trains ``method`` with for ``iters`` iterations.
 
-    With an iteration budget ``iters``, a default recipe's first phase is shortened to its
-    share (:data:`PHASES`) of the budget where that is less than the preset's count.
+    The ``demo`` preset (or the one ``presets`` names for the method) under the
+    ``benchmark`` schedule (:mod:`generation.methods.schedule`): a first phase longer than
+    its share of the budget is shortened to that share. The paper presets need hours
+    (A2M: 40,000 iterations; the GAN baselines pretrain for 10,000); the demo presets
+    (smaller networks, batches of 32) learn something in a minute of one core.
     """
-    if presets and method in presets:
-        return Recipe(presets[method])
-    recipe = RECIPES.get(method, Recipe())
-    if iters is not None and method in PHASES:
-        name, share = PHASES[method]
-        current = recipe.changes.get(name, getattr(recipe.config(get_method(method)), name))
-        if iters * share < current:
-            recipe = Recipe(recipe.preset, {**recipe.changes, name: max(1, int(iters * share))})
-    return recipe
+    return schedule_recipe(method, (presets or {}).get(method, "demo"), iters, "benchmark")
 
 
-class _BudgetSpent(Exception):
-    """Raised inside a training step once the time or iteration budget is spent."""
+def run_stem(method: str, seed: int, selection: Selection = LAST, iters: int | None = None) -> str:
+    """Return the file name (without suffix) of ``method``'s run with training ``seed``, budget
+    ``iters`` (none for a time budget) and ``selection``."""
+    budget = "" if iters is None else f"-it{iters}"
+    return f"{method}-seed{seed}{budget}{selection.key()}"
 
 
-@contextmanager
-def deadline(model: Method, seconds: float | None, on_step: Callable[[], None],
-             iters: int | None = None):
-    """Make ``model``'s training steps raise :class:`_BudgetSpent` once the budget is spent.
+def start_from_shorter(folder: Path, method: str, seed: int, selection: Selection, iters: int) -> None:
+    """Copy the longest finished shorter run of the same method and seed to this budget's files.
 
-    The budget is ``seconds`` from now, or ``iters`` iterations in all (the model's
-    iteration counter). Rather than training in chunks (each re-encodes the clips, which
-    takes seconds for a2m), one ``fit`` runs until a step finds the budget spent. The
-    check happens before the step, when the model is consistent (its iteration counter
-    counts finished steps), so ``on_step`` may save it. Methods trained in phases (a
-    pretrained pose or frame model) count the iterations of every phase.
+    :func:`generation.methods.budget.train_within_budget` then resumes it to ``iters`` if
+    its recipe and config are this budget's too (a method whose first phase takes a share of
+    the budget has another config at another budget, and trains afresh): a budget sweep
+    trains a method without phases once, to its largest budget, keeping every budget's
+    checkpoint.
     """
-    end = None if seconds is None else time.perf_counter() + seconds
-    step = model.train_step
-
-    def timed_step(batch, generator):
-        if ((end is not None and time.perf_counter() >= end)
-                or (iters is not None and model.iteration >= iters)):
-            raise _BudgetSpent
-        on_step()
-        return step(batch, generator)
-
-    model.train_step = timed_step
-    try:
-        yield
-    except _BudgetSpent:
-        pass
-    finally:
-        del model.train_step
-
-
-def read_json(path: Path) -> dict:
-    try:
-        return json.loads(path.read_text())
-    except (OSError, ValueError):
-        return {}
-
-
-def write_json(path: Path, values: dict) -> None:
-    """Write ``values`` beside ``path`` and rename, so a crash never leaves half a file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_name(path.name + ".partial")
-    partial.write_text(json.dumps(values, indent=2, allow_nan=False, default=_plain) + "\n")
-    os.replace(partial, path)
-
-
-def _plain(value):
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
-
-
-def train_within_budget(method: str, clips, actions: Sequence[str], budget: float | None,
-                        folder: Path, recipe: Recipe, seed: int = 0,
-                        checkpoint_every: float = 15.0,
-                        on_tick: Callable[[str], None] | None = None,
-                        iters: int | None = None,
-                        selection: Selection = LAST) -> tuple[Method, dict]:
-    """Train ``method`` on ``clips`` for ``iters`` iterations, or ``budget`` seconds, in all.
-
-    Give one of ``budget`` (seconds of wall time) and ``iters``. The checkpoint
-    ``folder/<method>-seed<seed>.pt`` and its record ``.json`` (seconds, CPU seconds,
-    iterations) resume an interrupted run; a model whose record says the budget is spent
-    is loaded and returned as it is. Another recipe, config (a changed default included),
-    method version, seed or data starts afresh. Methods with their own ``fit`` (ODMO fits
-    its modes there) get one call of it with no iterations at the end, timed apart as
-    ``finish_seconds``. A ``selection`` of best-mmd-seq trains under its own file names
-    (:func:`run_stem`) and keeps a candidate checkpoint (unfinished) every
-    ``selection.every`` iterations in the folder :func:`candidate_path` names.
-    """
-    if (budget is None) == (iters is None):
-        raise BenchmarkError("give either a time budget or a number of iterations, not both")
-    cls = get_method(method)
-    stem = run_stem(method, seed, selection)
-    checkpoint, record_path = folder / f"{stem}.pt", folder / f"{stem}.json"
-    first = clips[0]
-    # The full config and the method's version: a changed default or network retrains.
-    signature = {"method": method, "version": cls.version, "preset": recipe.preset,
-                 "changes": recipe.changes, "config": recipe.config(cls).to_dict(), "seed": seed,
-                 "skeleton": first.skeleton, "frames": first.frames, "fps": first.fps,
-                 "actions": list(actions), "clips": len(clips)}
-    if selection.best:  # (the last's signature is as it was before selections, so old work counts)
-        signature["selection"] = selection.to_dict()
-    record = read_json(record_path)
-    if (record.get("signature") == json.loads(json.dumps(signature, default=_plain))
-            and checkpoint.is_file() and (iters is None or record.get("iterations", 0) <= iters)):
-        model = cls.load(checkpoint)
-    else:  # another signature, or trained past the iterations asked: start afresh
-        record = {"signature": signature, "seconds": 0.0, "cpu_seconds": 0.0, "iterations": 0,
-                  "finished": False}
-        model = cls(recipe.config(cls), first.skeleton, list(actions), first.fps, first.frames)
-        shutil.rmtree(candidate_path(folder, stem, 0).parent, ignore_errors=True)
-
-    def keep_candidate():
-        """Keep the model as a candidate if its iteration is one (and none is kept yet)."""
-        if selection.best and model.iteration and model.iteration % selection.every == 0:
-            path = candidate_path(folder, stem, model.iteration)
-            if not path.is_file():
-                model.save(path)
-
-    record["budget"], record["iters"] = budget, iters
-    if iters is None:
-        remaining = budget - record["seconds"]
-        todo = remaining > 0
-    else:
-        remaining = None
-        todo = model.iteration < iters
-    record["reused"] = not todo and record["finished"]
-    if todo:
-        record["finished"] = False
-        wall, cpu = time.perf_counter(), time.process_time()
-        spent, spent_cpu = record["seconds"], record["cpu_seconds"]
-        last = {"save": wall, "tick": 0.0}
-        goal = f"{budget:g} s" if iters is None else f"{iters} it"
-
-        def note():
-            """Bring the record up to date with the time spent so far."""
-            record["seconds"] = spent + time.perf_counter() - wall
-            record["cpu_seconds"] = spent_cpu + time.process_time() - cpu
-            record["iterations"] = model.iteration
-
-        def on_step():
-            keep_candidate()
-            now = time.perf_counter()
-            if now - last["save"] >= checkpoint_every:
-                note()
-                model.save(checkpoint)
-                write_json(record_path, record)
-                last["save"] = now
-            if on_tick and now - last["tick"] >= 1.0:
-                on_tick(f"seed {seed}: {spent + now - wall:.0f} s, {model.iteration} it of {goal}")
-                last["tick"] = now
-
-        with deadline(model, remaining, on_step, iters):
-            model.fit(clips, UNBOUNDED, seed=seed, progress=False)
-        note()
-        keep_candidate()
-        model.save(checkpoint)
-        write_json(record_path, record)
-    if not record["finished"]:
-        if type(model).fit is not Method.fit:
-            start = time.perf_counter()
-            model.fit(clips, 0, seed=seed, progress=False)
-            record["finish_seconds"] = time.perf_counter() - start
-            model.save(checkpoint)
-        record["finished"] = True
-        record.pop("evaluation", None)
-        write_json(record_path, record)
-    record["parameters"] = model.n_parameters
-    return model, record
-
-
-def run_stem(method: str, seed: int, selection: Selection = LAST) -> str:
-    """Return the file name (without suffix) of ``method``'s run with training ``seed`` (and ``selection``)."""
-    return f"{method}-seed{seed}{selection.key()}"
-
-
-def candidate_path(folder: Path, stem: str, iteration: int) -> Path:
-    """Return where the run ``stem`` keeps its candidate checkpoint of ``iteration``."""
-    return folder / f"{stem}.candidates" / f"it{iteration}.pt"
+    target = folder / f"{run_stem(method, seed, selection, iters)}.pt"
+    if target.is_file():
+        return
+    shorter = []
+    for record_path in folder.glob(f"{method}-seed{seed}-it*{selection.key()}.json"):
+        budget = record_path.stem[len(f"{method}-seed{seed}-it"):].removesuffix(selection.key())
+        record = read_json(record_path)
+        if budget.isdigit() and int(budget) < iters and record.get("finished"):
+            shorter.append((int(budget), record_path))
+    if shorter:
+        _, record_path = max(shorter)
+        shutil.copyfile(record_path.with_suffix(".pt"), target)
+        shutil.copyfile(record_path, target.with_suffix(".json"))
+        candidates = record_path.with_suffix(".candidates")  # best-mmd-seq: its scored candidates
+        if candidates.is_dir():
+            shutil.copytree(candidates, target.with_suffix(".candidates"), dirs_exist_ok=True)
 
 
 def candidate_score(model: Method, train: Sequence, n: int, seed: int) -> float:
@@ -423,7 +253,7 @@ def select_checkpoint(model: Method, record: dict, folder: Path, clips, selectio
     every ``selection.every`` iterations stays on disk, for a later, longer run.
     """
     seed = record["signature"]["seed"]
-    stem = run_stem(record["signature"]["method"], seed, selection)
+    stem = run_stem(record["signature"]["method"], seed, selection, record.get("iters"))
     finish = type(model).fit is not Method.fit
     final = model.iteration
     state = record.setdefault("selection", {"scores": {}, "seconds": 0.0})
@@ -487,6 +317,10 @@ def combine_seeds(runs: Sequence[dict]) -> dict:
             "seeds": [{"seed": run["seed"], "mean": row.get("mean"), "ci": row.get("ci")}
                       for run, row in zip(runs, rows)],
         }
+        held = [(row.get("heldout") or {}).get("mean") for row in rows]
+        held = [m for m in held if m is not None and np.isfinite(m)]
+        if held:  # the authors' MMD protocol: the same motions against the held-out clips
+            out[name]["heldout"] = {"mean": float(np.mean(held)), "ci_seeds": t_interval(held)}
     return out
 
 
@@ -654,6 +488,11 @@ def _run_setting(setting, methods, presets, budget, iters, folder, repeats, seed
         out["methods"][method] = entry
         if out["real"] is None and entry.get("real"):
             out["real"] = entry["real"]
+        done = [run for run in entry.get("runs") or [] if run.get("metrics")]
+        if "000_table_1" in setting.tables and out.get("real_a2m") is None and done:
+            # Action2Motion's own Real row: two draws of the held-out clips.
+            out["real_a2m"] = _real_of_two_draws(data, folder, method, done[0], classifier,
+                                                 setting, repeats, selection, iters)
         if out["protocol"] is None and entry.get("protocol"):
             out["protocol"] = entry["protocol"]
         say(_summary_line(name, method, entry))
@@ -664,7 +503,8 @@ def _run_method(method, setting, data, classifier, train, presets, budget, iters
                 repeats, seeds, n, checkpoint_every, bar, *, mmd_protocol, selection) -> dict:
     """Train, sample and evaluate one method once per seed; errors are recorded, not raised."""
     recipe = recipe_for(method, presets, iters)
-    entry = {"recipe": recipe.describe(), "runs": []}
+    entry = {"recipe": recipe.describe(), "runs": [],
+             "departures": departures(recipe.config(get_method(method)))}
     for seed in seeds:
         bar.set_description(f"{setting.dataset}: {method} (seed {seed})")
         entry["runs"].append(_run_seed(method, setting, data, classifier, train, recipe, budget,
@@ -700,7 +540,9 @@ def _run_seed(method, setting, data, classifier, train, recipe, budget, iters, f
               seed, n, checkpoint_every, bar, *, mmd_protocol, selection) -> dict:
     """Train, select a checkpoint of, sample and evaluate one method with one training seed."""
     entry = {"seed": seed}
-    stem = run_stem(method, seed, selection)
+    stem = run_stem(method, seed, selection, iters)
+    if iters is not None:
+        start_from_shorter(folder, method, seed, selection, iters)
 
     def tick(text):
         bar.set_postfix_str(text, refresh=True)
@@ -708,7 +550,9 @@ def _run_seed(method, setting, data, classifier, train, recipe, budget, iters, f
     try:
         model, record = train_within_budget(
             method, train, classifier.actions, budget, folder, recipe, seed, checkpoint_every,
-            on_tick=tick, iters=iters, selection=selection)
+            on_tick=tick, iters=iters, stem=stem,
+            keep_every=selection.every if selection.best else None,
+            extra_signature={"selection": selection.to_dict()} if selection.best else None)
     except (MethodError, ValueError, RuntimeError) as exc:
         entry["error"] = f"training failed: {exc}"
         return entry
@@ -726,6 +570,8 @@ def _run_seed(method, setting, data, classifier, train, recipe, budget, iters, f
     tick(f"seed {seed}: sampling and evaluating")
     signature = {"iteration": model.iteration, "n": n, "repeats": repeats, "seed": seed,
                  "metrics": list(setting.metrics), "classifier": classifier.iteration,
+                 "classifier_config": classifier.config.to_dict(),
+                 "classifier_accuracy": classifier.test_accuracy,
                  "split": classifier.split.to_dict(), "mmd_protocol": mmd_protocol}
     cached = record.get("evaluation")
     if cached and cached.get("signature") == json.loads(json.dumps(signature)):
@@ -733,12 +579,15 @@ def _run_seed(method, setting, data, classifier, train, recipe, budget, iters, f
         return entry
     try:
         start = time.perf_counter()
-        motions = model.sample([action for action in classifier.actions for _ in range(n)], seed=seed)
+        motions = sample_for_metrics(model, classifier.actions, n, seed)  # as a build measures
         npz.save(folder / f"{stem}.npz", motions)
         values = evaluate(data, motions, classifier, setting.metrics, repeats, seed,
                           mmd_protocol=mmd_protocol)
         found = {
-            "metrics": {key: {"mean": row["mean"], "ci": row["ci"]}
+            "metrics": {key: {"mean": row["mean"], "ci": row["ci"],
+                              **({"heldout": {"mean": row["heldout"]["mean"],
+                                              "ci": row["heldout"]["ci"]}}
+                                 if row.get("heldout") else {})}
                         for key, row in values["metrics"].items()},
             "real": {key: {"mean": row["real"]["mean"], "ci": row["real"]["ci"]}
                      for key, row in values["metrics"].items() if row["real"]},
@@ -753,6 +602,19 @@ def _run_seed(method, setting, data, classifier, train, recipe, budget, iters, f
     write_json(folder / f"{stem}.json", record)
     entry.update(found)
     return entry
+
+
+def _real_of_two_draws(data, folder, method, run, classifier, setting, repeats, selection,
+                       iters) -> dict | None:
+    """Return the Real values of Action2Motion's definition (held-out against held-out clips)."""
+    path = folder / f"{run_stem(method, run['seed'], selection, iters)}.npz"
+    if not path.is_file():
+        return None
+    metrics = [m for m in setting.metrics if not m.startswith("mmd_")]
+    values = evaluate(data, npz.load(path), classifier, metrics, repeats, run["seed"],
+                      real_reference="test")
+    return {key: {"mean": row["real"]["mean"], "ci": row["real"]["ci"]}
+            for key, row in values["metrics"].items() if row["real"]}
 
 
 def _summary_line(dataset: str, method: str, entry: dict) -> str:

@@ -60,7 +60,7 @@ def evaluate(dataset: Dataset | str, motions: Sequence[Motion], classifier: Acti
              metrics: Sequence[str] | None = None, repeats: int = 20, seed: int = 0, *,
              real_modes=None, end_targets=None, data_root=None, diversity_pairs: int = 200,
              multimodality_pairs: int = 20, bandwidths=BANDWIDTHS,
-             mmd_protocol: str = "heldout") -> dict:
+             mmd_protocol: str = "heldout", split=None, real_reference: str = "train") -> dict:
     """Return every metric's mean, 95 % CI and per-repeat values, with the Real values beside.
 
     The ``bootstrap`` protocol: ``motions`` are resampled in each repeat, and Real compares
@@ -74,12 +74,16 @@ def evaluate(dataset: Dataset | str, motions: Sequence[Motion], classifier: Acti
     ``mmd_protocol`` is how MMD_avg and MMD_seq are measured (``MMD_PROTOCOLS``):
     ``heldout`` (the default, the protocol's draws against the held-out clips) or
     ``paper`` (:func:`motion_metrics.protocol.paper_mmd`: against the training clips,
-    standardised, equal counts); the result names it under ``mmd_protocol``.
+    standardised, equal counts); the result names it under ``mmd_protocol``. ``split``
+    (a :class:`generation.recognition.Split`) says which real clips are held out when no
+    classifier brings its own. ``real_reference`` ``test`` makes the Real column Action2Motion's
+    (two draws of the held-out clips) instead of held-out against training clips.
     """
     return _evaluate(dataset, list(motions), classifier, metrics, repeats, seed, "bootstrap",
                      real_modes=real_modes, end_targets=end_targets, data_root=data_root,
                      diversity_pairs=diversity_pairs, multimodality_pairs=multimodality_pairs,
-                     bandwidths=bandwidths, mmd_protocol=mmd_protocol)
+                     bandwidths=bandwidths, mmd_protocol=mmd_protocol, split=split,
+                     real_reference=real_reference)
 
 
 def evaluate_model(dataset: Dataset | str, model, classifier: ActionClassifier | None = None,
@@ -122,14 +126,19 @@ def evaluate_model(dataset: Dataset | str, model, classifier: ActionClassifier |
 
 
 def training_mmd(motions: Sequence[Motion], train_clips: Sequence[Motion], metric: str = "mmd_seq",
-                 repeats: int = 5, seed: int = 0, bandwidths=BANDWIDTHS) -> float:
-    """Return ``metric`` (MMD_seq or MMD_avg) of ``motions`` against ``train_clips`` by the ``paper`` protocol.
+                 repeats: int = 5, seed: int = 0, bandwidths=BANDWIDTHS,
+                 mmd_protocol: str = "paper") -> float:
+    """Return ``metric`` (MMD_seq or MMD_avg) of ``motions`` against ``train_clips``.
 
-    The mean over ``repeats`` of :func:`motion_metrics.protocol.paper_mmd`, with no Real
-    column: the score by which ``benchmark_methods --select best-mmd-seq`` chooses a
-    checkpoint, as seeds 003/004 chose theirs. Motions and clips (of the motions'
-    actions) are moved as for :func:`evaluate`; both must have the same length.
+    The mean over ``repeats`` of the ``paper`` (:func:`motion_metrics.protocol.paper_mmd`)
+    or ``authors`` protocol's score against the training clips, with no Real column: the
+    score by which ``benchmark_methods --select best-mmd-seq`` chooses a checkpoint, as
+    seeds 003/004 chose theirs. Motions and clips (of the motions' actions) are moved as
+    for :func:`evaluate`; both must have the same length.
     """
+    if mmd_protocol not in ("paper", "authors"):
+        raise EvaluationError(f"checkpoints are scored by the paper or authors MMD protocol, not "
+                              f"{mmd_protocol!r}")
     motions = list(motions)
     if not motions:
         raise EvaluationError("no motions to score")
@@ -138,9 +147,10 @@ def training_mmd(motions: Sequence[Motion], train_clips: Sequence[Motion], metri
     if not clips:
         raise EvaluationError(f"no training clips of {', '.join(index)} to score the motions against")
     try:
-        scores = protocol.paper_mmd(_motion_set(motions, index, None, "generated"),
-                                    _motion_set(clips, index, None, "train"), None, [metric],
-                                    repeats, seed, bandwidths)
+        scores = _own_mmd(mmd_protocol, motions[0].skeleton,
+                          _motion_set(motions, index, None, "generated"),
+                          _motion_set(clips, index, None, "train"), None, [metric], repeats, seed,
+                          bandwidths)
     except MetricError as exc:
         raise EvaluationError(str(exc)) from None
     if metric not in scores or scores[metric]["mean"] is None:
@@ -151,14 +161,14 @@ def training_mmd(motions: Sequence[Motion], train_clips: Sequence[Motion], metri
 
 def _evaluate(dataset, motions: list[Motion], classifier, metrics, repeats, seed, protocol_name,
               *, more=None, real_modes, end_targets, data_root, diversity_pairs, multimodality_pairs,
-              bandwidths, mmd_protocol="heldout") -> dict:
+              bandwidths, mmd_protocol="heldout", split=None, real_reference=None) -> dict:
     """Evaluate one set of motions (``bootstrap``), or ``motions`` then ``more(r)`` per repeat ``r``."""
     if mmd_protocol not in protocol.MMD_PROTOCOLS:
         raise EvaluationError(f"unknown MMD protocol {mmd_protocol!r}; choose one of: "
                               f"{', '.join(sorted(protocol.MMD_PROTOCOLS))}")
-    if mmd_protocol == "paper" and more is not None:
-        raise EvaluationError("the paper MMD protocol measures one set of motions; "
-                              "use it with the bootstrap protocol (--motions), not a2m")
+    if mmd_protocol in ("paper", "authors") and more is not None:
+        raise EvaluationError(f"the {mmd_protocol} MMD protocol measures one set of motions; "
+                              f"use it with the bootstrap protocol (--motions), not a2m")
     data = get_dataset(dataset, data_root) if isinstance(dataset, str) else dataset
     try:
         metrics = protocol.check_metrics(metrics)
@@ -172,7 +182,10 @@ def _evaluate(dataset, motions: list[Motion], classifier, metrics, repeats, seed
     else:
         names = data.actions()
     clips = data.clips(frames=frames, fps=fps, actions=actions)
-    split = classifier.split if classifier is not None and classifier.split else make_split(data, clips)
+    if classifier is not None and classifier.split:
+        split = classifier.split
+    elif split is None:
+        split = make_split(data, clips)
     train, test = split.divide(clips)
     index = {name: i for i, name in enumerate(names)}
     sets = {}
@@ -202,15 +215,18 @@ def _evaluate(dataset, motions: list[Motion], classifier, metrics, repeats, seed
         generated = fresh
     # The paper protocol measures MMD itself: the repeats' draws leave it out (MMD_avg
     # against every held-out clip is the slowest of their metrics).
-    paper = [name for name in metrics if mmd_protocol == "paper" and name in ("mmd_avg", "mmd_seq")]
+    paper = [name for name in metrics if mmd_protocol in ("paper", "authors")
+             and name in ("mmd_avg", "mmd_seq")]
     try:
         result = protocol.run(generated, sets["test"], sets["train"],
                               [name for name in metrics if name not in paper], repeats, seed,
                               diversity_pairs, multimodality_pairs, bandwidths,
-                              real_reference="test" if more is not None else "train")
+                              real_reference=real_reference or ("test" if more is not None
+                                                                else "train"))
         if paper:
-            found = {**result["metrics"], **protocol.paper_mmd(
-                sets["generated"], sets["train"], sets["test"], paper, repeats, seed, bandwidths)}
+            found = {**result["metrics"], **_own_mmd(
+                mmd_protocol, data.skeleton, sets["generated"], sets["train"], sets["test"], paper,
+                repeats, seed, bandwidths)}
             result["metrics"] = {name: found[name] for name in metrics if name in found}
     except MetricError as exc:
         raise EvaluationError(str(exc)) from None
@@ -234,6 +250,16 @@ def _evaluate(dataset, motions: list[Motion], classifier, metrics, repeats, seed
         },
         **result,
     }
+
+
+def _own_mmd(name, skeleton, generated, train, test, metrics, repeats, seed, bandwidths) -> dict:
+    """Return MMD_avg / MMD_seq by the ``paper`` or ``authors`` protocol (skeleton: its name)."""
+    if name == "paper":
+        return protocol.paper_mmd(generated, train, test, metrics, repeats, seed, bandwidths)
+    from motion_metrics.authors_mmd import authors_mmd
+
+    return authors_mmd(generated, train, test, metrics, repeats, seed,
+                       skeleton=get_skeleton(skeleton), bandwidths=bandwidths)
 
 
 def _check_motions(data: Dataset, motions: list[Motion]) -> tuple[int, float]:

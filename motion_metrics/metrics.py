@@ -19,7 +19,7 @@ Python loops over pairs, so thousands of motions take seconds.
 from __future__ import annotations
 
 import numpy as np
-from scipy import linalg
+from scipy import linalg, stats
 
 # Kernel k(x, y) = exp(-|x - y|^2 / b) for b = 10^-4 ... 10^9, as in the MMD code of
 # Walker et al. that seeds 003 and 004 follow.
@@ -352,13 +352,18 @@ def dist_e(target_end, final_root) -> float:
     return float(np.mean(np.sum((target_end - final_root) ** 2, axis=1)))
 
 
-def mean_ci(values) -> tuple[float, float]:
-    """Return the mean of repeated values and the half-width of its 95 % interval.
+def mean_ci(values, level: float = 0.95) -> tuple[float, float]:
+    """Return the mean of repeated values and the half-width of its ``level`` t interval.
 
-    As Action2Motion's evaluation code: ``1.96 * std / sqrt(R)`` with the population
-    standard deviation of the R repeats.
+    ``t_{R-1} * s / sqrt(R)`` with the sample standard deviation ``s`` (``ddof = 1``) of
+    the R repeats. (Action2Motion's evaluation code uses ``1.96 * std / sqrt(R)`` with the
+    population deviation: for R = 5 that is 37 % narrower, for R = 20 9 %.) A single
+    value has no interval (``nan``).
     """
     values = np.asarray(values, dtype=np.float64)
     if values.size == 0:
         raise MetricError("no repeated values to summarise")
-    return float(values.mean()), float(1.96 * values.std() / np.sqrt(values.size))
+    if values.size == 1:
+        return float(values[0]), float("nan")
+    quantile = stats.t.ppf(0.5 + level / 2, values.size - 1)
+    return float(values.mean()), float(quantile * values.std(ddof=1) / np.sqrt(values.size))

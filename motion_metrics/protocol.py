@@ -229,8 +229,8 @@ def _summary(values: np.ndarray) -> dict:
     finite = values[np.isfinite(values)]
     if finite.size == 0:
         return {"mean": None, "ci": None, "std": None, "values": [None] * len(values)}
-    mean, ci = M.mean_ci(finite)
-    return {"mean": mean, "ci": ci, "std": float(finite.std()),
+    mean, ci = M.mean_ci(finite)  # a t interval over the repeats (none of one repeat)
+    return {"mean": mean, "ci": ci if np.isfinite(ci) else None, "std": float(finite.std()),
             "values": [float(v) if np.isfinite(v) else None for v in values]}
 
 
@@ -358,11 +358,16 @@ def _nanmean(rows: np.ndarray) -> np.ndarray:
 
 
 # MMD protocols: ``heldout`` is :func:`run`'s (distinct drawn motions against every
-# held-out clip of the action, raw coordinates); ``paper`` is :func:`paper_mmd`'s.
+# held-out clip of the action, raw coordinates); ``paper`` is :func:`paper_mmd`'s;
+# ``authors`` is :func:`motion_metrics.authors_mmd.authors_mmd`'s.
 MMD_PROTOCOLS = {
     "heldout": "distinct drawn motions against every held-out clip of the action, raw coordinates",
     "paper": "per action, equal numbers of generated motions and training clips drawn without "
              "replacement in each repeat and paired, coordinates standardised by the training clips",
+    "authors": "SA-GCN's code: poses centred on the hip in every frame, scaled by depth (estimated "
+               "from the figure's size), standardised by the training clips; per class 100 "
+               "generated motions paired with 100 training clips (the authors' number) and with "
+               "held-out clips, drawn afresh in each repeat",
 }
 
 

@@ -1,4 +1,9 @@
-"""Train a method on a registered dataset and checkpoint it: what ``manage.py train`` runs."""
+"""Train a method on a registered dataset and checkpoint it: what ``manage.py train`` runs.
+
+The config is the preset's under a schedule (:mod:`generation.methods.schedule`): ``full``
+(the preset's phases, refusing a budget that ends inside the first) or ``benchmark`` (the
+first phase takes its share of the budget, as ``benchmark_methods`` trains it).
+"""
 
 from __future__ import annotations
 
@@ -7,6 +12,7 @@ from pathlib import Path
 from generation.datasets import DatasetError, get_dataset
 from generation.methods.base import Method, MethodError
 from generation.methods import get_method
+from generation.methods.schedule import recipe_for
 from generation.sampling import choose, choose_subjects
 
 
@@ -14,12 +20,13 @@ def train_on_dataset(method: str, dataset: str, out: str | Path, *, data_root=No
                      subjects=None, actions=None, iters: int = 1000, preset: str = "paper",
                      seed: int = 0, frames: int | None = None, fps: float | None = None,
                      resume: bool = False, progress: bool = True,
-                     save_every: int = 500) -> Method:
+                     save_every: int = 500, schedule: str = "full") -> Method:
     """Train ``method`` on clips of ``dataset`` up to ``iters`` iterations in all; save to ``out``.
 
     With ``resume`` and an existing ``out``, training continues from that checkpoint
     (its config, actions, frames and fps win). A checkpoint is also written every
-    ``save_every`` iterations, so an interrupted run can resume.
+    ``save_every`` iterations, so an interrupted run can resume. ``schedule`` is how the
+    preset's first phase meets the budget (:func:`generation.methods.schedule.recipe_for`).
     """
     cls = get_method(method)
     data = get_dataset(dataset, data_root)
@@ -46,7 +53,8 @@ def train_on_dataset(method: str, dataset: str, out: str | Path, *, data_root=No
             f"subjects; check --data-root, --subjects, --actions and --frames"
         )
     if model is None:
-        model = cls(cls.Config.preset(preset), data.skeleton, actions, clips[0].fps, frames)
+        config = recipe_for(method, preset, iters, schedule).config(cls)
+        model = cls(config, data.skeleton, actions, clips[0].fps, frames)
     model.fit(clips, max(iters - model.iteration, 0), seed=seed, progress=progress,
               save_to=out, save_every=save_every)
     model.save(out)

@@ -35,6 +35,8 @@ LOOKUPS = {
     "stimulus_role": "stimulus__role",
     "motion_hash": "stimulus__motion_hash",
     "video_hash": "stimulus__video_hash",
+    "checkpoint": "stimulus__checkpoint",
+    "training_seed": "stimulus__training_seed",
     "duration": "stimulus__duration",
     "position": "position",
     "trial_kind": "trial__kind",
@@ -50,8 +52,8 @@ READ = {"item_answers": "answers", "trial_answers": "trial__answers", "events": 
         "completed_at": "trial__participant__completed_at",
         "outcome": "trial__participant__outcome"}
 # Columns beyond analysis.tables.RESPONSE_COLUMNS, in this order, before the types' own.
-EXTRA_COLUMNS = ("criterion", "prompt", "stimulus_role", "outcome", "fetched_at", "n_events",
-                 "page_hidden", "window_blurs", "events")
+EXTRA_COLUMNS = ("criterion", "prompt", "stimulus_role", "checkpoint", "training_seed", "outcome",
+                 "fetched_at", "n_events", "page_hidden", "window_blurs", "events")
 NULLABLE_BOOLEANS = ("judged_real", "catch_passed")
 
 
@@ -149,7 +151,8 @@ def responses_frame(study: Study) -> pd.DataFrame:
     after = columns.index("participant") + 1
     columns[after:after] = [rename[key] for key in external]
     table = pd.DataFrame.from_records(records, columns=columns)
-    for name in set(INTEGER_COLUMNS) | {"rating", "n_events", "page_hidden", "window_blurs"}:
+    for name in set(INTEGER_COLUMNS) | {"rating", "training_seed", "n_events", "page_hidden",
+                                        "window_blurs"}:
         table[name] = table[name].astype("Int64")
     for name in NULLABLE_BOOLEANS:
         table[name] = table[name].astype("boolean")

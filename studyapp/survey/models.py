@@ -314,6 +314,11 @@ class Stimulus(models.Model):
     duration = models.FloatField(help_text="Seconds.")
     motion_hash = models.CharField(max_length=64, blank=True)
     video_hash = models.CharField(max_length=64, blank=True)
+    checkpoint = models.CharField(
+        max_length=64, blank=True,
+        help_text="sha256 of the method checkpoint that made the motion; never shown.")
+    training_seed = models.IntegerField(
+        null=True, blank=True, help_text="That checkpoint's training seed; never shown.")
     created_at = models.DateTimeField(auto_now_add=True)
 
     objects = StimulusManager()

@@ -46,6 +46,8 @@ class Clip:
     score: int | None = None
     prompt: str = ""
     motion: Path | None = None  # the in-browser player's payload (rendering.player)
+    checkpoint: str = ""  # sha256 of the method checkpoint that made the motion
+    training_seed: int | None = None  # that checkpoint's training seed
 
     @classmethod
     def rendered(cls, motion, rendered, **fields) -> "Clip":
@@ -146,6 +148,9 @@ def register_clips(study, clips: Iterable[Clip]) -> list[Stimulus]:
                 if clip.motion and not existing.motion:  # the study now plays in the page
                     existing.motion = _store(Path(clip.motion), Path(clip.motion).name)
                     existing.save(update_fields=["motion"])
+                if clip.checkpoint and not existing.checkpoint:  # built before checkpoints were kept
+                    existing.checkpoint, existing.training_seed = clip.checkpoint, clip.training_seed
+                    existing.save(update_fields=["checkpoint", "training_seed"])
                 stimuli.append(existing)
                 continue
             stimuli.append(
@@ -161,6 +166,8 @@ def register_clips(study, clips: Iterable[Clip]) -> list[Stimulus]:
                     duration=float(clip.duration),
                     motion_hash=clip.motion_hash,
                     video_hash=video_hash,
+                    checkpoint=clip.checkpoint,
+                    training_seed=clip.training_seed,
                 )
             )
     return stimuli

@@ -16,8 +16,10 @@ built from the same sources share their motions and clips:
   section, the dataset fields, the checkpoint's (or file's) sha256 and the seed;
 - ``motions/<source>-catch-<key>.npz``: the spare clip per action of each source that
   its catch clips are made from (keyed as the source's motions, one more per action).
-- ``checkpoints/<source>-<key>.pt``: methods without a ``checkpoint`` are trained here
-  with the stated budget (``train.iters``, ``train.preset``), keyed on that budget;
+- ``checkpoints/<source>-<key>/<method>-seed<k>.pt``: methods without a ``checkpoint``
+  are trained here, one checkpoint per training seed, with the stated budget
+  (``iters``, ``preset``, ``schedule``), as ``benchmark_methods`` trains
+  (:mod:`studyapp.survey.stimulus_sources`), and measured (``metrics/``, ``classifiers/``);
 - ``renders/<video_hash>.mp4|png`` and ``renders/index.json``: each clip's render,
   keyed by its motion hash, the style, the size and the framing.
 
@@ -27,9 +29,10 @@ that method's clips, and catch, reference and example clips are framed exactly l
 judged ones.
 
 ``manifest.json`` (in the study's own folder) lists per clip its source, checkpoint or
-file sha256, seed, action, role, motion hash and video hash; no paths and no times, so two
-machines that build the same config write the same manifest. Sampling runs on one torch
-thread, seeded.
+file sha256, seed (and training seed), action, role, motion hash and video hash, and per
+method source its checkpoints with their budgets and objective metrics; no paths and no
+times, so two machines that build the same config write the same manifest. Sampling runs
+on one torch thread, seeded.
 
 Updating a study never loses answers: stimuli no longer in the build are deleted only
 when no trial ever showed them; otherwise the build stops and changes nothing (build the
@@ -62,6 +65,7 @@ from studyapp.survey.catch_clips import CATCH_PER_BASE, catch_clips, prompt_catc
 from studyapp.survey.models import ScoringStandard, Stimulus, Study
 from studyapp.survey.stimuli import Clip, file_hash, register_clips
 from studyapp.survey.stimulus_config import ConfigError, StudyConfig, normalise_prompt, prompt_key
+from studyapp.survey.stimulus_sources import MethodSources
 
 Role = Stimulus.Role
 # Real clips drawn per action beyond the judged ones: a reference, the base of the
@@ -115,6 +119,7 @@ class Build:
         self._dataset = None
         self.bar = None
         self.kind = config.kind()
+        self.methods = MethodSources(self)  # checkpoints, samples and metrics of method sources
 
     # The dataset loads only when a cache misses: a no-op rebuild never reads it.
     @property
@@ -201,9 +206,11 @@ class Build:
     def plan(self) -> BuildResult:
         """Report what would be built, touching nothing."""
         for source in self.config.sources:
-            ready = source.kind != "method" or source.checkpoint or self._auto_checkpoint(source).is_file()
-            self.log(f"{source.name}: {source.kind}"
-                     f"{'' if ready else ' (to train: ' + str(source.iters) + ' iterations)'}")
+            missing = ([] if source.kind != "method" or source.checkpoint else
+                       [seed for seed, done in self.methods.planned(source) if not done])
+            todo = (f" (to train: {source.iters} iterations, {source.schedule} schedule, seed"
+                    f"{'s' if len(missing) > 1 else ''} {', '.join(map(str, missing))})" if missing else "")
+            self.log(f"{source.name}: {source.kind}{todo}")
         counts = dict(self.roles())
         if counts.get(Role.CATCH):
             counts[Role.CATCH] = CATCH_PER_BASE * len(self.config.sources)
@@ -219,17 +226,13 @@ class Build:
 
     # --- motions -------------------------------------------------------------------
 
-    def _auto_checkpoint(self, source) -> Path:
-        key = digest({"source": source.section(), "data": self.data_fields()})[:16]
-        return self.cache / "checkpoints" / f"{source.name}-{key}.pt"
-
     def source_motions(self, source):
         """Return (motions, manifest fields, sampled now?) of one source, from the cache if there."""
         c = self.config
         meta = {"source": source.name, "seed": source.seed}
+        keyed = {}
         if source.kind == "method":
-            path = self.checkpoint(source)
-            meta["checkpoint"] = file_hash(path)
+            keyed["checkpoints"] = [t.sha256 for t in self.methods.trained(source)]
         elif source.kind == "file":
             path = c.path(source.file)
             if not path.is_file() and not path.is_dir():
@@ -240,34 +243,27 @@ class Build:
             extra = source.options.get("classes_path")
             if extra:
                 meta["classes"] = file_hash(c.path(extra))
-        key = digest({"source": source.section(), "data": self.data_fields(), **meta})[:16]
+        if len(keyed.get("checkpoints", ())) == 1:  # one checkpoint: keyed as before seeds
+            keyed = {"checkpoint": keyed["checkpoints"][0]}
+        key = digest({"source": source.section(), "data": self.data_fields(), **meta,
+                      **keyed})[:16]
         cached = self.cache / "motions" / f"{source.name}-{key}.npz"
-        if cached.is_file():
-            return npz.load(cached), meta, False
+        trained = cached.with_suffix(".json")  # each method motion's training seed and checkpoint
+        if cached.is_file() and (source.kind != "method" or trained.is_file()):
+            motions = npz.load(cached)
+            if source.kind == "method":
+                seeds = json.loads(trained.read_text())
+                motions = [m.with_joints(m.joints, meta={**m.meta, "training_seed": seed,
+                                                         "checkpoint": sha})
+                           for m, seed, sha in zip(motions, seeds["training_seed"],
+                                                   seeds["checkpoint"])]
+            return motions, meta, False
         motions = self.sample(source)
         npz.save(cached, motions)
+        if source.kind == "method":
+            _write_if_changed(trained, json.dumps({
+                key: [m.meta.get(key) for m in motions] for key in ("training_seed", "checkpoint")}))
         return motions, meta, True
-
-    def checkpoint(self, source) -> Path:
-        if source.checkpoint:
-            path = self.config.path(source.checkpoint)
-            if not path.is_file():
-                raise ConfigError(f"sources: checkpoint {source.checkpoint!r} of {source.name!r} "
-                                  f"is not there (looked in {path}); fix the path, or drop "
-                                  f"'checkpoint' to train one with train.iters")
-            return path
-        path = self._auto_checkpoint(source)
-        if not path.is_file():
-            from generation.methods.training import train_on_dataset
-
-            c = self.config
-            self.log(f"training {source.method} for {source.iters} iterations ({source.preset})")
-            with one_thread():
-                train_on_dataset(source.method, c.dataset, path, data_root=c.data_root,
-                                 subjects=c.subjects, actions=self.actions(), iters=source.iters,
-                                 preset=source.preset, seed=source.seed, frames=c.frames,
-                                 fps=c.fps, progress=False, save_every=0)
-        return path
 
     def sample(self, source, n: int | None = None) -> list:
         """Return ``n`` motions per action of ``source`` (default ``clips_per_source``)."""
@@ -283,11 +279,7 @@ class Build:
             motions = sample_real(self.dataset, self.actions(), n, frames, source.seed, c.fps,
                                   c.subjects)
         elif source.kind == "method":
-            from generation.sampling import sample_method
-
-            with one_thread():
-                motions = sample_method(self.checkpoint(source), self.actions(), n, frames,
-                                        source.seed, source.method)
+            motions = self.methods.sample(source, self.actions(), n, frames)
             if c.fps:
                 motions = [ops.resample(m, c.fps) for m in motions]
         else:
@@ -422,7 +414,8 @@ class Build:
         index = json.loads(index_file.read_text()) if index_file.is_file() else {}
         settings = {"style": c.style, "size": c.size, "framing": asdict(framing),
                     "rendering": RENDERING_VERSION}
-        items = [(m, {"role": Role.JUDGED, **meta}) for m, meta in judged]
+        items = [(m, {"role": Role.JUDGED, **meta, "checkpoint": m.meta.get("checkpoint"),
+                      "training_seed": m.meta.get("training_seed")}) for m, meta in judged]
         items += [(m, {"role": role, "score": score, "source": m.source, "seed": c.seed})
                   for m, role, score in extras]
         keys = [digest({"motion": m.content_hash(), **settings}) for m, _ in items]
@@ -458,14 +451,15 @@ class Build:
                 motion_hash=motion.content_hash(), video_hash=done["video_hash"],
                 video=folder / f"{done['video_hash']}.mp4",
                 poster=folder / f"{done['video_hash']}.png", duration=done["duration"],
-                motion=payload,
+                motion=payload, checkpoint=spec.get("checkpoint") or "",
+                training_seed=spec.get("training_seed"),
             )
             clips.append(clip)
             entry = {**spec, "action": clip.action, "prompt": clip.prompt or None,
                      "motion_hash": clip.motion_hash, "video_hash": clip.video_hash}
             entries.append({k: entry[k] for k in ("source", "checkpoint", "file", "seed",
-                                                  "action", "prompt", "role", "score",
-                                                  "motion_hash", "video_hash")
+                                                  "training_seed", "action", "prompt", "role",
+                                                  "score", "motion_hash", "video_hash")
                             if entry.get(k) is not None})
         return clips, entries, len(missing)
 
@@ -547,6 +541,8 @@ class Build:
         c = self.config
         manifest = {"slug": c.slug, "study_type": c.study_type, "dataset": c.dataset,
                     "style": c.style, "size": c.size, "clips": entries}
+        if any(source.kind == "method" for source in c.sources):
+            manifest["sources"], manifest["metrics"] = self.methods.manifest(c.sources)
         _write_if_changed(self.folder / "manifest.json", json.dumps(manifest, indent=1) + "\n")
 
 

@@ -20,45 +20,33 @@ from pathlib import Path
 import yaml
 
 from generation.datasets.humanml3d import normalise as normalise_prompt  # as captions match
-from generation.formats import list_formats
 from rendering import list_styles
 from studyapp.survey.crowd import CHECKS_OVER_MINUTES, make_platform, outcomes_of
 from studyapp.survey.models import Study
 from studyapp.survey.study_types import get_study_type, list_study_types
 from studyapp.survey.study_types.base import COMMON_OPTIONS, check_criteria
+# The training and sources part (re-exported: callers import ConfigError and Source from here).
+from studyapp.survey.source_config import (  # noqa: F401
+    ConfigError,
+    MetricsConfig,
+    Source,
+    _int,
+    _text,
+    parse_metrics,
+    parse_sources,
+    parse_train,
+    source_mapping,
+)
 
 TOP = ("slug", "title", "seed", "dataset", "data_root", "subjects", "actions", "prompts",
-       "prompts_from", "frames", "fps", "clips_per_source", "train", "sources", "render", "study")
+       "prompts_from", "frames", "fps", "clips_per_source", "train", "sources", "metrics",
+       "render", "study")
 MAX_EXTENDS = 5
 PLAYERS = ("video", "webgl")
 MAX_PROMPT = 500  # characters of one prompt
 # Trials group clips by their action field; a prompt longer than it holds is cut and
 # made unique with a hash of the whole prompt.
 ACTION_LENGTH = 100
-
-
-class ConfigError(ValueError):
-    """A config field has a wrong value; the message names the field, the value and the fix."""
-
-
-@dataclass
-class Source:
-    """One source of clips: ``real`` data, a ``method`` checkpoint, or a motions ``file``."""
-
-    name: str
-    kind: str  # "real", "method" or "file"
-    method: str | None = None
-    checkpoint: str | None = None  # None: trained into the build folder with ``train``
-    file: str | None = None
-    format: str | None = None
-    options: dict = field(default_factory=dict)
-    seed: int = 0
-    iters: int = 1000
-    preset: str = "paper"
-
-    def section(self) -> dict:
-        """Return the fields that decide this source's motions (its cache key, with hashes)."""
-        return {k: v for k, v in vars(self).items() if k not in ("checkpoint", "file")}
 
 
 @dataclass
@@ -87,6 +75,7 @@ class StudyConfig:
     # What the crowd platform's rules advise against (the build goes on; the command
     # prints them), e.g. too few attention checks for Prolific.
     warnings: list[str] = field(default_factory=list)
+    metrics: MetricsConfig = field(default_factory=MetricsConfig)
 
     def path(self, value: str) -> Path:
         return (self.folder / value).resolve()
@@ -159,7 +148,7 @@ def _child(node, part, where, create):
     if isinstance(node, list):
         index = _index(node, part, where)
         if isinstance(node[index], str):  # a source given by name becomes a mapping
-            node[index] = _source_mapping(node[index])
+            node[index] = source_mapping(node[index])
         return node[index]
     if not isinstance(node, dict):
         raise ConfigError(f"--set {where}: {where.rsplit('.', 1)[0]} holds no fields")
@@ -175,10 +164,6 @@ def _index(node: list, part: str, where: str) -> int:
     return int(part)
 
 
-def _source_mapping(name: str) -> dict:
-    return {"real": True} if name == "real" else {"method": name}
-
-
 def parse(raw: dict, folder: Path) -> StudyConfig:
     """Check a config mapping; raise :class:`ConfigError` naming the first bad field."""
     unknown = sorted(set(raw) - set(TOP))
@@ -188,11 +173,7 @@ def parse(raw: dict, folder: Path) -> StudyConfig:
     if not slug.replace("-", "").replace("_", "").isalnum():
         raise ConfigError(f"slug: {slug!r} is not a slug; use letters, digits, - and _")
     seed = _int(raw, "seed", 0, minimum=0)
-    train = raw.get("train") or {}
-    if not isinstance(train, dict):
-        raise ConfigError(f"train: {train!r} must be a mapping like {{iters: 1000, preset: paper}}")
-    iters = _int(train, "iters", 1000, minimum=0, where="train.iters")
-    preset = _text(train, "preset", "paper", where="train.preset")
+    train = parse_train(raw.get("train") or {})
     render = raw.get("render") or {}
     style = _text(render, "style", "stick", where="render.style")
     if style not in list_styles():
@@ -207,7 +188,7 @@ def parse(raw: dict, folder: Path) -> StudyConfig:
         raise ConfigError("render.player: webgl draws 3D figures; use style stick or mesh, or "
                           "player video for stick2d clips")
     study_type, options, type_options, warnings = _study(raw.get("study") or {})
-    sources = _sources(raw.get("sources"), seed, iters, preset)
+    sources = parse_sources(raw.get("sources"), seed, train)
     fps = raw.get("fps")
     if fps is not None and (isinstance(fps, bool) or not isinstance(fps, (int, float)) or fps <= 0):
         raise ConfigError(f"fps: {fps!r} must be a positive number, or null for the dataset's")
@@ -235,6 +216,7 @@ def parse(raw: dict, folder: Path) -> StudyConfig:
         folder=folder,
         prompts=prompts,
         warnings=warnings,
+        metrics=parse_metrics(raw.get("metrics", {})),
     )
 
 
@@ -293,55 +275,6 @@ def _study(raw) -> tuple[str, dict, dict, list[str]]:
     if max_failed is None:
         max_failed = Study._meta.get_field("max_failed_catch").default
     return study_type, options, own, platform.warnings(kind.minutes, checks, max_failed)
-
-
-def _sources(raw, seed, iters, preset) -> list[Source]:
-    if not isinstance(raw, list) or not raw:
-        raise ConfigError(f"sources: {raw!r} must be a non-empty list, e.g. [real, cond_gru]")
-    sources = []
-    for i, entry in enumerate(raw):
-        where = f"sources.{i}"
-        if isinstance(entry, str):
-            entry = _source_mapping(entry)
-        if not isinstance(entry, dict):
-            raise ConfigError(f"{where}: {entry!r} must be 'real', a method name or a mapping")
-        kinds = [k for k in ("real", "method", "file") if entry.get(k)]
-        if len(kinds) != 1:
-            raise ConfigError(f"{where}: {entry!r} needs exactly one of real: true, method: NAME, "
-                              f"file: PATH")
-        kind = kinds[0]
-        allowed = {"name", "seed", kind} | {
-            "real": set(), "method": {"checkpoint", "iters", "preset"},
-            "file": {"format", "options"},
-        }[kind]
-        extra = sorted(set(entry) - allowed)
-        if extra:
-            raise ConfigError(f"{where}.{extra[0]}: not a field of a {kind} source; "
-                              f"its fields are {', '.join(sorted(allowed))}")
-        source = Source(
-            name=str(entry.get("name") or ("real" if kind == "real" else entry.get("method")
-                                           or Path(str(entry["file"])).stem)),
-            kind=kind,
-            seed=_int(entry, "seed", seed, minimum=0, where=f"{where}.seed"),
-        )
-        if kind == "method":
-            source.method = _text(entry, "method", where=f"{where}.method")
-            source.checkpoint = entry.get("checkpoint")
-            source.iters = _int(entry, "iters", iters, minimum=1, where=f"{where}.iters")
-            source.preset = _text(entry, "preset", preset, where=f"{where}.preset")
-            _check_method(source, where)
-        elif kind == "file":
-            source.file = str(entry["file"])
-            source.format = entry.get("format") or Path(source.file).suffix.lstrip(".")
-            if source.format not in list_formats():
-                raise ConfigError(f"{where}.format: {source.format!r} is not a motion format; "
-                                  f"choose one of {', '.join(list_formats())}")
-            source.options = dict(entry.get("options") or {})
-        if source.name in [s.name for s in sources]:
-            raise ConfigError(f"{where}.name: {source.name!r} is used twice; give each source "
-                              f"its own name")
-        sources.append(source)
-    return sources
 
 
 def prompt_key(prompt: str) -> str:
@@ -471,35 +404,6 @@ def _check_prompt_study(raw, sources, study_type, options, type_options) -> None
         raise ConfigError(f"study.type: {study_type} studies need {role} clips per action, which "
                           f"a study of {key} does not make; use pairwise, ranking or "
                           f"fake_or_real, or actions")
-
-
-def _check_method(source: Source, where: str) -> None:
-    from generation.methods import get_method, list_methods
-
-    try:
-        cls = get_method(source.method)
-    except KeyError:
-        raise ConfigError(f"{where}.method: {source.method!r} is not a method; choose one of "
-                          f"{', '.join(list_methods())}") from None
-    if source.checkpoint is None and source.preset not in cls.Config.PRESETS:
-        raise ConfigError(f"{where}.preset (or train.preset): {source.preset!r} is not a preset "
-                          f"of {source.method}; choose one of {', '.join(sorted(cls.Config.PRESETS))}")
-
-
-def _text(raw: dict, name: str, default=None, where=None) -> str:
-    value = raw.get(name, default)
-    if not isinstance(value, str) or not value.strip():
-        raise ConfigError(f"{where or name}: {value!r} must be a non-empty text")
-    return value
-
-
-def _int(raw: dict, name: str, default, minimum=None, where=None):
-    value = raw.get(name, default)
-    if value is None and default is None:
-        return None
-    if isinstance(value, bool) or not isinstance(value, int) or (minimum is not None and value < minimum):
-        raise ConfigError(f"{where or name}: {value!r} must be a whole number of at least {minimum}")
-    return value
 
 
 def _names(raw: dict, name: str) -> list[str] | None:

@@ -134,14 +134,103 @@ def test_sa_gcn_checkpoints_of_older_versions_are_a_clear_error(clips, tmp_path)
     checkpoint = model.to_checkpoint()
     del checkpoint["method_version"]  # saved before versions were recorded: version 1
     torch.save(checkpoint, tmp_path / "old.pt")
-    with pytest.raises(CheckpointError, match="sa_gcn checkpoint of version 1.*is version 3.*"
+    with pytest.raises(CheckpointError, match="sa_gcn checkpoint of version 1.*is version 4.*"
                                               "train it again"):
         get_method("sa_gcn").load(tmp_path / "old.pt")
     checkpoint["method_version"] = 2  # the same shapes, trained under another init and loss
     torch.save(checkpoint, tmp_path / "v2.pt")
-    with pytest.raises(CheckpointError, match="version 2.*is version 3"):
+    with pytest.raises(CheckpointError, match="version 2.*is version 4"):
         get_method("sa_gcn").load(tmp_path / "v2.pt")
     assert get_method("sa_gcn").load(model.save(tmp_path / "new.pt")).iteration == 1
+
+
+def test_sa_gcn_version_3_checkpoints_load_with_every_departure_on(clips, tmp_path):
+    """Version 3 had LayerNorm on Q/K, the gated residual, the self-loop and He init always
+    on and no switches in its config: it loads as version 4 with those switches on."""
+    model = build("sa_gcn", mismatch_weight=1.0)
+    model.fit(clips, iters=1, progress=False)
+    checkpoint = model.to_checkpoint()
+    checkpoint["method_version"] = 3
+    for name in ("qk_norm", "gated_residual", "self_loop", "init", "class_weight"):
+        del checkpoint["config"][name]
+    torch.save(checkpoint, tmp_path / "v3.pt")
+    loaded = get_method("sa_gcn").load(tmp_path / "v3.pt")
+    assert loaded.config.departures() == {"qk_norm": True, "gated_residual": True,
+                                          "self_loop": True, "init": "he", "mismatch_weight": 1.0}
+    expected = joints(model.sample(["walk", "jump"], seed=5))
+    assert np.array_equal(joints(loaded.sample(["walk", "jump"], seed=5)), expected)
+
+
+def test_sa_gcn_paper_preset_is_equations_1_4_6_7_alone(clips):
+    """The paper preset takes no departure: no LayerNorm or gate in the attention
+    (H_in = S V), no extra self-loop (D⁻¹ Ã_s H), torch's initialisation, and the
+    discriminators' Eq. 1 terms only; each departure is saved in the checkpoint's config."""
+    cls = get_method("sa_gcn")
+    paper = cls.Config.preset("paper")
+    assert paper.departures() == {}
+    assert cls.Config.preset("code").departures() == {"gated_residual": True}
+    model = cls(paper, "h36m17", ACTIONS, 25.0, FRAMES)
+    generator = model.networks["generator"]
+    assert generator.attention.norm is None and generator.attention.gate is None
+    assert model.networks["video_discriminator"].classify is None
+    torch.manual_seed(3)
+    frames = torch.randn(2, 6, generator.joints * generator.dims)
+    scores, nodes = generator.attention(frames)
+    attention = generator.attention
+    expected = scores @ attention.value(frames)
+    assert torch.allclose(nodes, expected, atol=1e-6)  # Eq. 4: H_in = S V
+    logits = attention.query(frames) @ attention.key(frames).transpose(1, 2) / frames.shape[-1] ** 0.5
+    causal = logits.masked_fill(torch.ones(6, 6, dtype=torch.bool).triu(1), float("-inf"))
+    assert torch.allclose(scores, causal.softmax(-1), atol=1e-6)
+    # Torch's default initialisation: biases are not zeroed as He's are.
+    assert generator.linears[0].bias.abs().sum() > 0
+
+
+def test_sa_gcn_graph_without_self_loops_is_equation_7():
+    """Without ``self_loop`` the sparse graph equals D⁻¹ Ã_s H of Eq. 6-7 built densely."""
+    torch.manual_seed(4)
+    skeleton = get_skeleton("h36m15_2d")
+    adjacency = skeleton_adjacency(skeleton)
+    joints_, frames, k = skeleton.n_joints, 7, 3
+    scores, _ = CausalSelfAttention(4, qk_norm=False, gated=False)(torch.randn(2, frames, 4))
+    nodes = torch.randn(2, frames, joints_, 3)
+    sparse = SequenceGraph(scores, adjacency, k, self_loop=False).aggregate(nodes)
+    index, weight = temporal_neighbours(scores, k)
+    for b in range(2):
+        mask = torch.diag(scores[b].diagonal())
+        for t in range(frames):
+            mask[t].index_put_((index[b, t],), weight[b, t], accumulate=True)
+        dense = torch.kron(torch.diag(mask.diagonal()), adjacency) + torch.kron(
+            mask - torch.diag(mask.diagonal()), torch.eye(joints_))
+        normalised = dense / dense.sum(-1, keepdim=True)
+        expected = (normalised @ nodes[b].reshape(frames * joints_, -1)).reshape(frames, joints_, -1)
+        assert torch.allclose(sparse[b], expected, atol=1e-5)
+
+
+def test_sa_gcn_class_head_trains_with_cross_entropy(clips):
+    """``class_weight`` adds the authors' class head to D_V: its cross-entropy trains it on
+    real and generated clips, and the generator is pushed towards the class it was asked for."""
+    plain = build("sa_gcn", class_weight=0.0)
+    assert plain.networks["video_discriminator"].classify is None
+    model = build("sa_gcn", class_weight=1.0)
+    model.fit(clips, iters=0, seed=0, progress=False)
+    head = model.networks["video_discriminator"].classify
+    before = head.weight.detach().clone()
+    calls = []
+    original = model.networks["video_discriminator"].with_logits
+
+    def record(poses, classes):
+        calls.append(poses.requires_grad)
+        return original(poses, classes)
+
+    model.networks["video_discriminator"].with_logits = record
+    model.train_step(model.encode(clips[:6]), torch.Generator().manual_seed(0))
+    assert len(calls) == 3  # D_V on real and fake clips, then the generator's term
+    assert not torch.equal(head.weight, before)
+    with pytest.raises(ValueError, match="class_weight"):
+        get_method("sa_gcn").Config(class_weight=-1.0)
+    with pytest.raises(ValueError, match="init must be one of"):
+        get_method("sa_gcn").Config(init="xavier")
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2, 3])
@@ -153,7 +242,7 @@ def test_sa_gcn_motions_of_one_class_differ_from_the_start(clips, seed):
     preset; on h36m2d with the demo preset about 1 %), and the GAN never spread them.
     With He initialisation the tiny preset measured 3-10 % at 12 frames.
     """
-    model = build("sa_gcn")
+    model = build("sa_gcn")  # the tiny preset starts at He's scale (init: he)
     model.fit(clips, iters=0, seed=seed, progress=False)  # initialise, take the statistics
     walks = joints(model.sample(["walk"] * 16, seed=3))
     real = joints(clips)

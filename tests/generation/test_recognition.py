@@ -145,3 +145,53 @@ def test_confusion_counts_true_rows_against_predicted_columns(classifier, clips)
     assert counts.shape == (3, 3) and counts.sum() == len(clips)
     assert counts.trace() / counts.sum() == pytest.approx(classifier.accuracy(clips))
     assert list(counts.sum(1)) == [sum(c.action == a for c in clips) for a in ACTIONS]
+
+
+@pytest.mark.parametrize("skeleton", ["h36m17", "h36m15_2d", "smpl24"])
+def test_mirroring_swaps_sides_and_is_its_own_inverse(skeleton):
+    """A mirror image swaps each left joint with its right one and negates the lateral axis;
+    mirroring twice gives the clip back, and rotations keep every distance."""
+    from generation.recognition.augment import Augmenter, mirror_permutation
+    from generation.skeletons import get_skeleton
+
+    skel = get_skeleton(skeleton)
+    order = mirror_permutation(skel)
+    for left, right in zip(skel.left, skel.right):
+        assert order[left] == right and order[right] == left
+    assert sorted(order) == list(range(skel.n_joints))
+    generator = torch.Generator().manual_seed(0)
+    inputs = torch.randn(64, 5, skel.n_joints + 1, skel.dims)
+    mirror = Augmenter(skel, mirror=True, degrees=0.0)
+    once = mirror(inputs, generator)
+    flipped = ~torch.isclose(once, inputs).all(dim=(1, 2, 3))
+    assert 10 < int(flipped.sum()) < 54  # about half the clips
+    # A flipped clip: joints swapped, the lateral axis negated, the others kept.
+    i = int(flipped.nonzero()[0])
+    lateral = mirror.lateral
+    assert torch.allclose(once[i, :, :-1, lateral], -inputs[i][:, order, lateral])
+    assert torch.allclose(once[i, :, -1, lateral], -inputs[i, :, -1, lateral])
+    rotate = Augmenter(skel, mirror=False, degrees=30.0)
+    turned = rotate(inputs, generator)
+    assert torch.allclose(turned.norm(dim=-1), inputs.norm(dim=-1), atol=1e-5)
+    assert not torch.allclose(turned, inputs)
+    if skel.dims == 3:  # about the vertical axis: heights stay
+        assert torch.allclose(turned[..., skel.up_index], inputs[..., skel.up_index])
+
+
+def test_augmented_classifier_trains_saves_and_loads(clips, tmp_path):
+    """The temporal convolution beside the GRU and the augmentation are config fields kept
+    with the checkpoint; inference does not augment (the same clip, the same features)."""
+    config = ClassifierConfig(hidden=16, layers=1, batch_size=16, lr=3e-3, temporal=8,
+                              mirror=True, rotate=10.0)
+    model = ActionClassifier(config, "h36m17", ACTIONS, 25.0, FRAMES)
+    model.fit(clips, 30, seed=0, progress=False)
+    assert model.network.convolution is not None
+    loaded = ActionClassifier.load(model.save(tmp_path / "augmented.pt"))
+    assert loaded.config == config
+    assert np.allclose(loaded.features(clips), model.features(clips))
+    assert np.allclose(model.features(clips), model.features(clips))
+    assert ClassifierConfig.preset("augmented").mirror
+    for bad, message in (({"rotate": -1.0}, "rotate must be"), ({"mirror": 1}, "mirror must be"),
+                         ({"temporal": 2.5 * -1}, "temporal must be")):
+        with pytest.raises(ValueError, match=message):
+            ClassifierConfig(**bad)

@@ -46,7 +46,8 @@ def test_command_trains_three_seeds_for_equal_iterations_and_reuses_its_work(tmp
     assert "python manage.py benchmark_methods --dataset demo --iters 3 --seeds 0,1,2" in text
     assert "--classifier-preset tiny --mmd-protocol heldout --select last --out" in text
     assert text.count("Checkpoints: the last of each training (`--select last`).") == 2  # and the table
-    assert "no GPU" in text and "Where we fall short" in text
+    assert "no GPU" in text and "Where we stand against the papers" in text
+    assert "The main reason is training" not in text  # a cause is stated only where measured
     assert "3 training iterations per method, setting and training seed" in text
     assert "95 % t interval over seeds" in text and "Protocol: `bootstrap`" in text
     header = next(line for line in text.splitlines() if line.startswith("| method | FID"))
@@ -55,7 +56,7 @@ def test_command_trains_three_seeds_for_equal_iterations_and_reuses_its_work(tmp
     assert "Classifier confusion on the held-out clips" in text and "the state of iteration 5 is kept" in text
     row = next(line for line in text.splitlines() if line.startswith("| `cond_gru` |") and "±" in line)
     assert "40.61 ± 0.144" in row and len(row.split("|")) == 15  # 4 metrics: ours, ± samples, A2M's
-    assert "| `cond_gru` | tiny |" in text and "| 3 × 3 |" in text  # per row: preset, iterations × seeds
+    assert "| `cond_gru` | tiny | none |" in text and "| 3 × 3 |" in text  # preset, departures, it. × seeds
     results = json.loads((tmp_path / "work" / "results.json").read_text())
     entry = results["settings"][0]["methods"]["cond_gru"]
     assert [run["seed"] for run in entry["runs"]] == [0, 1, 2] and entry["iterations"] == [3, 3, 3]
@@ -66,9 +67,9 @@ def test_command_trains_three_seeds_for_equal_iterations_and_reuses_its_work(tmp
     assert np.isclose(fid["ci_samples"], np.mean([run["ci"] for run in fid["seeds"]]))
     assert f"{fid['mean']:.3f} ± {fid['ci_seeds']:.3f}" in row and f"± {fid['ci_samples']:.3f}" in row
     for seed in (0, 1, 2):
-        record = json.loads((tmp_path / "work" / "demo" / f"cond_gru-seed{seed}.json").read_text())
+        record = json.loads((tmp_path / "work" / "demo" / f"cond_gru-seed{seed}-it3.json").read_text())
         assert record["finished"] and record["iterations"] == 3 and record["signature"]["seed"] == seed
-    checkpoint = tmp_path / "work" / "demo" / "cond_gru-seed2.pt"
+    checkpoint = tmp_path / "work" / "demo" / "cond_gru-seed2-it3.pt"
     written = checkpoint.stat().st_mtime_ns
     again = benchmark(tmp_path, "--dataset", "demo", "--methods", "cond_gru,a2m_xyz",
                       "--presets", "cond_gru=tiny,a2m_xyz=tiny")
@@ -120,14 +121,15 @@ def test_command_on_h36m2d_compares_with_seeds_003_and_004(tmp_path, h36m_root):
     mmd_line = next(line for line in text.splitlines() if line.startswith("Protocol:") and "MMD" in line)
     assert "MMD protocol: `paper` (per action, equal numbers of generated motions and training" in mmd_line
     assert "lowest MMD_seq (`paper` MMD protocol, against the training clips) of candidates every 1" in mmd_line
-    assert "| method | preset | parameters | iterations | evaluated (lowest MMD_seq) |" in text
+    assert ("| method | preset | departures from the paper | parameters | iterations | evaluated "
+            "(lowest MMD_seq) |") in text
     results = json.loads((tmp_path / "work" / "results.json").read_text())
     assert results["mmd_protocol"] == "paper" and results["selection"]["every"] == 1
     entry = results["settings"][0]["methods"]["sa_gcn"]
     for run, chosen in zip(entry["runs"], entry["chosen"]):
         scores = {int(it): value for it, value in run["scores"].items()}
         assert set(scores) == {1, 2, 3} and chosen == min(scores, key=scores.get)
-        saved = record(tmp_path, f"sa_gcn-seed{run['seed']}-best-mmd-seq-every1-n3", "h36m2d")
+        saved = record(tmp_path, f"sa_gcn-seed{run['seed']}-it3-best-mmd-seq-every1-n3", "h36m2d")
         assert saved["evaluation"]["signature"]["iteration"] == chosen
         assert saved["evaluation"]["signature"]["mmd_protocol"] == "paper"
     row = next(line for line in text.splitlines() if line.startswith("| `sa_gcn` | tiny |"))
@@ -148,10 +150,10 @@ def test_best_mmd_seq_evaluates_the_lowest_scoring_candidate_and_reruns_reuse_it
     text = benchmark(tmp_path, *picked)
     assert sorted(calls) == [(0, 1), (0, 2), (0, 3), (1, 1), (1, 2), (1, 3)]
     assert "--select best-mmd-seq --select-every 1 --select-n 50 --out" in text
-    assert "| `cond_gru` | tiny | 5,091 | 3 × 2 | 2 / 3 |" in text
+    assert "| `cond_gru` | tiny | none | 5,091 | 3 × 2 | 2 / 3 |" in text
     folder = tmp_path / "work" / "demo"
     for seed in (0, 1):
-        stem = f"cond_gru-seed{seed}-best-mmd-seq-every1-n50"
+        stem = f"cond_gru-seed{seed}-it3-best-mmd-seq-every1-n50"
         saved = record(tmp_path, stem)
         assert saved["iterations"] == 3 and saved["selection"]["chosen"] == best[seed]
         assert saved["evaluation"]["signature"]["iteration"] == best[seed]  # the chosen one is evaluated
@@ -159,7 +161,7 @@ def test_best_mmd_seq_evaluates_the_lowest_scoring_candidate_and_reruns_reuse_it
             assert len(data["joints"]) == 3 * 8
         # Only the best candidate stays beside the last checkpoint (for a longer run to compare with).
         assert [p.name for p in (folder / f"{stem}.candidates").iterdir()] == [f"it{best[seed]}.pt"]
-    kept = folder / "cond_gru-seed0-best-mmd-seq-every1-n50.candidates" / "it2.pt"
+    kept = folder / "cond_gru-seed0-it3-best-mmd-seq-every1-n50.candidates" / "it2.pt"
     written = kept.stat().st_mtime_ns
     calls.clear()
     again = benchmark(tmp_path, *picked)
@@ -167,10 +169,11 @@ def test_best_mmd_seq_evaluates_the_lowest_scoring_candidate_and_reruns_reuse_it
     assert kept.stat().st_mtime_ns == written
     last = benchmark(tmp_path, *args)  # another selection: its own runs, not the best ones
     assert "trainings were reused" not in last and "evaluated (lowest MMD_seq)" not in last
-    assert record(tmp_path, "cond_gru-seed0")["evaluation"]["signature"]["iteration"] == 3
+    assert record(tmp_path, "cond_gru-seed0-it3")["evaluation"]["signature"]["iteration"] == 3
     assert calls == [] and "| 3 × 2 | 2 / 3 |" in benchmark(tmp_path, *picked)
     longer = benchmark(tmp_path, *picked, iters=4)  # resumes; scores only the new candidate
     assert sorted(calls) == [(0, 4), (1, 4)] and "| 4 × 2 | 2 / 3 |" in longer
+    assert record(tmp_path, "cond_gru-seed0-it3-best-mmd-seq-every1-n50")["iterations"] == 3  # kept
 
 
 def test_best_mmd_seq_scores_real_candidates_of_odmo(tmp_path):
@@ -191,7 +194,7 @@ def test_best_mmd_seq_scores_real_candidates_of_odmo(tmp_path):
 
 @pytest.mark.parametrize("args, message", [
     (("--select", "best"), r"--select: invalid choice: 'best' \(choose from 'last', 'best-mmd-seq'\)"),
-    (("--mmd-protocol", "ours"), r"--mmd-protocol: invalid choice: 'ours' \(choose from 'heldout', 'paper'\)"),
+    (("--mmd-protocol", "ours"), r"--mmd-protocol: invalid choice: 'ours' \(choose from 'authors', 'heldout', 'paper'\)"),
     (("--select", "best-mmd-seq", "--select-every", "0"), r"--select-every must be from 1 to --iters \(3\); got 0"),
     (("--select", "best-mmd-seq", "--select-every", "4"), r"--select-every must be from 1 to --iters \(3\); got 4"),
     (("--select", "best-mmd-seq", "--select-n", "1"), "--select-n must be at least 2"),
@@ -222,7 +225,7 @@ def test_tables_name_their_mmd_protocol_and_checkpoint_selection():
     setting.update(mmd_protocol="paper", selection={"rule": "best-mmd-seq", "every": 2, "n": 50, "repeats": 3})
     line = _metric_table(setting, ["mmd_seq"], [])[0]
     assert "MMD protocol: `paper` (per action, equal numbers" in line and "candidates every 2 iterations" in line
-    assert "| `a2m` | tiny | 10 | 6 × 2 | 2 / 6 | 1 / 1 | 1 / 1 |  |" in _training_table(setting)
+    assert "| `a2m` | tiny | none | 10 | 6 × 2 | 2 / 6 | 1 / 1 | 1 / 1 |  |" in _training_table(setting)
     setting["methods"]["a2m"]["metrics"] = {"fid": {"mean": 1.0, "ci_seeds": 0.1, "ci_samples": 0.01}}
     line = _metric_table(setting, ["fid"], [])[0]  # no MMD column: only the selection is named
     assert "MMD protocol: " not in line and "lowest MMD_seq (`paper` MMD protocol" in line
@@ -249,10 +252,26 @@ def test_iteration_budget_shortens_first_phases_of_default_recipes():
     assert recipe_for("skeleton_gan", None, 80).describe() == "demo (pretrain_iters=40)"
     assert recipe_for("two_stage_gan", None, 80).changes == {"pose_iterations": 40}
     assert recipe_for("odmo", None, 100).changes == {"teacher_forcing_iters": 75}
-    assert recipe_for("odmo", None, 1000).changes == {"teacher_forcing_iters": 300}
+    assert recipe_for("odmo", None, 2000).changes == {}  # the demo preset's 1,000 fit in 75 %
     assert recipe_for("skeleton_gan", None, None).changes == {}
-    assert recipe_for("skeleton_gan", {"skeleton_gan": "demo"}, 80).changes == {}
+    # A preset named for the method takes the same schedule.
+    assert recipe_for("skeleton_gan", {"skeleton_gan": "paper"}, 80).changes == {"pretrain_iters": 40}
     assert recipe_for("a2m", None, 80) == Recipe()
+
+
+def test_full_schedule_refuses_a_budget_inside_the_first_phase():
+    """The study builds' and ``train``'s other rule: the preset's phases as they are, and a
+    budget that ends inside the first is refused, naming the phase and the fix."""
+    from generation.methods.schedule import ScheduleError, recipe_for as schedule
+
+    with pytest.raises(ScheduleError, match=r"c_skeleton_gan pretrains its frame decoder for its "
+                                            r"first 10,000 iterations \(pretrain_iters of the paper "
+                                            r"preset\); 2,000 iterations end inside that phase"):
+        schedule("c_skeleton_gan", "paper", 2000, "full")
+    assert schedule("c_skeleton_gan", "paper", 12_000, "full").changes == {}
+    assert schedule("a2m", "paper", 10, "full") == Recipe("paper")
+    with pytest.raises(ScheduleError, match="unknown schedule 'fast'"):
+        schedule("a2m", "paper", 10, "fast")
 
 
 def test_training_resumes_to_a_larger_budget(tmp_path):
@@ -319,3 +338,53 @@ def test_evaluate_measures_modes_and_end_targets_of_an_odmo_file(tmp_path):
                  "--mode", "0", "--out", str(chosen), verbosity=0)
     with np.load(chosen) as data:
         assert data["modes"].tolist() == [0, 0, 0] and "end_targets" not in data.files
+
+
+def test_a_budget_sweep_resumes_methods_without_phases_and_reports_every_budget(tmp_path):
+    """``--iters 2,4``: cond_gru trains once (the 4-iteration run resumes the 2-iteration
+    one, both checkpoints kept); skeleton_gan, whose pretraining takes half the budget,
+    trains afresh per budget; the report is the main budget's with a table per metric."""
+    out = tmp_path / "RESULTS.md"
+    call_command("benchmark_methods", "--dataset", "demo", "--methods", "cond_gru,skeleton_gan",
+                 "--presets", "cond_gru=tiny,skeleton_gan=tiny", "--repeats", "2", "--n", "3",
+                 "--classifier-iters", "5", "--classifier-preset", "tiny", "--iters", "2,4",
+                 "--main-iters", "2", "--seeds", "0,1", "--work", str(tmp_path / "work"),
+                 "--out", str(out), verbosity=0)
+    text = out.read_text()
+    assert "--iters 2,4 --main-iters 2" in text
+    assert "2 training iterations per method, setting and training seed" in text
+    assert "## Training budget: the same methods and seeds at 2, 4 iterations" in text
+    fid = text[text.index("FID ↓ (classifier: `tiny` preset, held-out accuracy"):]
+    row = next(line for line in fid.splitlines() if line.startswith("| `cond_gru` |"))
+    assert row.count("±") == 2 and row.rstrip(" |").split("| ")[-1] in (
+        "intervals overlap", "better", "worse")
+    for seed in (0, 1):
+        assert record(tmp_path, f"cond_gru-seed{seed}-it2")["iterations"] == 2
+        assert record(tmp_path, f"cond_gru-seed{seed}-it4")["iterations"] == 4
+        # tiny pretrains for 2: half of 2 iterations is 1, half of 4 is the preset's own 2.
+        assert record(tmp_path, f"skeleton_gan-seed{seed}-it2")["signature"]["changes"] == {
+            "pretrain_iters": 1}
+        assert record(tmp_path, f"skeleton_gan-seed{seed}-it4")["signature"]["changes"] == {}
+    sweep = json.loads((tmp_path / "work" / "sweep.json").read_text())
+    assert sweep["iters"] == [2, 4] and sweep["main"] == 2 and len(sweep["results"]) == 2
+    with pytest.raises(CommandError, match="--main-iters 3 is not one of --iters 2,4"):
+        call_command("benchmark_methods", "--dataset", "demo", "--iters", "2,4", "--main-iters", "3",
+                     "--out", str(out), verbosity=0)
+
+
+def test_rankings_only_where_intervals_separate_and_both_real_definitions_are_named():
+    from motion_metrics.benchmark_report import _setting_facts
+
+    def entry(accuracy, ci, fid):
+        return {"metrics": {"accuracy": {"mean": accuracy, "ci_seeds": ci},
+                            "fid": {"mean": fid, "ci_seeds": 0.1}}}
+
+    setting = {"dataset": "h36m", "tables": ["000_table_1"], "classifier": {"test_accuracy": 0.5},
+               "real": {"fid": {"mean": 2.0}}, "real_a2m": {"fid": {"mean": 0.5}},
+               "methods": {"a2m": entry(0.40, 0.05, 6.0), "cond_gru": entry(0.36, 0.05, 7.0)}}
+    text = " ".join(_setting_facts(setting))
+    assert "no method is first" in text and "most recognisable" not in text
+    assert "3.0× the FID of held-out against training clips (2, our Real row)" in text
+    assert "12× that of two draws of the held-out clips (0.5, the definition of Action2Motion's" in text
+    setting["methods"]["a2m"] = entry(0.60, 0.05, 6.0)
+    assert "most recognisable samples on h36m are `a2m`'s" in " ".join(_setting_facts(setting))

@@ -194,9 +194,18 @@ def test_dist_e_is_the_mean_squared_distance():
     assert M.dist_e(target, reached) == pytest.approx((1.0 + 4.0) / 2)
 
 
-def test_mean_ci_is_a2ms_interval():
+def test_mean_ci_is_a_t_interval_over_repeats():
+    """t with R - 1 degrees of freedom and the sample deviation, not A2M's 1.96 x the
+    population deviation (37 % narrower for R = 5)."""
+    from scipy import stats
+
     mean, ci = M.mean_ci([1.0, 2.0, 3.0, 4.0])
-    assert mean == 2.5 and ci == pytest.approx(1.96 * np.std([1, 2, 3, 4]) / 2)
+    assert mean == 2.5
+    assert ci == pytest.approx(stats.t.ppf(0.975, 3) * np.std([1, 2, 3, 4], ddof=1) / 2)
+    values = [1.0, 2.0, 4.0, 3.0, 5.0]
+    a2m = 1.96 * np.std(values) / np.sqrt(5)
+    assert 1 - a2m / M.mean_ci(values)[1] == pytest.approx(0.37, abs=0.01)
+    assert np.isnan(M.mean_ci([2.0])[1]) and M.mean_ci([2.0])[0] == 2.0
 
 
 def motion_set(n, seed, shift=0.0, classes=2):

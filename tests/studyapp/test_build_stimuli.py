@@ -172,8 +172,9 @@ def test_each_import_format_is_a_source(tmp_path, media_root):
 def test_h36m2d_preset_builds_small(tmp_path, media_root, h36m_root):
     config = load_config(ROOT / "studies" / "sagcn_rating.yaml", [
         "clips_per_source=1", "train.iters=2", "train.preset=tiny", "actions=[Walking,Eating]",
-        "render.size=64", f"data_root={h36m_root}", "frames=20",
-        "sources=[skeleton_gan, sa_gcn]",
+        "render.size=64", f"data_root={h36m_root}", "frames=20", "train.seeds=[0]",
+        "sources=[skeleton_gan, sa_gcn]", "metrics.train_classifier=false", "metrics.n=2",
+        "metrics.repeats=2",
     ])
     result = build_stimuli(config, tmp_path / "b")
     study = result.study
@@ -219,7 +220,8 @@ def test_build_job_records_progress_and_can_run_again(tmp_path, media_root, sett
 
 
 SMALL_BUILD = ["clips_per_source=1", "train.iters=2", "train.preset=tiny", "render.size=64",
-               "frames=16"]
+               "frames=16", "metrics.classifier_preset=tiny", "metrics.classifier_iters=5",
+               "metrics.n=2", "metrics.repeats=2"]
 PRESETS = {  # preset -> (study type, datasets it must build from)
     "a2m_ranking.yaml": ("ranking", ["demo", "h36m"]),
     "a2m_fake_or_real.yaml": ("fake_or_real", ["demo", "h36m"]),
@@ -241,6 +243,8 @@ def test_every_preset_builds_with_small_counts(tmp_path, media_root, preset, dat
         pytest.skip("Human3.6M data not beside the project")
     overrides = [*SMALL_BUILD, f"dataset={dataset}", f"actions={ACTIONS_OF[dataset]}",
                  f"slug={preset.split('.')[0].replace('_', '-')}-{dataset}"]
+    if dataset == "demo":
+        overrides.append("subjects=null")  # the synthetic data has no subjects
     config = load_config(ROOT / "studies" / preset, overrides)
     result = build_stimuli(config, tmp_path / "build")
     study = result.study

@@ -47,6 +47,11 @@ class Command(BaseCommand):
                                  "audit of audit_blindness, run in this process).")
         parser.add_argument("--real-source", default="real", metavar="NAME",
                             help="The source holding real clips (fake_or_real; default 'real').")
+        parser.add_argument("--manifest", metavar="FILE",
+                            help="The study's build manifest: its method checkpoints (hash, "
+                                 "budget, training seed) and their objective metrics become a "
+                                 "table of the report (default: the build folder's, "
+                                 "<var>/stimuli/<slug>/manifest.json, when there).")
         # Kept for old scripts: SVGs are always written now.
         parser.add_argument("--svg", action="store_true", help=argparse.SUPPRESS)
 
@@ -81,6 +86,7 @@ class Command(BaseCommand):
                 type_options=type_options,
             )
             results = analyse_all(table, config, participants=participants)
+            _add_stimulus_sources(results, options["manifest"], None if responses else record)
             if not responses and not options["no_audit"]:
                 try:
                     blindness = audit_study(record, view_fetcher(), "deep")
@@ -134,6 +140,40 @@ class Command(BaseCommand):
         figures = sum(1 for path in written if path.suffix == ".png")
         self.stdout.write(f"Wrote report.html, summary.json, {tables} tables (CSV, Markdown, LaTeX) "
                           f"and {figures} figures (PNG, SVG) to {out}.")
+
+
+def _add_stimulus_sources(results, manifest, study) -> None:
+    """Add the build manifest's table of method checkpoints and their metrics to each result."""
+    import json
+
+    from django.conf import settings
+
+    from analysis.registry import Table
+    from studyapp.survey.stimulus_sources import sources_table
+
+    if manifest is None and study is not None:
+        found = Path(settings.VAR_DIR) / "stimuli" / study.slug / "manifest.json"
+        manifest = found if found.is_file() else None
+    if manifest is None:
+        return
+    try:
+        built = json.loads(Path(manifest).read_text())
+    except (OSError, ValueError) as error:
+        raise CommandError(f"Cannot read the manifest {manifest}: {error}; give the build's "
+                           f"manifest.json with --manifest") from None
+    frame = sources_table(built)
+    if frame is None:
+        return
+    about = built.get("metrics") or {}
+    classifier = about.get("classifier")
+    title = (f"Stimulus sources: each method checkpoint (sha256 prefix), its training budget and "
+             f"seed, and its objective metrics at build time ({about.get('n')} motions per action, "
+             f"{about.get('repeats')} repeats, MMD protocol {about.get('mmd_protocol')}"
+             + (f"; classifier held-out accuracy {classifier['test_accuracy']:.3f}" if classifier
+                and classifier.get("test_accuracy") is not None else "") + ")")
+    for result in results:
+        result.appendix.append(Table("stimulus_sources", title, frame))
+        result.notes.extend(about.get("notes") or [])
 
 
 def _participants(study):

@@ -8,10 +8,12 @@ from generation.datasets import DatasetError
 from generation.methods import CheckpointError, MethodError, list_methods
 from generation.recognition import ClassifierError
 from generation.sampling import SamplingError, split_names
+from generation.methods.budget import write_json
 from motion_metrics.benchmark import (
     MMD_PROTOCOL, SELECT_N, SELECTIONS, BenchmarkError, Selection, run_benchmark,
 )
 from motion_metrics.benchmark_report import render
+from motion_metrics.sweep_report import render_sweep
 from motion_metrics.protocol import MMD_PROTOCOLS
 
 
@@ -30,12 +32,17 @@ class Command(BaseCommand):
                             help="Comma-separated datasets: h36m2d (seeds 003/004), h36m (A2M's "
                                  "metrics), demo (default: h36m2d,h36m).")
         budget = parser.add_mutually_exclusive_group(required=True)
-        budget.add_argument("--iters", type=int,
+        budget.add_argument("--iters",
                             help="Training iterations per method, dataset and seed (the same for "
-                                 "every method; phases of pretraining count).")
+                                 "every method; phases of pretraining count); several, comma-"
+                                 "separated (250,500,1000,2000), run a budget sweep: the report "
+                                 "is --main-iters' with a section comparing every budget.")
         budget.add_argument("--budget", type=float,
                             help="Instead of --iters: seconds of training wall time per method, "
                                  "dataset and seed.")
+        parser.add_argument("--main-iters", type=int,
+                            help="With several --iters: the budget of the report's main tables "
+                                 "(default: the largest).")
         parser.add_argument("--seeds", default="0,1,2",
                             help="Comma-separated training seeds, at least 2 for an interval over "
                                  "seeds (default: 0,1,2). Each seed's model samples and is "
@@ -52,12 +59,15 @@ class Command(BaseCommand):
         parser.add_argument("--classifier-iters", type=int, default=500,
                             help="Training iterations of the action classifier.")
         parser.add_argument("--classifier-preset", default="paper",
-                            help="Classifier preset: paper (A2M's GRU) or tiny (tests).")
+                            help="Classifier preset: paper (A2M's GRU), augmented (the same GRU "
+                                 "trained on mirrored and rotated clips) or tiny (tests).")
         parser.add_argument("--mmd-protocol", choices=sorted(MMD_PROTOCOLS), default=MMD_PROTOCOL,
                             help="How MMD_avg/MMD_seq are measured: heldout (default: against every "
-                                 "held-out clip of the action, raw coordinates) or paper (seeds "
-                                 "003/004: against the training clips, coordinates standardised by "
-                                 "them, equal paired counts per action); every table names it.")
+                                 "held-out clip of the action, raw coordinates), paper (against the "
+                                 "training clips, coordinates standardised by them, equal paired "
+                                 "counts per action) or authors (SA-GCN's code: hip-centred, "
+                                 "depth-scaled poses, 100 per class, against training and held-out "
+                                 "clips); every table names it.")
         parser.add_argument("--select", choices=list(SELECTIONS), default="last",
                             help="Which checkpoint of each training is evaluated: last (default) or "
                                  "best-mmd-seq (seeds 003/004: of candidates kept every "
@@ -78,8 +88,14 @@ class Command(BaseCommand):
     def handle(self, *args, **options):
         if options["budget"] is not None and options["budget"] <= 0:
             raise CommandError(f"--budget must be positive; got {options['budget']}")
-        if options["iters"] is not None and options["iters"] < 1:
-            raise CommandError(f"--iters must be at least 1; got {options['iters']}")
+        sweep = budgets_of(options)
+        main = options["main_iters"] or (max(sweep) if sweep else None)
+        if sweep and main not in sweep:
+            raise CommandError(f"--main-iters {main} is not one of --iters {options['iters']}")
+        if sweep and len(sweep) > 1 and options["select"] != "last":
+            raise CommandError("a budget sweep (several --iters) measures the last checkpoints, as "
+                               "studies train them; drop --select, or give one --iters")
+        options["iters"] = main
         try:
             seeds = [int(seed) for seed in split_names(options["seeds"])]
         except ValueError:
@@ -94,20 +110,21 @@ class Command(BaseCommand):
             presets = dict(item.split("=", 1) for item in split_names(options["presets"]))
         except ValueError:
             raise CommandError(f"--presets {options['presets']!r}: write METHOD=PRESET pairs") from None
+        common = dict(
+            seeds=seeds, methods=split_names(options["methods"]) or None, presets=presets,
+            repeats=options["repeats"], n=options["n"],
+            subjects=split_names(options["subjects"]) or None,
+            test_subjects=split_names(options["test_subjects"]) or None,
+            actions=split_names(options["actions"]) or None,
+            classifier_iters=options["classifier_iters"],
+            classifier_preset=options["classifier_preset"], data_root=options["data_root"],
+            mmd_protocol=options["mmd_protocol"], selection=selection,
+            progress=options["verbosity"] >= 1, log=self.stdout.write)
+        results = []
         try:
-            result = run_benchmark(
-                split_names(options["dataset"]), options["budget"], work,
-                iters=options["iters"], seeds=seeds,
-                methods=split_names(options["methods"]) or None, presets=presets,
-                repeats=options["repeats"], n=options["n"],
-                subjects=split_names(options["subjects"]) or None,
-                test_subjects=split_names(options["test_subjects"]) or None,
-                actions=split_names(options["actions"]) or None,
-                classifier_iters=options["classifier_iters"],
-                classifier_preset=options["classifier_preset"], data_root=options["data_root"],
-                mmd_protocol=options["mmd_protocol"], selection=selection,
-                progress=options["verbosity"] >= 1, log=self.stdout.write,
-            )
+            for iters in sweep or [None]:  # shorter budgets first: longer ones resume them
+                results.append(run_benchmark(split_names(options["dataset"]), options["budget"],
+                                             work, iters=iters, **common))
         except KeyError as exc:
             raise CommandError(exc.args[0]) from None
         except (BenchmarkError, DatasetError, ClassifierError, MethodError, CheckpointError,
@@ -115,8 +132,28 @@ class Command(BaseCommand):
             raise CommandError(str(exc)) from None
         out = Path(options["out"])
         out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(render(result, command_line(options, work, selection)))
-        self.stdout.write(f"wrote {out} ({result['wall_seconds'] / 60:.1f} minutes)")
+        command = command_line(options, work, selection, sweep)
+        if len(results) > 1:
+            write_json(work / "sweep.json", {"iters": sweep, "main": main, "results": results})
+            out.write_text(render_sweep(results, command, main))
+        else:
+            out.write_text(render(results[0], command))
+        minutes = sum(result["wall_seconds"] for result in results) / 60
+        self.stdout.write(f"wrote {out} ({minutes:.1f} minutes)")
+
+
+def budgets_of(options: dict) -> list[int] | None:
+    """Return the --iters budgets in increasing order (None with --budget), checked."""
+    if options["iters"] is None:
+        return None
+    try:
+        budgets = sorted({int(value) for value in split_names(options["iters"])})
+    except ValueError:
+        raise CommandError(f"--iters {options['iters']!r}: write a number of iterations, or several "
+                           f"comma-separated (250,500,1000)") from None
+    if not budgets or budgets[0] < 1:
+        raise CommandError(f"--iters must be at least 1; got {options['iters']}")
+    return budgets
 
 
 def selection_of(options: dict) -> Selection:
@@ -141,10 +178,12 @@ def selection_of(options: dict) -> Selection:
     return Selection("best-mmd-seq", every, options["select_n"])
 
 
-def command_line(options: dict, work: Path, selection: Selection) -> str:
+def command_line(options: dict, work: Path, selection: Selection, sweep=None) -> str:
     """Return the command that reproduces this run (every choice spelled out)."""
     parts = ["python", "manage.py", "benchmark_methods", "--dataset", options["dataset"]]
-    if options["iters"] is not None:
+    if sweep and len(sweep) > 1:
+        parts += ["--iters", ",".join(map(str, sweep)), "--main-iters", str(options["iters"])]
+    elif options["iters"] is not None:
         parts += ["--iters", str(options["iters"])]
     else:
         parts += ["--budget", f"{options['budget']:g}"]

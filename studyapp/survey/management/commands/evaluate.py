@@ -46,11 +46,13 @@ class Command(BaseCommand):
         parser.add_argument("--metrics", help=f"Comma-separated, from: {', '.join(METRICS)} (default: all).")
         parser.add_argument("--repeats", type=int, default=20, help="Repeats for the 95 %% CI (A2M: 20).")
         parser.add_argument("--seed", type=int, default=0, help="Seed of the repeats' draws.")
-        parser.add_argument("--mmd-protocol", choices=("heldout", "paper"), default="heldout",
+        parser.add_argument("--mmd-protocol", choices=("heldout", "paper", "authors"), default="heldout",
                             help="How MMD_avg/MMD_seq are measured: heldout (default: the repeats' "
-                                 "draws against every held-out clip of the action, raw coordinates) "
-                                 "or paper (against the training clips, coordinates standardised by "
-                                 "them, equal counts per action); the output names it.")
+                                 "draws against every held-out clip of the action, raw coordinates), "
+                                 "paper (against the training clips, coordinates standardised by "
+                                 "them, equal counts per action) or authors (SA-GCN's code: "
+                                 "hip-centred, depth-scaled, 100 per class, against the training "
+                                 "clips and, beside, the held-out clips); the output names it.")
         parser.add_argument("--json", required=True, help="File to write the results to.")
 
     def handle(self, *args, **options):
@@ -66,9 +68,9 @@ class Command(BaseCommand):
                                "repeat: pass --checkpoint and no --motions")
         if not a2m and not options["motions"]:
             raise CommandError("pass --motions F.npz (or --protocol a2m --checkpoint CKPT)")
-        if a2m and options["mmd_protocol"] == "paper":
-            raise CommandError("--mmd-protocol paper measures one set of motions: use it with "
-                               "--motions (the bootstrap protocol), not --protocol a2m")
+        if a2m and options["mmd_protocol"] in ("paper", "authors"):
+            raise CommandError(f"--mmd-protocol {options['mmd_protocol']} measures one set of motions: "
+                               f"use it with --motions (the bootstrap protocol), not --protocol a2m")
         if a2m and options["n"] < 1:
             raise CommandError(f"--n must be at least 1; got {options['n']}")
         source = options["checkpoint"] if a2m else options["motions"]
@@ -128,6 +130,8 @@ class Command(BaseCommand):
             arrow = " (lower is better)" if name in LOWER_IS_BETTER else ""
             label = f"{name} [{result['mmd_protocol']['name']}]" if name.startswith("mmd_") else name
             lines.append(f"{label:<18}{_cell(row):>24}{_cell(row['real']):>24}{arrow}")
+            if row.get("heldout"):  # the authors' protocol: the same motions against held-out clips
+                lines.append(f"{'  held-out clips':<18}{_cell(row['heldout']):>24}")
         for name, reason in result["skipped"].items():
             hint = (": pass --classifier" if "classifier" in reason
                     else ": pass --checkpoint" if "mode of each real" in reason else "")
@@ -138,4 +142,6 @@ class Command(BaseCommand):
 def _cell(summary) -> str:
     if not summary or summary["mean"] is None or not math.isfinite(summary["mean"]):
         return "-"
+    if summary.get("ci") is None:
+        return f"{summary['mean']:.4g}"
     return f"{summary['mean']:.4g} ± {summary['ci']:.2g}"

@@ -2,6 +2,7 @@ from django.core.management.base import BaseCommand, CommandError
 
 from generation.datasets import DatasetError
 from generation.methods import CheckpointError, MethodError, list_methods
+from generation.methods.schedule import SCHEDULES
 from generation.methods.training import train_on_dataset
 from generation.sampling import SamplingError
 
@@ -22,6 +23,11 @@ class Command(BaseCommand):
                             help="Total training iterations; with --resume, train up to this many.")
         parser.add_argument("--preset", default="paper",
                             help="Config preset: paper (the paper's values), demo, or tiny (tests).")
+        parser.add_argument("--schedule", choices=sorted(SCHEDULES), default="full",
+                            help="How a first training phase (the GAN baselines' pretraining, "
+                                 "ODMO's teacher forcing) meets --iters: full keeps the preset's "
+                                 "phase and refuses fewer iterations; benchmark shortens it to its "
+                                 "share of --iters, as benchmark_methods trains.")
         parser.add_argument("--seed", type=int, default=0, help="Seed of initialisation and batches.")
         parser.add_argument("--frames", type=int, help="Clip length (default: the dataset's).")
         parser.add_argument("--fps", type=float, help="Frame rate (default: the dataset's).")
@@ -41,7 +47,7 @@ class Command(BaseCommand):
                 actions=options["actions"], iters=options["iters"], preset=options["preset"],
                 seed=options["seed"], frames=options["frames"], fps=options["fps"],
                 resume=options["resume"], progress=options["verbosity"] >= 1,
-                save_every=options["save_every"],
+                save_every=options["save_every"], schedule=options["schedule"],
             )
         except KeyError as exc:
             raise CommandError(exc.args[0]) from None

@@ -42,7 +42,8 @@ class Command(BaseCommand):
                             help="Share of each action's training takes set aside to validate on.")
         parser.add_argument("--preset", default="paper",
                             help=f"Config preset: {', '.join(sorted(ClassifierConfig.PRESETS))} "
-                                 f"(paper: A2M's 2-layer GRU of 128; tiny: tests).")
+                                 f"(paper: A2M's 2-layer GRU of 128; augmented: the same network trained on "
+                                 f"mirrored and slightly rotated clips; tiny: tests).")
         parser.add_argument("--seed", type=int, default=0,
                             help="Seed of initialisation, batches and the take split.")
         parser.add_argument("--out", required=True, help="Checkpoint file to write (.pt).")

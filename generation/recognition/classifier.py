@@ -4,7 +4,9 @@ Action2Motion "train[s] a standard RNN action recognition classifier for each da
 and use[s] its final layer as the motion feature extractor"; its released classifier is
 a 2-layer GRU of 128 units whose last output goes through a 30-unit tanh layer (the
 features) and a linear layer to the classes. The paper gives no training settings; we
-take Adam at 1e-3 with batches of 128.
+take Adam at 1e-3 with batches of 128. Options beyond it (the ``augmented`` preset of
+:class:`~generation.recognition.networks.ClassifierConfig`): a temporal convolution
+beside the GRU, and training on mirrored and slightly rotated clips.
 
 Poses enter as joint positions relative to the root in each frame, plus the root's path
 from its first position on the floor (height kept), each value standardised by the
@@ -21,12 +23,10 @@ the best measured state is kept (never the held-out clips: they only report).
 from __future__ import annotations
 
 import copy
-import math
 import os
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, fields
 from pathlib import Path
-from typing import ClassVar, Sequence
+from typing import Sequence
 
 import numpy as np
 import torch
@@ -35,15 +35,16 @@ from tqdm import tqdm
 
 from generation.datasets import DatasetError, get_dataset
 from generation.motion import Motion
-from generation.sampling import choose, choose_subjects, split_names
+from generation.recognition.augment import Augmenter
+from generation.recognition.errors import ClassifierError
+from generation.recognition.networks import FEATURES, ClassifierConfig, GRURecogniser
+from generation.recognition.split import VALIDATION_FRACTION, Split, make_split, validation_split
+from generation.sampling import choose
 from generation.skeletons import get_skeleton
 
-FEATURES = 30  # A2M's feature layer
 CHECKPOINT_FORMAT = 1
 KIND = "action_classifier"
-TEST_FRACTION = 0.2  # held-out share of subjects, or of takes without subjects
 INFERENCE_BATCH = 512
-VALIDATION_FRACTION = 0.2  # share of each action's training takes that validates
 EVAL_EVERY = 50  # iterations between validation measurements
 PATIENCE = 10  # measurements without improvement before training stops
 
@@ -62,153 +63,6 @@ def one_thread():
     finally:
         torch.set_num_threads(previous)
 
-
-class ClassifierError(ValueError):
-    """The classifier cannot use its input (other skeleton, length, actions) or its checkpoint is bad."""
-
-
-@dataclass
-class ClassifierConfig:
-    """Classifier hyper-parameters; ``paper`` is A2M's network, ``tiny`` is for tests."""
-
-    PRESETS: ClassVar[dict[str, dict]] = {
-        "paper": {},
-        "tiny": {"hidden": 16, "layers": 1, "batch_size": 16, "lr": 3e-3},
-    }
-
-    hidden: int = 128
-    layers: int = 2
-    batch_size: int = 128
-    lr: float = 1e-3
-
-    def __post_init__(self):
-        for item in fields(self):
-            value = getattr(self, item.name)
-            number = isinstance(value, (int, float)) and not isinstance(value, bool)
-            if not number or not math.isfinite(value) or value <= 0:
-                raise ValueError(f"ClassifierConfig.{item.name} must be a positive number; got {value!r}")
-
-    @classmethod
-    def preset(cls, name: str) -> "ClassifierConfig":
-        """Return the config of a named preset."""
-        if name not in cls.PRESETS:
-            raise ValueError(f"unknown preset {name!r}; choose one of: {', '.join(sorted(cls.PRESETS))}")
-        return cls(**cls.PRESETS[name])
-
-    def to_dict(self) -> dict:
-        return asdict(self)
-
-
-class GRURecogniser(nn.Module):
-    """poses ``(B, T, F)`` -> GRU -> last output -> 30-d tanh (features) -> class logits."""
-
-    def __init__(self, pose: int, hidden: int, layers: int, classes: int):
-        super().__init__()
-        self.gru = nn.GRU(pose, hidden, num_layers=layers, batch_first=True)
-        self.feature = nn.Linear(hidden, FEATURES)
-        self.output = nn.Linear(FEATURES, classes)
-
-    def features(self, poses: torch.Tensor) -> torch.Tensor:
-        outputs, _ = self.gru(poses)
-        return torch.tanh(self.feature(outputs[:, -1]))
-
-    def forward(self, poses: torch.Tensor) -> torch.Tensor:
-        return self.output(self.features(poses))
-
-
-@dataclass(frozen=True)
-class Split:
-    """Which clips of a dataset are held out: whole subjects, or whole takes when it has none.
-
-    ``train_subjects`` ``None`` means every subject not held out.
-    """
-
-    test_subjects: tuple[str, ...] | None = None
-    train_subjects: tuple[str, ...] | None = None
-    test_takes: tuple[str, ...] | None = None
-
-    def is_test(self, clip: Motion) -> bool:
-        if self.test_subjects is not None:
-            return clip.meta.get("subject") in self.test_subjects
-        return _take_key(clip) in (self.test_takes or ())
-
-    def is_train(self, clip: Motion) -> bool:
-        if self.is_test(clip):
-            return False
-        return self.train_subjects is None or clip.meta.get("subject") in self.train_subjects
-
-    def divide(self, clips: Sequence[Motion]) -> tuple[list[Motion], list[Motion]]:
-        """Return the training clips and the held-out clips."""
-        return [c for c in clips if self.is_train(c)], [c for c in clips if self.is_test(c)]
-
-    def describe(self) -> str:
-        if self.test_subjects is not None:
-            return f"held-out subjects {', '.join(self.test_subjects)}"
-        return f"{len(self.test_takes or ())} held-out takes"
-
-    def to_dict(self) -> dict:
-        return {key: None if value is None else list(value) for key, value in asdict(self).items()}
-
-    @classmethod
-    def from_dict(cls, values: dict) -> "Split":
-        return cls(**{key: None if values.get(key) is None else tuple(values[key])
-                      for key in ("test_subjects", "train_subjects", "test_takes")})
-
-
-def _take_key(clip: Motion) -> str:
-    return f"{clip.action}/{clip.meta.get('subject')}/{clip.meta.get('take')}"
-
-
-def make_split(dataset, clips: Sequence[Motion], test_subjects=None, subjects=None,
-               seed: int = 0) -> Split:
-    """Return the held-out split of ``clips`` of ``dataset``.
-
-    With subjects: ``test_subjects`` (default: the last fifth of the dataset's subjects,
-    at least one; for Human3.6M S9 and S11, the usual protocol) are held out and
-    ``subjects`` (default: the others) train. Without: a seeded fifth of each action's
-    takes (at least one when it has two or more), so no take feeds both sides.
-    """
-    if dataset.subjects is not None:
-        last = math.ceil(TEST_FRACTION * len(dataset.subjects))
-        test = choose_subjects(dataset, test_subjects) or list(dataset.subjects[-last:])
-        train = choose_subjects(dataset, subjects)
-        overlap = sorted(set(train or ()) & set(test))
-        if overlap:
-            raise ClassifierError(
-                f"subjects {', '.join(overlap)} are both trained on and held out; "
-                f"--subjects and --test-subjects must not overlap"
-            )
-        return Split(test_subjects=tuple(test), train_subjects=None if train is None else tuple(train))
-    if split_names(test_subjects) or split_names(subjects):
-        raise ClassifierError(
-            f"dataset {dataset.name!r} has no subjects; drop --subjects and --test-subjects "
-            f"(a seeded {TEST_FRACTION:.0%} of its takes is held out)"
-        )
-    return Split(test_takes=tuple(_hold_out_takes(clips, TEST_FRACTION, seed)))
-
-
-def _hold_out_takes(clips: Sequence[Motion], fraction: float, seed: int) -> list[str]:
-    """Return a seeded ``fraction`` of each action's takes (at least one of two or more)."""
-    rng = np.random.default_rng(seed)
-    held_out = []
-    for action in sorted({clip.action for clip in clips}):
-        takes = sorted({_take_key(clip) for clip in clips if clip.action == action})
-        count = max(1, round(fraction * len(takes))) if len(takes) > 1 else 0
-        held_out.extend(takes[i] for i in sorted(rng.choice(len(takes), size=count, replace=False)))
-    return held_out
-
-
-def validation_split(clips: Sequence[Motion], fraction: float = VALIDATION_FRACTION,
-                     seed: int = 0) -> tuple[list[Motion], list[Motion]]:
-    """Divide training clips into clips to fit and clips to validate on, by whole takes.
-
-    A seeded ``fraction`` of each action's takes validates (at least one when the action
-    has two or more), so no take feeds both sides.
-    """
-    if not 0 < fraction < 1:
-        raise ClassifierError(f"the validation share must be between 0 and 1; got {fraction!r}")
-    held = set(_hold_out_takes(clips, fraction, seed + 1))
-    return ([c for c in clips if _take_key(c) not in held], [c for c in clips if _take_key(c) in held])
 
 
 class ActionClassifier:
@@ -254,7 +108,7 @@ class ActionClassifier:
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(seed)
             self.network = GRURecogniser(self.pose_size, self.config.hidden, self.config.layers,
-                                         len(self.actions))
+                                         len(self.actions), self.config.temporal)
         self.optimizer = torch.optim.Adam(self.network.parameters(), lr=self.config.lr)
 
     # Inputs.
@@ -367,7 +221,12 @@ class ActionClassifier:
             # Root-relative root coordinates are always 0: give them a floor, not a 1/0.
             self.std = np.maximum(std, 1e-3 * max(float(std.max()), 1e-12))
         self.seed = int(seed)
-        inputs = self.encode(clips, "training clips")
+        augment = Augmenter(get_skeleton(self.skeleton), self.config.mirror, self.config.rotate)
+        if augment.active:  # batches are augmented before they are standardised
+            inputs = torch.from_numpy(self.pose_features(
+                self.joints_of(clips, "training clips")).astype(np.float32))
+        else:
+            inputs, augment = self.encode(clips, "training clips"), None
         loss_fn = nn.CrossEntropyLoss()
         if validation:
             validation = list(validation)
@@ -382,7 +241,7 @@ class ActionClassifier:
         try:
             with one_thread():
                 for step in range(1, int(iters) + 1):
-                    hits = self._step(inputs, labels, loss_fn)
+                    hits = self._step(inputs, labels, loss_fn, augment)
                     bar.set_postfix({"loss": f"{self.loss:.4g}", "acc": f"{hits:.2f}"}, refresh=False)
                     bar.update(1)
                     if not validation or (step % int(eval_every) and step != int(iters)):
@@ -415,15 +274,28 @@ class ActionClassifier:
         self.network.train()
         return float((logits.argmax(1) == labels).float().mean()), float(loss_fn(logits, labels))
 
-    def _step(self, inputs: torch.Tensor, labels: torch.Tensor, loss_fn) -> float:
-        """Run one optimisation step on a seeded batch; return the batch accuracy."""
+    def _step(self, inputs: torch.Tensor, labels: torch.Tensor, loss_fn,
+              augment: Augmenter | None = None) -> float:
+        """Run one optimisation step on a seeded batch; return the batch accuracy.
+
+        With ``augment``, ``inputs`` are the unstandardised pose features and each batch is
+        augmented, then standardised.
+        """
         generator = torch.Generator().manual_seed((self.seed * 1_000_003 + self.iteration) % 2**63)
         size = self.config.batch_size
         if len(inputs) >= size:
             batch = torch.randperm(len(inputs), generator=generator)[:size]
         else:
             batch = torch.randint(len(inputs), (size,), generator=generator)
-        logits = self.network(inputs[batch])
+        poses = inputs[batch]
+        if augment is not None:
+            skeleton = get_skeleton(self.skeleton)
+            shape = poses.shape
+            rows = augment(poses.view(*shape[:2], skeleton.n_joints + 1, skeleton.dims), generator)
+            mean = torch.from_numpy(np.asarray(self.mean, dtype=np.float32))
+            std = torch.from_numpy(np.asarray(self.std, dtype=np.float32))
+            poses = (rows.reshape(shape) - mean) / std
+        logits = self.network(poses)
         loss = loss_fn(logits, labels[batch])
         self.optimizer.zero_grad()
         loss.backward()
@@ -584,15 +456,15 @@ def train_classifier(dataset: str, out: str | Path, *, data_root=None, subjects=
                      test_subjects=None, actions=None, frames: int | None = None,
                      fps: float | None = None, iters: int = 2000, preset: str = "paper",
                      seed: int = 0, progress: bool = True, patience: int | None = PATIENCE,
-                     eval_every: int = EVAL_EVERY,
-                     validation: float = VALIDATION_FRACTION) -> ActionClassifier:
+                     eval_every: int = EVAL_EVERY, validation: float = VALIDATION_FRACTION,
+                     config: ClassifierConfig | None = None) -> ActionClassifier:
     """Train a classifier on ``dataset``'s training clips, measure it on held-out clips, save to ``out``.
 
     See :func:`make_split` for what is held out. A seeded ``validation`` share of the
     training takes (:func:`validation_split`) drives early stopping: up to ``iters``
     iterations, measured every ``eval_every``, stopping after ``patience`` measurements
-    without improvement (``None``: run all ``iters``), keeping the best state. The
-    held-out accuracy and confusion matrix are stored in the checkpoint. What
+    without improvement (``None``: run all ``iters``), keeping the best state. ``config``
+    (default: the ``preset``'s) sets the network and augmentation. The held-out accuracy and confusion matrix are stored in the checkpoint. What
     ``manage.py train_classifier`` runs.
     """
     data = get_dataset(dataset, data_root)
@@ -619,7 +491,8 @@ def train_classifier(dataset: str, out: str | Path, *, data_root=None, subjects=
     missing = sorted(set(actions) - {clip.action for clip in fitting})
     if missing:
         raise DatasetError(f"no clips of {', '.join(missing)} left to fit after the validation share")
-    model = ActionClassifier(ClassifierConfig.preset(preset), data.skeleton, actions, clips[0].fps, frames)
+    config = ClassifierConfig.preset(preset) if config is None else config
+    model = ActionClassifier(config, data.skeleton, actions, clips[0].fps, frames)
     model.fit(fitting, iters, seed=seed, progress=progress, validation=checking, patience=patience,
               eval_every=eval_every)
     model.dataset, model.split = data.name, split

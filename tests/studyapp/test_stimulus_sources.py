@@ -1,0 +1,151 @@
+"""The training path of a build's method sources: schedules, training seeds, metrics, reports."""
+
+import json
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import torch
+from django.core.management import call_command
+
+from generation.datasets import get_dataset
+from generation.methods import load_checkpoint
+from generation.methods.budget import train_within_budget
+from generation.recognition import Split, one_thread
+from motion_metrics.benchmark import H36M_TEST, H36M_TRAIN, recipe_for
+from studyapp.survey.export import responses_frame
+from studyapp.survey.stimulus_build import Build, build_stimuli
+from studyapp.survey.stimulus_config import ConfigError, parse
+from studyapp.survey.stimulus_sources import sources_table
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def config(**changes) -> dict:
+    raw = {
+        "slug": "seeds-ranking", "title": "Which looks best?", "seed": 0, "dataset": "demo",
+        "actions": ["walk", "wave"], "frames": 12, "clips_per_source": 3,
+        "train": {"iters": 4, "preset": "tiny", "schedule": "benchmark", "seeds": [0, 1]},
+        "metrics": {"train_classifier": True, "classifier_preset": "tiny", "classifier_iters": 10,
+                    "n": 3, "repeats": 2},
+        "sources": ["real", "cond_gru", "skeleton_gan"],
+        "render": {"style": "stick", "size": 64},
+        "study": {"type": "ranking"},
+    }
+    raw.update(changes)
+    return raw
+
+
+@pytest.mark.parametrize("changes, words", [
+    ({"train": {"iters": 2000, "preset": "paper"}, "sources": ["real", "c_skeleton_gan"]},
+     ["sources.1.iters (or train.iters)", "pretrains its frame decoder", "first 10,000 iterations",
+      "pretrain_iters of the paper preset", "2,000 iterations end inside", "schedule: benchmark"]),
+    ({"train": {"schedule": "quick"}}, ["train.schedule", "'quick'", "benchmark", "full"]),
+    ({"train": {"seeds": [0, 0]}}, ["train.seeds", "names a seed twice"]),
+    ({"train": {"seeds": "one"}}, ["train.seeds", "list of whole numbers"]),
+    ({"train": {"epochs": 3}}, ["train.epochs", "iters, preset, schedule, seeds"]),
+    ({"sources": [{"method": "a2m", "checkpoint": "x.pt", "seeds": [1, 2]}]},
+     ["sources.0.seeds", "has that checkpoint's training seed"]),
+    ({"metrics": {"n": 1}}, ["metrics.n", "at least 2"]),
+    ({"metrics": {"mmd_protocol": "mine"}}, ["metrics.mmd_protocol", "'mine'", "heldout"]),
+    ({"metrics": {"classifier_preset": "huge"}}, ["metrics.classifier_preset", "augmented"]),
+    ({"metrics": "yes"}, ["metrics", "false to measure nothing"]),
+])
+def test_training_and_metrics_fields_are_checked(tmp_path, changes, words):
+    with pytest.raises(ConfigError) as error:
+        parse(config(**changes), tmp_path)
+    for word in words:
+        assert word in str(error.value)
+
+
+def test_a_budget_past_the_pretraining_stage_trains_in_full(tmp_path):
+    parsed = parse(config(train={"iters": 12_000, "preset": "paper"},
+                          sources=["real", "c_skeleton_gan"]), tmp_path)
+    assert parsed.sources[1].schedule == "full" and parsed.sources[1].seeds is None
+    assert parse(config(metrics=False), tmp_path).metrics.enabled is False
+
+
+@pytest.mark.django_db
+def test_clips_come_from_every_training_seed_in_turn_and_carry_it(tmp_path, media_root):
+    """A source with seeds trains one checkpoint per seed; clip i of an action comes from
+    seed i mod S; each stimulus keeps its checkpoint's sha256 and training seed, the export
+    has them as columns, and the manifest lists every checkpoint with its budget and metrics."""
+    result = build_stimuli(parse(config(), tmp_path), tmp_path / "build", cache=tmp_path / "cache")
+    study = result.study
+    judged = study.stimuli.judged().filter(source="skeleton_gan").order_by("id")
+    assert list(judged.values_list("training_seed", flat=True)) == [0, 1, 0, 0, 1, 0]
+    assert len(set(judged.values_list("checkpoint", flat=True))) == 2
+    assert not study.stimuli.filter(source="real").exclude(checkpoint="").exists()
+
+    manifest = json.loads((tmp_path / "build" / "manifest.json").read_text())
+    by_seed = {c["training_seed"]: c for c in manifest["sources"][1]["checkpoints"]}
+    assert manifest["sources"][1]["source"] == "skeleton_gan" and set(by_seed) == {0, 1}
+    folder = next((tmp_path / "cache" / "checkpoints").glob("skeleton_gan-*"))
+    for seed, entry in by_seed.items():
+        checkpoint = load_checkpoint(folder / f"skeleton_gan-seed{seed}.pt")
+        assert checkpoint.seed == seed and checkpoint.iteration == entry["iterations"] == 4
+        assert entry["recipe"] == "tiny" and manifest["sources"][1]["schedule"] == "benchmark"
+        measured = entry["metrics"]["metrics"]
+        assert {"fid", "accuracy", "diversity", "mmd_avg", "mmd_seq", "n_apd"} <= set(measured)
+        assert measured["n_apd"]["real"]["mean"] > 0
+        assert entry["metrics"]["held_out_trained_on"]  # the demo data has no subjects
+    assert manifest["metrics"]["classifier"]["test_accuracy"] is not None
+    clips = [c for c in manifest["clips"] if c["source"] == "skeleton_gan"]
+    assert [c["training_seed"] for c in clips] == [0, 1, 0, 0, 1, 0]
+    assert {c["checkpoint"] for c in clips} == {by_seed[0]["checkpoint"], by_seed[1]["checkpoint"]}
+
+    table = sources_table(manifest)
+    assert list(table["source"]) == ["Real (held-out vs training clips)", "cond_gru", "cond_gru",
+                                     "skeleton_gan", "skeleton_gan"]
+    assert {"FID", "MMD_avg", "n-APD", "checkpoint", "training seed"} <= set(table.columns)
+
+    again = build_stimuli(parse(config(), tmp_path), tmp_path / "build", cache=tmp_path / "cache")
+    assert again.unchanged and again.sampled == []  # checkpoints and metrics are reused
+
+
+@pytest.mark.django_db
+def test_the_report_shows_the_checkpoints_beside_the_human_scores(tmp_path, media_root,
+                                                                   make_bot, settings):
+    settings.VAR_DIR = tmp_path / "var"
+    raw = config(train={"iters": 4, "preset": "tiny", "seeds": [0, 1]},
+                 sources=["real", "cond_gru"], study={"type": "ranking", "practice": False})
+    result = build_stimuli(parse(raw, tmp_path), tmp_path / "var" / "stimuli" / "seeds-ranking",
+                           cache=tmp_path / "cache")
+    for _ in range(2):
+        bot = make_bot(result.study)
+        bot.join()
+        bot.finish()
+    table = responses_frame(result.study)
+    method = table[table["source"] == "cond_gru"]
+    assert set(method["training_seed"].dropna()) <= {0, 1} and method["checkpoint"].str.len().min() == 64
+    assert table.loc[table["source"] == "real", "training_seed"].isna().all()
+    out = tmp_path / "report"
+    call_command("analyze", "--study", "seeds-ranking", "--out", str(out), "--no-audit", "--no-exclusions",
+                 "--bootstrap", "0")
+    page = (out / "report.html").read_text()
+    assert "Stimulus sources" in page and "classifier held-out accuracy" in page
+    sources = pd.read_csv(out / "stimulus_sources.csv")
+    assert list(sources["source"])[1:] == ["cond_gru", "cond_gru"]
+    assert sorted(sources["training seed"].dropna()) == [0, 1]
+
+
+def test_a_build_trains_the_checkpoint_benchmark_methods_trains(tmp_path, h36m_root):
+    """The same method, preset, schedule, budget, seed and training subjects give the same
+    weights in a build as in benchmark_methods (one training loop)."""
+    raw = config(dataset="h36m2d", data_root=str(h36m_root), actions=None, frames=None,
+                 subjects=list(H36M_TRAIN), sources=["skeleton_gan"],
+                 train={"iters": 4, "preset": "tiny", "schedule": "benchmark", "seeds": [1]})
+    build = Build(parse(raw, tmp_path), tmp_path / "build", cache=tmp_path / "cache")
+    trained = build.methods.trained(build.config.sources[0])
+    data = get_dataset("h36m2d", h36m_root)
+    train, _ = Split(test_subjects=H36M_TEST, train_subjects=H36M_TRAIN).divide(data.clips())
+    assert len(train) == len(build.dataset.clips(subjects=list(H36M_TRAIN)))
+    with one_thread():  # as run_benchmark trains
+        benchmark, _ = train_within_budget("skeleton_gan", train, data.actions(), None,
+                                           tmp_path / "benchmark",
+                                           recipe_for("skeleton_gan", {"skeleton_gan": "tiny"}, 4),
+                                           seed=1, iters=4)
+    built = load_checkpoint(trained[0].path)
+    for key, net in benchmark.networks.items():
+        for (name, a), b in zip(net.state_dict().items(), built.networks[key].state_dict().values()):
+            assert torch.equal(a, b), (key, name)
