@@ -32,7 +32,7 @@ from rendering.video import (
 SIDECAR = "renders.json"
 # Changes whenever the same motions and settings would give other pixels or bytes (the
 # camera rule, the encoder, the padding): caches of rendered clips should key on it.
-VERSION = 6
+VERSION = 7
 
 
 class RenderError(ValueError):

@@ -30,6 +30,7 @@ import imageio_ffmpeg
 import numpy as np
 from PIL import Image
 
+from rendering.delivery import MAX_FILL_CHUNKS, MAX_FILLERS
 from rendering.padding import PaddingError, equalise_mp4_frames, pad
 
 # Bits per pixel and frame: at 480x480 and 25 fps, 259 kbit/s, about 78 KB for 60 frames;
@@ -45,6 +46,10 @@ HEADROOM = {"mp4": 1.15, "webm": 1.3}
 # walking clips were encoded twice or three times; at 2 none of 48 was.
 BUFFER_FRAMES = 5
 FRAME_HEADROOM = 2.0
+# Every padded frame keeps at least this much filler data, so that each delivery can split
+# it into 1 to MAX_FILLERS units (rendering.delivery) however full the encoder left the
+# frame: without it, a busier clip's frames held fewer units, which a script could count.
+FILLER_ROOM = MAX_FILLERS * (4 + 2)  # NAL units of a 4-byte length, a header and a trailer
 KEYINT = 250
 OVERHEAD = {"mp4": (2048, 24), "webm": (2048, 24)}
 # GIFs have no rate control, so their budget is LZW's worst case (12-bit codes for 8-bit
@@ -67,7 +72,8 @@ def bit_rate(width: int, height: int, fps, scale: float = 1.0) -> int:
 def frame_budgets(width: int, height: int, fps) -> tuple[int, int]:
     """Return the byte sizes every mp4 keyframe and every other frame is padded to."""
     mean = bit_rate(width, height, fps) / 8 / float(fps)
-    return int(math.ceil(BUFFER_FRAMES * mean)), int(math.ceil(FRAME_HEADROOM * mean))
+    return (int(math.ceil(BUFFER_FRAMES * mean)) + FILLER_ROOM,
+            int(math.ceil(FRAME_HEADROOM * mean)) + FILLER_ROOM)
 
 
 def budget(kind: str, width: int, height: int, frames: int, fps) -> int:
@@ -493,7 +499,8 @@ def save_poster(path: str | Path, frame: np.ndarray, padded: bool = True) -> Pat
     image.save(encoded, format="PNG", compress_level=3)  # level 9 costs 10x the time
     size = budget("png", image.width, image.height, 1, 1)
     for colours in POSTER_COLOURS:
-        if not padded or encoded.tell() <= size - 12:
+        # room for MAX_FILL_CHUNKS padding chunks, which each delivery splits anew
+        if not padded or encoded.tell() <= size - 12 * MAX_FILL_CHUNKS:
             break
         encoded = io.BytesIO()
         fewer = image.quantize(colours, method=Image.Quantize.MEDIANCUT).convert("RGB")

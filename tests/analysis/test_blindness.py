@@ -66,6 +66,33 @@ def test_content_tells_the_source_without_failing_but_must_not_tell_catch_clips(
     assert not verdict("source", "delivery", leak)["passed"]
 
 
+def test_a_deep_audit_fails_a_leak_only_when_a_second_delivery_repeats_it(monkeypatch):
+    """What each delivery lays out anew can separate catch clips by chance in one delivery
+    (its draws); a leak must show in the second delivery too. A leak that follows the clip
+    shows in both and fails."""
+    import analysis.blindness as blindness
+    monkeypatch.setattr(blindness, "features", lambda files: files)
+    for check in ("delivery_check", "content_check"):  # of the files' bytes: none here
+        monkeypatch.setattr(blindness, check, lambda clips: {"passed": True})
+    rng = np.random.default_rng(4)
+    roles = ["catch"] * 8 + ["judged"] * 16
+
+    def clips(first, second):
+        return [ClipRecord(role, "real" if k % 2 else "a2m",
+                           [{"delivery": {"units": float(a)}, "bitstream": {}, "payload": {}},
+                            {"delivery": {"units": float(b)}, "bitstream": {}, "payload": {}}])
+                for k, (role, a, b) in enumerate(zip(roles, first, second))]
+
+    lucky = np.where(np.array(roles) == "catch", 1.0, 0.0) + rng.normal(0, 0.1, 24)
+    chance = blindness.assess(clips(lucky, rng.normal(size=24)), permutations=400)
+    assert chance["catch: delivery"]["passed"]
+    assert "the larger of 2 deliveries' p" in chance["catch: delivery"]["says"]
+    basic = blindness.assess(clips(lucky, rng.normal(size=24)), deep=False, permutations=400)
+    assert not basic["catch: delivery"]["passed"]  # one delivery cannot tell chance from leak
+    leak = blindness.assess(clips(lucky, lucky + rng.normal(0, 0.1, 24)), permutations=400)
+    assert not leak["catch: delivery"]["passed"]
+
+
 @pytest.fixture(scope="module")
 def rendered(tmp_path_factory):
     from rendering import Framing, render_set

@@ -12,7 +12,8 @@ import pytest
 from PIL import Image
 
 from rendering import Framing, render_set
-from rendering.delivery import deliver
+from rendering.delivery import MAX_FILL_CHUNKS, MAX_FILLERS, deliver
+from rendering.video import FILLER_ROOM
 from rendering.padding import mp4_boxes, nal_units, sample_table
 from rendering.player import payload, read
 from tests.rendering.conftest import make_figure
@@ -108,6 +109,45 @@ def test_every_delivery_of_a_poster_has_its_own_bytes_and_the_same_picture(rende
                 at += 12 + length
             assert at == len(data)
         assert len(hashes) == len(SEEDS)
+
+
+def test_how_a_delivery_splits_its_padding_does_not_depend_on_the_clip(rendered):
+    """Every stored frame keeps room for the most filler units and every poster for the
+    most padding chunks, so the counts a delivery shows are drawn alike for a busy clip
+    and a quiet one (a busier clip once had fuller frames, hence fewer units: countable)."""
+    clips, _ = rendered
+    per_clip_units, per_clip_chunks = [], []
+    for clip in clips:
+        stored = clip.video.read_bytes()
+        table = sample_table(stored)
+        for frame in nal_layout(stored):
+            assert frame[-1][0] == 12 and sum(length for kind, length in frame[-1:]) + 4 >= \
+                FILLER_ROOM
+        poster = clip.poster.read_bytes()
+        fills = [length for kind, length in _png_chunk_lengths(poster) if kind == b"fiLl"]
+        assert fills and sum(length + 12 for length in fills) >= 12 * MAX_FILL_CHUNKS
+        units, chunks = [], []
+        for k in range(200):
+            seed = hashlib.sha256(b"%d" % k).digest()
+            data = deliver(stored, "mp4", seed)
+            units += [sum(kind == 12 for kind, _ in f) for f in nal_layout(data)[:4]]
+            chunks.append(sum(kind == b"fiLl" for kind, _ in
+                              _png_chunk_lengths(deliver(poster, "png", seed))))
+        assert table.samples
+        per_clip_units.append(np.bincount(units, minlength=MAX_FILLERS + 1)[1:] / len(units))
+        per_clip_chunks.append(np.bincount(chunks, minlength=MAX_FILL_CHUNKS + 1)[1:] / 200)
+    # The same seeds draw the same counts for both clips: no clip's room cut a draw short.
+    assert np.array_equal(per_clip_units[0], per_clip_units[1])
+    assert np.array_equal(per_clip_chunks[0], per_clip_chunks[1])
+    assert (per_clip_units[0] > 0).all() and (per_clip_chunks[0] > 0).all()
+
+
+def _png_chunk_lengths(data: bytes):
+    at = 8
+    while at + 12 <= len(data):
+        length, kind = struct.unpack(">I4s", data[at:at + 8])
+        yield kind, length
+        at += length + 12
 
 
 def test_every_delivery_of_a_payload_moves_values_by_a_unit_at_most(rendered):
