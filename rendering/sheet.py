@@ -41,12 +41,37 @@ def _records(folder: Path) -> dict[str, dict]:
     return known
 
 
-def find_clips(folder: str | Path) -> list[SheetClip]:
-    """Return every mp4 under ``folder`` (temporary files skipped), labelled, in order."""
+def _listed_elsewhere(folder: Path, known: dict, found: set, cache: Path | None) -> list[Path]:
+    """Return the videos a stimulus build's ``manifest.json`` under ``folder`` lists but
+    ``folder`` does not hold: build_stimuli keeps them in its cache's ``renders/`` (by default
+    ``<var>/stimuli/cache``, beside the study's build folder)."""
+    listed = {h for h, record in known.items() if "motion_hash" in record} - found
+    if not listed:
+        return []
+    places = [cache] if cache is not None else [folder.parent / "cache", folder.parent.parent / "cache"]
+    out = []
+    for place in places:
+        for video_hash in sorted(listed):
+            video = Path(place) / "renders" / f"{video_hash}.mp4"
+            if video.is_file():
+                out.append(video)
+                listed.discard(video_hash)
+    if listed and cache is not None:
+        raise FileNotFoundError(f"{len(listed)} clips the manifest under {folder} lists are not "
+                                f"in {Path(cache) / 'renders'}; pass the build's cache folder")
+    return out
+
+
+def find_clips(folder: str | Path, cache: str | Path | None = None) -> list[SheetClip]:
+    """Return every mp4 under ``folder`` (temporary files skipped), and the clips a stimulus
+    build's manifest there lists from its cache (``cache``, default the one beside it),
+    labelled, in order."""
     folder = Path(folder)
     known = _records(folder)
     clips = []
-    for video in sorted(folder.rglob("*.mp4")):
+    here = sorted(folder.rglob("*.mp4"))
+    elsewhere = _listed_elsewhere(folder, known, {v.stem for v in here}, cache)
+    for video in here + elsewhere:
         if video.name.startswith("."):
             continue
         record = known.get(video.stem, {})
@@ -54,7 +79,8 @@ def find_clips(folder: str | Path) -> list[SheetClip]:
         if record.get("score") is not None:
             parts.append(f"score {record['score']}")
         label = " · ".join(str(p) for p in parts if p) or video.stem
-        group = str(video.parent.relative_to(folder)) if video.parent != folder else "."
+        group = (str(video.parent.relative_to(folder)) if video.is_relative_to(folder)
+                 and video.parent != folder else ".")
         clips.append(SheetClip(video, label, group))
     order = {"real": 0}
     clips.sort(key=lambda c: (c.group, order.get(c.label.split(" · ")[0], 1), c.label, c.video.name))
@@ -75,13 +101,15 @@ def sample_frames(video: Path, moments: int, size: int) -> list[np.ndarray]:
 
 
 def write_sheet(folder: str | Path, out: str | Path, moments: int = 4, size: int = 96,
-                columns: int = 3) -> Path:
+                columns: int = 3, cache: str | Path | None = None) -> Path:
     """Write a contact sheet of every clip under ``folder`` to ``out`` (PNG or JPEG).
 
     Each clip is a strip of ``moments`` frames of ``size`` pixels under its label; strips
-    fill ``columns`` columns, group by group (each sub-folder is a group).
+    fill ``columns`` columns, group by group (each sub-folder is a group). A stimulus build's
+    folder (its ``manifest.json``) takes its clips from the build's ``cache`` (see
+    :func:`find_clips`).
     """
-    clips = find_clips(folder)
+    clips = find_clips(folder, cache)
     if not clips:
         raise ValueError(f"no mp4 clips under {folder}")
     band = _band(size)

@@ -22,14 +22,20 @@ def main() -> None:
     parser.add_argument("--moments", type=int, default=4, help="frames shown per clip")
     parser.add_argument("--size", type=int, default=96, help="pixels per frame")
     parser.add_argument("--columns", type=int, default=3, help="clips side by side")
+    parser.add_argument("--cache", type=Path, help="a stimulus build's cache, if not the "
+                        "default one beside its folder (<var>/stimuli/cache)")
     options = parser.parse_args()
     if not options.folder.is_dir():
         parser.error(f"{options.folder} is not a folder")
-    count = len(find_clips(options.folder))
+    try:
+        count = len(find_clips(options.folder, options.cache))
+    except FileNotFoundError as exc:
+        parser.error(str(exc))
     if not count:
-        parser.error(f"no mp4 clips under {options.folder}")
+        parser.error(f"no mp4 clips under {options.folder} (nor, for a stimulus build's "
+                     f"folder, in its cache: pass --cache)")
     path = write_sheet(options.folder, options.out, options.moments, options.size,
-                       options.columns)
+                       options.columns, options.cache)
     print(f"contact sheet of {count} clips: {path}")
 
 
