@@ -124,6 +124,29 @@ def test_strengths_are_parsed():
         bots.parse_strengths("real=0")
 
 
+def test_studies_counts_each_outcome_once(study_of, make_bot):
+    """Failing the attention checks ends a session as one outcome, not as completed and
+    excluded both."""
+    from studyapp.survey.models import Participant
+
+    study = study_of("ranking")
+    for _ in range(3):
+        bot = make_bot(study)
+        bot.join()
+        bot.finish()
+    failed = Participant.objects.filter(study=study).order_by("pk")[:2]
+    Participant.objects.filter(pk__in=[p.pk for p in failed]).update(outcome="failed_attention")
+    text = StringIO()
+    call_command("studies", stdout=text)
+    assert ("study-ranking (ranking, open): 3 participants (1 completed, 2 failed attention "
+            "(excluded)), 18 judgements") in text.getvalue()
+    out = StringIO()
+    call_command("studies", json=True, stdout=out)
+    row = json.loads(out.getvalue())[0]
+    assert row["completed"] == 1 and row["excluded"] == 2
+    assert row["outcomes"] == {"completed": 1, "failed_attention": 2}
+
+
 def test_studies_lists_every_study_as_json(study_of, make_bot):
     ranking = study_of("ranking")
     study_of("rating_reference", catch=True)

@@ -1,11 +1,16 @@
 import json
+from collections import Counter
 
 from django.core.management.base import BaseCommand, CommandError
 from django.db import DatabaseError
 from django.urls import reverse
 
-from studyapp.survey.models import Stimulus, Study
 from studyapp.survey import site
+from studyapp.survey.models import Participant, Stimulus, Study
+
+OUTCOME_WORDS = {"completed": "completed", "failed_attention": "failed attention (excluded)",
+                 "no_consent": "did not consent", "screened_out": "screened out",
+                 "timed_out": "timed out"}
 
 
 class Command(BaseCommand):
@@ -34,15 +39,19 @@ class Command(BaseCommand):
         if not rows:
             self.stdout.write("No studies yet; `python manage.py demo --no-serve` builds some.")
         for row in rows:
+            ended = ", ".join(f"{n} {OUTCOME_WORDS.get(outcome, outcome)}"
+                              for outcome, n in row["outcomes"].items()) or "none ended"
             self.stdout.write(
                 f"{row['slug']} ({row['type']}, {row['status']}): {row['participants']} "
-                f"participants, {row['completed']} completed, {row['excluded']} excluded, "
-                f"{row['judgements']} judgements; sources {', '.join(row['sources'])}\n"
+                f"participants ({ended}), {row['judgements']} judgements; sources "
+                f"{', '.join(row['sources'])}\n"
                 f"  {row['participant_url']}"
             )
 
     def describe(self, study, base_url: str) -> dict:
         judged = Stimulus.objects.judged().filter(study=study)
+        ended = Counter(study.participants.exclude(outcome="").values_list("outcome", flat=True))
+        outcomes = {o: ended[o] for o in Participant.Outcome.values if ended[o]}
         return {
             "slug": study.slug,
             "title": study.title,
@@ -53,7 +62,10 @@ class Command(BaseCommand):
             "participant_url": study.participant_url(base_url),
             "preview_url": base_url.rstrip("/") + reverse("survey:preview", args=[study.slug]),
             "participants": study.n_started,
-            "completed": study.n_completed,
+            # Outcomes, each person once: "completed" are those who finished and passed the
+            # checks, "excluded" those who failed them (finished or not).
+            "completed": outcomes.get(Participant.Outcome.COMPLETED, 0),
             "excluded": study.n_excluded,
+            "outcomes": outcomes,
             "judgements": study.n_judgements,
         }
