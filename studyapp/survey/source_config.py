@@ -36,6 +36,10 @@ class Source:
     preset: str = "paper"
     schedule: str = "full"  # generation.methods.schedule.SCHEDULES
     seeds: list[int] | None = None  # training seeds: one checkpoint each, clips in turn
+    # A file's motions to use, by the sample and repetition numbers its format records
+    # (MDM's results.npy: motion i is sample i % num_samples of repetition i // num_samples).
+    samples: list[int] | None = None
+    repetitions: list[int] | None = None
 
     def training_seeds(self) -> list[int]:
         """Return the seeds this method source trains a checkpoint with (one unless ``seeds``)."""
@@ -50,8 +54,9 @@ class Source:
         out = {k: v for k, v in vars(self).items() if k not in ("checkpoint", "file")}
         if out["schedule"] == "full":
             del out["schedule"]
-        if out["seeds"] is None:
-            del out["seeds"]
+        for name in ("seeds", "samples", "repetitions"):
+            if out[name] is None:
+                del out[name]
         return out
 
 
@@ -174,7 +179,7 @@ def parse_sources(raw, seed, train) -> list[Source]:
         kind = kinds[0]
         allowed = {"name", "seed", kind} | {
             "real": set(), "method": {"checkpoint", "iters", "preset", "schedule", "seeds"},
-            "file": {"format", "options"},
+            "file": {"format", "options", "samples", "repetitions"},
         }[kind]
         extra = sorted(set(entry) - allowed)
         if extra:
@@ -208,6 +213,9 @@ def parse_sources(raw, seed, train) -> list[Source]:
                 raise ConfigError(f"{where}.format: {source.format!r} is not a motion format; "
                                   f"choose one of {', '.join(list_formats())}")
             source.options = dict(entry.get("options") or {})
+            for name in ("samples", "repetitions"):
+                if entry.get(name) is not None:
+                    setattr(source, name, _numbers(entry[name], f"{where}.{name}"))
         if source.name in [s.name for s in sources]:
             raise ConfigError(f"{where}.name: {source.name!r} is used twice; give each source "
                               f"its own name")
@@ -237,6 +245,22 @@ def _check_method(source: Source, where: str) -> None:
         recipe_for(source.method, source.preset, source.iters, source.schedule)
     except ScheduleError as exc:
         raise ConfigError(f"{where}.iters (or train.iters): {exc}") from None
+
+
+def _numbers(value, where: str) -> list[int]:
+    """Return a selection of sample or repetition numbers: a number, a list of numbers or a
+    range ``"0-4"`` (both ends included)."""
+    if isinstance(value, str) and "-" in value:
+        low, _, high = value.partition("-")
+        if low.strip().isdigit() and high.strip().isdigit() and int(low) <= int(high):
+            return list(range(int(low), int(high) + 1))
+    if isinstance(value, int) and not isinstance(value, bool):
+        value = [value]
+    if (not isinstance(value, list) or not value
+            or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in value)):
+        raise ConfigError(f"{where}: {value!r} must be a number, a list of numbers from 0 or a "
+                          f"range such as \"0-4\"")
+    return sorted(set(value))
 
 
 def _text(raw: dict, name: str, default=None, where=None) -> str:

@@ -88,6 +88,9 @@ class BuildResult:
     sampled: list[str] = field(default_factory=list)  # sources sampled now
     removed: int = 0  # stimuli deleted from the study
     unchanged: bool = False  # the study already held exactly these clips
+    # What the build did that the config did not say (motions cut shorter, ...); the
+    # command prints them.
+    warnings: list[str] = field(default_factory=list)
 
 
 def digest(value) -> str:
@@ -120,6 +123,10 @@ class Build:
         self.bar = None
         self.kind = config.kind()
         self.methods = MethodSources(self)  # checkpoints, samples and metrics of method sources
+        self._files = {}  # source name -> its file's motions, selected (read once per build)
+        self._frames = None
+        if config.prompts_shared:
+            config.prompts = self.shared_prompts()
 
     # The dataset loads only when a cache misses: a no-op rebuild never reads it.
     @property
@@ -137,9 +144,90 @@ class Build:
         c = self.config
         fields = {"dataset": c.dataset, "subjects": c.subjects, "actions": c.actions,
                   "frames": c.frames, "fps": c.fps, "n": c.clips_per_source}
+        if c.frames_auto:
+            fields["frames"] = ["auto", self.clip_frames()]
         if c.prompts is not None:
             fields["prompts"] = c.prompts
         return fields
+
+    def clip_frames(self) -> int:
+        """Return the clips' length in frames: ``frames``; with ``frames: auto`` the longest
+        length every file source's motions of the study's actions or prompts have (the
+        dataset's clip length without file sources); else the dataset's clip length."""
+        c = self.config
+        if c.frames:
+            return c.frames
+        if not c.frames_auto:
+            return self.dataset.clip_frames
+        if self._frames is None:
+            lengths = [m.frames for source in c.sources if source.kind == "file"
+                       for m in self._shown(self.selected_file_motions(source))]
+            self._frames = min(lengths) if lengths else self.dataset.clip_frames
+        return self._frames
+
+    def _shown(self, motions) -> list:
+        """Return the motions a study of the config's prompts or actions can show."""
+        c = self.config
+        if c.prompts is not None:
+            wanted = {normalise_prompt(p) for p in c.prompts}
+            return [m for m in motions if m.text and normalise_prompt(m.text) in wanted]
+        if c.actions is not None:
+            return [m for m in motions if m.action in c.actions]
+        return list(motions)
+
+    def selected_file_motions(self, source) -> list:
+        """Return a file source's motions at the study's rate, only the ``samples`` and
+        ``repetitions`` it selects (read once per build)."""
+        if source.name in self._files:
+            return self._files[source.name]
+        c = self.config
+        options = {k: (str(c.path(v)) if k == "classes_path" else v)
+                   for k, v in source.options.items()}
+        fps = c.fps or self.dataset.clip_fps
+        motions = list(self.file_motions(source, fps=fps, **options))
+        for field_name, key in (("samples", "sample"), ("repetitions", "repetition")):
+            chosen = getattr(source, field_name)
+            if chosen is None:
+                continue
+            where = f"sources.{c.sources.index(source)}.{field_name} ({source.name})"
+            have = sorted({m.meta[key] for m in motions if key in m.meta})
+            if not have:
+                raise ConfigError(
+                    f"{where}: file {source.file!r} ({source.format}) does not number its "
+                    f"motions' {field_name} (MDM's results.npy does); drop {field_name}, or "
+                    f"split the file into one file per source")
+            missing = [n for n in chosen if n not in have]
+            if missing:
+                raise ConfigError(
+                    f"{where}: file {source.file!r} has {field_name} {_span(have)}; "
+                    f"{', '.join(map(str, missing))} {'is' if len(missing) == 1 else 'are'} "
+                    f"not among them; choose from those")
+            motions = [m for m in motions if m.meta.get(key) in chosen]
+        self._files[source.name] = motions
+        return motions
+
+    def shared_prompts(self) -> list[str]:
+        """Return the prompts every file source has motions of (``prompts_from: sources``),
+        in the first source's order; none shared is one error listing each source's."""
+        files = [s for s in self.config.sources if s.kind == "file"]
+        if not files:
+            raise ConfigError("prompts_from: sources takes the prompts the file sources share; "
+                              "this config has no file source (give prompts or prompts_from: "
+                              "FILE)")
+        texts = {s.name: list(dict.fromkeys(" ".join(m.text.split())
+                                            for m in self.selected_file_motions(s) if m.text))
+                 for s in files}
+        common = set.intersection(*({normalise_prompt(t) for t in mine}
+                                    for mine in texts.values()))
+        shared = [t for t in texts[files[0].name] if normalise_prompt(t) in common]
+        if not shared:
+            listed = "; ".join(f"{name} has {len(mine)} ({', '.join(repr(t) for t in mine[:3])}"
+                               f"{', ...' if len(mine) > 3 else ''})" for name, mine in texts.items())
+            raise ConfigError(f"prompts_from: sources: the sources share no prompt: {listed}. "
+                              f"Generate every source from the same prompts, or list the "
+                              f"prompts to use (prompts: [...])")
+        self.log(f"prompts_from: sources: {len(shared)} prompts every file source has")
+        return shared
 
     def actions(self) -> list[str]:
         try:
@@ -190,6 +278,10 @@ class Build:
                                                        for m in motions])
                 extras = prompt_catch_clips(self, groups, framing)
             self.step("framing")
+            result.warnings = cut_warnings(groups, self.clip_frames(),
+                                           c.fps or getattr(self.dataset, "clip_fps", None))
+            for warning in result.warnings:
+                self.log(f"warning: {warning}")
             judged = [(m, meta) for _, motions, meta in groups for m in motions]
             self.bar.total += len(judged) + len(extras)
             self.bar.refresh()
@@ -203,6 +295,23 @@ class Build:
             self.bar.close()
         return result
 
+    def _file_plan(self, source) -> str:
+        """Return what a file source holds and what the build would take of it."""
+        motions = self.selected_file_motions(source)
+        shown = self._shown(motions)
+        frames = self.clip_frames()
+        lengths = sorted(m.frames for m in shown) or [0]
+        texts = {normalise_prompt(m.text) for m in motions if m.text}
+        what = (f"{len(motions)} motions, {len(texts)} prompts" if texts else
+                f"{len(motions)} motions of {len({m.action for m in motions})} actions")
+        longer = sum(n > frames for n in lengths)
+        cut = f"; {longer} would be cut to {frames} frames" if longer else ""
+        if longer and not self.config.frames_auto:
+            cut += f" (frames: auto would take {lengths[0]}, the shortest)"
+        return (f"{what}; {len(shown)} of them for this study's "
+                f"{'prompts' if self.config.prompts is not None else 'actions'}, "
+                f"{lengths[0]}-{lengths[-1]} frames{cut}")
+
     def plan(self) -> BuildResult:
         """Report what would be built, touching nothing."""
         for source in self.config.sources:
@@ -210,6 +319,8 @@ class Build:
                        [seed for seed, done in self.methods.planned(source) if not done])
             todo = (f" (to train: {source.iters} iterations, {source.schedule} schedule, seed"
                     f"{'s' if len(missing) > 1 else ''} {', '.join(map(str, missing))})" if missing else "")
+            if source.kind == "file":  # opened and read, as the build will
+                todo = f" {source.file} ({source.format}): {self._file_plan(source)}"
             self.log(f"{source.name}: {source.kind}{todo}")
         counts = dict(self.roles())
         if counts.get(Role.CATCH):
@@ -272,7 +383,7 @@ class Build:
             motions = self.prompt_motions(source)
             return [m.with_joints(m.joints, source=source.name, meta=dict(m.meta)) for m in motions]
         n = n or c.clips_per_source
-        frames = c.frames or self.dataset.clip_frames
+        frames = self.clip_frames()
         if source.kind == "real":
             from generation.sampling import sample_real
 
@@ -283,13 +394,11 @@ class Build:
             if c.fps:
                 motions = [ops.resample(m, c.fps) for m in motions]
         else:
-            options = {k: (str(self.config.path(v)) if k == "classes_path" else v)
-                       for k, v in source.options.items()}
-            loaded = self.file_motions(source, fps=c.fps or self.dataset.clip_fps, **options)
+            loaded = self.selected_file_motions(source)
             motions = []
             for action in self.actions():
                 mine = [m for m in loaded if m.action == action][:n]
-                motions.extend(ops.trim(m, 0, min(frames, m.frames)) for m in mine)
+                motions.extend(_cut(m, frames) for m in mine)
             if not motions:
                 raise ConfigError(f"sources: file {source.file!r} has no motions of the actions "
                                   f"{', '.join(self.actions())}; set the actions, or the file's "
@@ -299,8 +408,12 @@ class Build:
     def file_motions(self, source, **options) -> list:
         """Return the motions of a file source; a file that cannot be read (or that holds
         anything but data) is a :class:`ConfigError` naming the source."""
+        path = self.config.path(source.file)
+        if not path.is_file() and not path.is_dir():
+            raise ConfigError(f"sources: file {source.file!r} of source {source.name!r} is not "
+                              f"there (looked in {path}); fix the path")
         try:
-            return load_motions(self.config.path(source.file), source.format, **options)
+            return load_motions(path, source.format, **options)
         except (FormatError, MotionError) as exc:
             raise ConfigError(f"sources: file {source.file!r} of source {source.name!r}: "
                               f"{exc}") from None
@@ -310,7 +423,7 @@ class Build:
         a file's motions whose text is the prompt, or real takes whose caption is."""
         c = self.config
         where = f"sources.{c.sources.index(source)} ({source.name})"
-        frames = c.frames or self.dataset.clip_frames
+        frames = self.clip_frames()
         fps = c.fps or self.dataset.clip_fps
         if source.kind == "real":
             if not hasattr(self.dataset, "takes_for"):  # datasets with captions have it
@@ -331,9 +444,7 @@ class Build:
                             take.joints, text=caption, meta=dict(take.meta)), fps))
             rng = np.random.default_rng(source.seed)
         else:
-            options = {k: (str(c.path(v)) if k == "classes_path" else v)
-                       for k, v in source.options.items()}
-            takes = list(self.file_motions(source, fps=fps, **options))
+            takes = list(self.selected_file_motions(source))
             known = [m.text for m in takes if m.text]
             rng = None  # a file's motions are taken in its order
         return motions_for_prompts(c.prompts, takes, c.clips_per_source, frames, where, known,
@@ -358,7 +469,7 @@ class Build:
             return npz.load(cached), Framing(**_framing_fields(json.loads(framing_file.read_text())))
         from generation.sampling import sample_real
 
-        frames = c.frames or self.dataset.clip_frames
+        frames = self.clip_frames()
         base = sample_real(self.dataset, self.actions(), c.clips_per_source + EXTRA_REAL,
                            frames, c.seed, c.fps, c.subjects)
         style = get_style(c.style)
@@ -607,9 +718,40 @@ def motions_for_prompts(prompts, motions, n: int, frames: int, where: str, known
         else:
             chosen = [usable[i] for i in sorted(rng.choice(len(usable), n, replace=False))]
         for motion in chosen:
-            cut = ops.trim(motion, 0, frames)
+            cut = _cut(motion, frames)
             out.append(cut.with_joints(cut.joints, action=prompt_key(prompt), text=prompt,
                                        meta={**cut.meta, "caption": motion.text}))
+    return out
+
+
+def _cut(motion, frames: int):
+    """Return ``motion``'s first ``frames`` frames; one cut shorter records its length
+    (``meta["cut_from"]``), which the build reports."""
+    if motion.frames <= frames:
+        return motion
+    cut = ops.trim(motion, 0, frames)
+    return cut.with_joints(cut.joints, meta={**cut.meta, "cut_from": motion.frames})
+
+
+def _span(numbers) -> str:
+    numbers = sorted(numbers)
+    if numbers == list(range(numbers[0], numbers[-1] + 1)) and len(numbers) > 2:
+        return f"{numbers[0]}-{numbers[-1]}"
+    return ", ".join(map(str, numbers))
+
+
+def cut_warnings(groups, frames: int, fps) -> list[str]:
+    """Return one sentence per source whose motions were cut shorter than they are."""
+    out = []
+    for source, motions, _ in groups:
+        lengths = [m.meta["cut_from"] for m in motions if m.meta.get("cut_from")]
+        if not lengths:
+            continue
+        seconds = f" ({frames / float(fps):.1f} s)" if fps else ""
+        low, high = min(lengths), max(lengths)
+        out.append(f"{source.name}: {len(lengths)} of its {len(motions)} motions were cut to "
+                   f"{frames} frames{seconds} from {low if low == high else f'{low}-{high}'}; "
+                   f"set frames: auto for the longest length every source has, or frames: N")
     return out
 
 

@@ -58,7 +58,7 @@ class StudyConfig:
     data_root: str | None
     subjects: list[str] | None
     actions: list[str] | None
-    frames: int | None
+    frames: int | None  # None: the dataset's clip length (or, with frames_auto, see below)
     fps: float | None
     clips_per_source: int
     sources: list[Source]
@@ -76,6 +76,11 @@ class StudyConfig:
     # prints them), e.g. too few attention checks for Prolific.
     warnings: list[str] = field(default_factory=list)
     metrics: MetricsConfig = field(default_factory=MetricsConfig)
+    # ``frames: auto``: the longest length every file source's motions have (Build.clip_frames)
+    frames_auto: bool = False
+    # ``prompts_from: sources``: the prompts every file source has, found when a build
+    # reads the files (Build.shared_prompts sets ``prompts``)
+    prompts_shared: bool = False
 
     def path(self, value: str) -> Path:
         return (self.folder / value).resolve()
@@ -192,8 +197,15 @@ def parse(raw: dict, folder: Path) -> StudyConfig:
     fps = raw.get("fps")
     if fps is not None and (isinstance(fps, bool) or not isinstance(fps, (int, float)) or fps <= 0):
         raise ConfigError(f"fps: {fps!r} must be a positive number, or null for the dataset's")
-    prompts = _prompts(raw, folder)
-    if prompts is not None:
+    shared = raw.get("prompts_from") == SHARED_PROMPTS
+    if shared and raw.get("prompts") is not None:
+        raise ConfigError("prompts and prompts_from: give one of them (a list of prompts, or "
+                          "prompts_from: sources for the prompts every file source shares)")
+    if shared and raw.get("actions") is not None:
+        raise ConfigError("actions and prompts_from: a study's trials show either actions or "
+                          "text prompts; drop actions (or prompts_from)")
+    prompts = None if shared else _prompts(raw, folder)
+    if prompts is not None or shared:
         _check_prompt_study(raw, sources, study_type, options, type_options)
     return StudyConfig(
         slug=slug,
@@ -203,7 +215,9 @@ def parse(raw: dict, folder: Path) -> StudyConfig:
         data_root=raw.get("data_root"),
         subjects=_names(raw, "subjects"),
         actions=_names(raw, "actions"),
-        frames=_int(raw, "frames", None, minimum=2),
+        frames=None if raw.get("frames") == "auto" else _int(raw, "frames", None, minimum=2),
+        frames_auto=raw.get("frames") == "auto",
+        prompts_shared=shared,
         fps=fps,
         clips_per_source=_int(raw, "clips_per_source", 1, minimum=1),
         sources=sources,
@@ -380,6 +394,9 @@ def _read_prompt_file(value, folder: Path) -> list:
 
 def _no_prompt(value):
     raise ConfigError(f"prompts_from: {value!r} holds no prompt; write one prompt per line")
+
+
+SHARED_PROMPTS = "sources"  # prompts_from: sources
 
 
 # Roles a prompts study can make: catch clips are broken versions of judged clips; the

@@ -34,6 +34,8 @@ class Command(BaseCommand):
                                    dry_run=options["dry_run"], cache=cache)
         except (ConfigError, BuildError) as exc:
             raise CommandError(str(exc)) from exc
+        for warning in result.warnings:
+            self.stderr.write(f"Warning: {warning}")
         if not options["dry_run"]:
             self.stdout.write(
                 f"study {result.study.slug}: {len(result.entries)} clips "
