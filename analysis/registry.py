@@ -13,8 +13,11 @@ from typing import Callable
 import pandas as pd
 
 from analysis.tables import AnalysisError
+from generation.registry import Registry
 
-_ANALYSES: dict[str, type] = {}
+# Every module of the ``analysis`` package is imported before the first lookup: each
+# study type's analysis module registers itself, so a new type needs no list here.
+ANALYSES = Registry("analysis", package="analysis")
 
 
 @dataclass
@@ -93,47 +96,17 @@ class StudyAnalysis:
 
 def register_analysis(name: str):
     """Register a :class:`StudyAnalysis` subclass under the study type ``name``."""
-
-    def decorator(cls):
-        if name in _ANALYSES:
-            raise ValueError(f"analysis {name!r} is already registered")
-        cls.name = name
-        _ANALYSES[name] = cls
-        return cls
-
-    return decorator
-
-
-_DISCOVERED = False
-
-
-def _discover() -> None:
-    """Import every module of the ``analysis`` package once: each study type's analysis
-    module registers itself, so a new type needs no list here."""
-    global _DISCOVERED
-    if _DISCOVERED:
-        return
-    import importlib
-    import pkgutil
-    from pathlib import Path
-
-    for module in pkgutil.iter_modules([str(Path(__file__).resolve().parent)]):
-        if not module.name.startswith("_"):
-            importlib.import_module(f"analysis.{module.name}")
-    _DISCOVERED = True
+    return ANALYSES.register(name)
 
 
 def get_analysis(name: str) -> StudyAnalysis:
-    """Return an instance of the analysis registered for study type ``name``."""
-    _discover()
-    try:
-        return _ANALYSES[name]()
-    except KeyError:
+    """Return an instance of the analysis class registered for study type ``name``."""
+    if name not in ANALYSES:
         raise AnalysisError(
             f"no analysis for study type {name!r}; known types: {', '.join(list_analyses())}"
-        ) from None
+        )
+    return ANALYSES.get(name)()
 
 
 def list_analyses() -> list[str]:
-    _discover()
-    return sorted(_ANALYSES)
+    return ANALYSES.names()

@@ -10,7 +10,7 @@ from generation.motion import Motion
 from generation.registry import Registry
 from rendering.framing import PAD, Framing
 
-_STYLES = Registry("rendering style")
+_STYLES = Registry("rendering style", package="rendering.styles")
 
 
 def register_style(name: str):

@@ -45,6 +45,7 @@ import urllib.request
 from dataclasses import dataclass, field
 from html.parser import HTMLParser
 
+from generation.registry import Registry
 from studyapp.survey.forms import AGE_RANGES, GENDERS
 from studyapp.survey.models import Stimulus, Trial, TrialItem
 
@@ -288,8 +289,11 @@ class BradleyTerry(Policy):
         return "left" if self.rng.random() < s_left / (s_left + s_right) else "right"
 
 
-POLICIES = {"random": Policy, "prefer-real": PreferReal, "bt": BradleyTerry,
-            "inattentive": Inattentive, "decline": Decline, "screen-out": ScreenOut}
+POLICIES = Registry("bot policy")
+for _name, _policy in [("random", Policy), ("prefer-real", PreferReal), ("bt", BradleyTerry),
+                       ("inattentive", Inattentive), ("decline", Decline),
+                       ("screen-out", ScreenOut)]:
+    POLICIES.add(_name, _policy)
 
 
 def parse_strengths(text: str) -> dict[str, float]:

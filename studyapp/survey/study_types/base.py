@@ -35,7 +35,7 @@ from studyapp.survey import assignment
 from studyapp.survey.answers import Criterion
 from studyapp.survey.models import Stimulus, Trial, TrialItem
 
-registry = Registry("study type")
+registry = Registry("study type", package="studyapp.survey.study_types")
 
 DEFAULT_CONSENT = """\
 This study is part of academic research on how people perceive human movement. \
