@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from analysis import stats, worth
+from analysis import simulate, stats, worth
 from analysis.counts import ranked_sources, source_counts
 from analysis.formatting import bootstrap_text, number, p_text, participant_bootstrap_text
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
@@ -107,6 +107,19 @@ class Ranking(StudyAnalysis):
     agreement_level = "ordinal"
     design = ("each trial showed clips of one action from the sources in random order, "
               "and participants ranked them from best (1) to worst")
+
+    def simulated_trials(self, rng, n_trials, n_sources, clips_per_trial):
+        return simulate.every_source(n_trials, n_sources)
+
+    def simulated_answers(self, raters):
+        """Rank by quality + Gumbel noise (a Plackett-Luce draw)."""
+        utility = (np.where(raters.random, 0.0, raters.quality)
+                   + raters.noise * raters.rng.gumbel(size=raters.n_rows))
+        utility = utility.reshape(-1, raters.m)
+        ranks = np.empty_like(utility, dtype=np.int64)
+        np.put_along_axis(ranks, np.argsort(-utility, axis=1), np.arange(1, raters.m + 1)[None],
+                          axis=1)
+        return {"rank": pd.array(ranks.ravel(), dtype="Int64")}
 
     def answered(self, rows):
         """Return ranked rows sorted by trial and rank, ranks renumbered 1..m within the trial.

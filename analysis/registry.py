@@ -62,13 +62,19 @@ class StudyAnalysis:
     """How one study type's judgements are checked and analysed.
 
     ``answer`` is the response column holding the answer; ``agreement_level`` the
-    Krippendorff level matching it; ``design`` a phrase for the methods paragraph.
+    Krippendorff level matching it; ``design`` a phrase for the methods paragraph;
+    ``extra_columns`` the columns this type's table holds beyond
+    :data:`analysis.tables.RESPONSE_COLUMNS` (as the export adds them).
+
+    The ``simulated_*`` hooks make :func:`analysis.simulate.simulate` write this type's
+    tables; a type without ``simulated_answers`` cannot be simulated.
     """
 
     name = ""
     answer = ""
     agreement_level = "nominal"
     design = ""
+    extra_columns: tuple[str, ...] = ()
 
     def answered(self, rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
         """Return the rows with a valid answer and notes on those left out."""
@@ -92,6 +98,26 @@ class StudyAnalysis:
 
     def analyse(self, rows: pd.DataFrame, config) -> Analysis:
         raise NotImplementedError
+
+    # --- simulated raters (analysis.simulate) -------------------------------------------
+
+    def simulated_sources(self, names, strength):
+        """Return the names and log-strengths of the sources a simulated trial draws from:
+        the given ones, and any controls this type shows as sources of their own."""
+        return names, strength
+
+    def simulated_trials(self, rng, n_trials: int, n_sources: int, clips_per_trial: int):
+        """Return ``(n_trials, m)`` indices of the sources each simulated trial shows."""
+        raise NotImplementedError
+
+    def simulated_answers(self, raters) -> dict:
+        """Return this type's answer columns for the rows of
+        :class:`analysis.simulate.Raters` (one value per row)."""
+        raise NotImplementedError
+
+    def simulated_roles(self, is_catch, row_source, n_sources):
+        """Return the ``stimulus_role`` of each simulated row (one for all: ``judged``)."""
+        return "judged"
 
 
 def register_analysis(name: str):

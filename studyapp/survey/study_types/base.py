@@ -17,11 +17,13 @@ its key:
 - its instructed-response checks: a trial whose text says which answer to give
   (:meth:`instruct` picks it, :meth:`instruction_text` says it, :meth:`obeyed` grades it,
   :meth:`obey` gives it, for bots and tests);
-- how a simulated participant answers (:meth:`bot_answer`) and which analysis reads its
-  table (:attr:`analysis`, registered in ``analysis/``).
+- how a simulated participant answers (:meth:`bot_answer`) and the answer fields a test
+  posts (:meth:`answer_fields`).
 
-A new type is its module here, its template here (``<key>.html``) and its analysis module
-in ``analysis/``.
+Its analysis is the one registered under the same key in ``analysis/``, which also
+brings the type's answer column, extra columns and simulated raters. A new type is its
+module here, its template here (``<key>.html``) and its analysis module in ``analysis/``;
+``tests/test_plugins.py`` fails when anything else names its key.
 """
 
 from __future__ import annotations
@@ -116,7 +118,6 @@ class StudyType:
     label = ""
     template = ""  # beside this module; "<key>.html" by default
     scripts: tuple[str, ...] = ("survey/choices.js",)
-    analysis = ""  # the analysis registered in analysis/ for this type; default: the key
     minutes = 5
     default_clips_per_trial = 6
     min_items = 2
@@ -135,9 +136,6 @@ class StudyType:
 
     def template_name(self) -> str:
         return self.template or f"{self.name}.html"
-
-    def analysis_key(self) -> str:
-        return self.analysis or self.name
 
     def default_instructions(self, study) -> str:
         raise NotImplementedError
@@ -424,6 +422,15 @@ class StudyType:
         return {}
 
     # --- bots -----------------------------------------------------------------------
+
+    def answer_fields(self, items, **given) -> dict:
+        """Return the answer fields of a valid post for a trial, for tests.
+
+        ``items`` are the trial's items in screen order (``position``, ``token``, ``role``);
+        ``given`` holds answers by this type's own keywords (positions to values, or the
+        trial's one answer), defaults where absent; keywords of other types are ignored.
+        """
+        raise NotImplementedError
 
     def bot_answer(self, page, policy) -> dict:
         """Return the answer fields (first criterion's names) a bot posts for a trial.

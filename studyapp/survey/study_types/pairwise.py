@@ -103,6 +103,10 @@ class Pairwise(StudyType):
     def export_values(self, trial_answer, item_answer, item, items):
         return {"choice": trial_answer}
 
+    def answer_fields(self, items, choice="left", **given):
+        """``choice``: the trial's answer (default ``left``, clip A better)."""
+        return {"choice": choice}
+
     def bot_answer(self, page, policy):
         left, right = (page.sources[token] for token in page.tokens)
         ties = [value for value in page.choices if value in TIES]
