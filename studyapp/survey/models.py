@@ -170,10 +170,10 @@ class Study(models.Model):
         null=True, blank=True, help_text="Finished and active participants at most."
     )
     player = models.CharField(
-        max_length=8, blank=True, choices=[("", "Video (mp4)"), ("stick", "In the page: stick figure"),
-                                           ("body", "In the page: body")],
-        help_text="Play the motion itself in the page (WebGL) where the browser can, the mp4 "
-        "otherwise; needs clips built with render.player: webgl.",
+        max_length=8, blank=True,
+        help_text="The figure the in-page player (WebGL) draws where the browser can, the mp4 "
+        "otherwise (the style's player_figure, e.g. stick or body); blank: the mp4 only. Needs "
+        "clips built with render.player: webgl.",
     )
     created_at = models.DateTimeField(auto_now_add=True)
 

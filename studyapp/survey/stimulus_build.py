@@ -480,7 +480,7 @@ class Build:
         fields.update({k: v for k, v in c.study_options.items() if v is not None})
         fields["dataset"] = c.dataset
         fields["options"] = dict(c.type_options)
-        fields["player"] = "" if c.player == "video" else ("body" if c.style == "mesh" else "stick")
+        fields["player"] = "" if c.player == "video" else get_style(c.style).player_figure
         if c.prompts is not None and not fields.get("instructions"):
             draft = Study(study_type=c.study_type, options=fields["options"],
                           clips_per_trial=fields.get("clips_per_trial",
