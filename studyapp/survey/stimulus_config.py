@@ -21,7 +21,7 @@ import yaml
 
 from generation.datasets.humanml3d import normalise as normalise_prompt  # as captions match
 from rendering import get_style, list_styles
-from studyapp.survey.crowd import CHECKS_OVER_MINUTES, make_platform, outcomes_of
+from studyapp.survey.crowd import make_platform, outcomes_of
 from studyapp.survey.models import Study
 from studyapp.survey.study_types import get_study_type, list_study_types
 from studyapp.survey.study_types.base import COMMON_OPTIONS, check_criteria
@@ -270,7 +270,7 @@ def _study(raw) -> tuple[str, dict, dict, list[str]]:
     except ValueError as exc:
         default = "" if given or not checks else (
             f" (study.instructed_checks defaults to {checks} for this platform in a study "
-            f"over {CHECKS_OVER_MINUTES} minutes)")
+            f"of {kind.minutes} minutes)")
         raise ConfigError(f"study.{exc}{default}") from None
     max_failed = options.get("max_failed_catch")
     if max_failed is None:
