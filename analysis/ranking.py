@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from analysis import simulate, stats, worth
-from analysis.counts import ranked_sources, source_counts
+from analysis.counts import rank_columns, ranked_sources, source_counts
 from analysis.formatting import bootstrap_text, number, p_text, participant_bootstrap_text
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
 from analysis.tables import AnalysisError, ranked_judgements
@@ -58,12 +58,6 @@ def top_share(shares: pd.DataFrame, k: int = 2) -> pd.Series:
     """Return, per row of ``shares``, the share of judgements in ranks 1..k."""
     columns = [f"rank_{r}" for r in range(1, k + 1) if f"rank_{r}" in shares.columns]
     return shares[columns].sum(axis=1)
-
-
-def rank_columns(shares: pd.DataFrame) -> list[str]:
-    """Return the ``rank_<r>`` columns of ``shares``, best rank first."""
-    names = [c for c in shares.columns if str(c).startswith("rank_") and str(c)[5:].isdigit()]
-    return sorted(names, key=lambda c: int(c[5:]))
 
 
 def _shares(rows: pd.DataFrame, n_ranks: int) -> pd.DataFrame:

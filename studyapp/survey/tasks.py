@@ -14,6 +14,10 @@ import threading
 from generation.registry import Registry
 
 log = logging.getLogger(__name__)
+# How a job reaches a worker when a broker is set: ``queue(kind, params)`` returns its
+# ``AsyncResult``. The app's ``ready`` sets it to Celery's (``studyapp.celery.enqueue``);
+# this module never imports Celery, which imports this module to run the jobs.
+queue = None
 
 JOBS = Registry("job")
 
@@ -41,9 +45,10 @@ def run_job(kind: str, **params):
     """Start job ``kind``; return a Celery ``AsyncResult`` or the started thread."""
     JOBS.get(kind)  # an unknown kind fails here, not in the worker
     if broker_url():
-        from studyapp.celery import run_task
-
-        return run_task.delay(kind, params)
+        if queue is None:
+            raise RuntimeError("STUDY_CELERY_BROKER is set but no queue is: run inside the "
+                               "Django app (its ready() sets tasks.queue)")
+        return queue(kind, params)
     thread = threading.Thread(target=_in_thread, args=(kind, params), name=f"job-{kind}", daemon=True)
     thread.start()
     return thread

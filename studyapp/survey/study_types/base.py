@@ -32,12 +32,12 @@ import re
 from collections import Counter
 from dataclasses import dataclass, field
 
-from generation.registry import Registry
 from studyapp.survey import assignment
 from studyapp.survey.answers import Criterion
 from studyapp.survey.models import Stimulus, Trial, TrialItem
+from studyapp.survey.study_type_registry import STUDY_TYPES
 
-registry = Registry("study type", package="studyapp.survey.study_types")
+registry = STUDY_TYPES
 
 DEFAULT_CONSENT = """\
 This study is part of academic research on how people perceive human movement. \
