@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from analysis import simulate, stats, worth
+from analysis import stats, worth
 from analysis.counts import ranked_sources, source_counts
 from analysis.formatting import bootstrap_text
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
