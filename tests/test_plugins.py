@@ -130,11 +130,12 @@ def test_no_file_outside_a_type_names_its_key():
 
 @pytest.mark.parametrize("key", list_study_types())
 def test_a_type_brings_its_hooks(key):
-    """What shared code asks of a type is there: answers for bots and tests, the simulation."""
+    """What shared code asks of a type is there: answers for bots and tests (a valid post,
+    a catch trial spotted and missed), the simulation."""
     from analysis.simulate import can_simulate
 
     kind = type(get_study_type(key))
-    for hook in ("bot_answer", "answer_fields", "obey", "obeyed"):
+    for hook in ("bot_answer", "answer_fields", "catch_answers", "obey", "obeyed"):
         assert getattr(kind, hook) is not getattr(StudyType, hook), f"{key} lacks {hook}"
     analysis = get_analysis(key)
     assert analysis.answer and can_simulate(analysis)

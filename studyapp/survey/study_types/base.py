@@ -17,8 +17,9 @@ its key:
 - its instructed-response checks: a trial whose text says which answer to give
   (:meth:`instruct` picks it, :meth:`instruction_text` says it, :meth:`obeyed` grades it,
   :meth:`obey` gives it, for bots and tests);
-- how a simulated participant answers (:meth:`bot_answer`) and the answer fields a test
-  posts (:meth:`answer_fields`).
+- how a simulated participant answers (:meth:`bot_answer`), and for tests the answer
+  fields of a valid post (:meth:`answer_fields`) and of a catch trial spotted or missed
+  (:meth:`catch_answers`).
 
 Its analysis is the one registered under the same key in ``analysis/``, which also
 brings the type's answer column, extra columns and simulated raters. A new type is its
@@ -430,6 +431,12 @@ class StudyType:
         ``given`` holds answers by this type's own keywords (positions to values, or the
         trial's one answer), defaults where absent; keywords of other types are ignored.
         """
+        raise NotImplementedError
+
+    def catch_answers(self, position: int) -> tuple[dict, dict]:
+        """Return two answers to a catch trial whose broken clip is at ``position``, as
+        :meth:`answer_fields` keywords: one that spots the broken clip and one that does
+        not (for tests)."""
         raise NotImplementedError
 
     def bot_answer(self, page, policy) -> dict:

@@ -117,6 +117,9 @@ class BestOfK(StudyType):
         judged = {item.position: item.token for item in items if item.role == "judged"}
         return {"pick": pick if isinstance(pick, str) else judged[pick or 0]}
 
+    def catch_answers(self, position):
+        return {"pick": 1 if position == 0 else 0}, {"pick": position}
+
     def bot_answer(self, page, policy):
         """The clip that looks best to the policy (a Plackett-Luce first choice for ``bt``)."""
         looks = {token: policy.utility(page.sources[token]) for token in page.tokens}

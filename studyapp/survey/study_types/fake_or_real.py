@@ -157,6 +157,9 @@ class FakeOrReal(StudyType):
         return {f"judged_{item.token}": (verdicts or {}).get(item.position, "real")
                 for item in items if item.role == "judged"}
 
+    def catch_answers(self, position):
+        return {"verdicts": {position: "generated"}}, {"verdicts": {position: "real"}}
+
     def bot_answer(self, page, policy):
         return {
             f"judged_{token}": "real" if policy.is_real(page.sources[token]) else "generated"

@@ -184,6 +184,9 @@ class Mushra(StudyType):
         return {f"score_{item.token}": str((scores or {}).get(item.position, 50))
                 for item in items}
 
+    def catch_answers(self, position):
+        return {"scores": {position: 10}}, {"scores": {position: 80}}
+
     def bot_answer(self, page, policy):
         """A score of 50 at a utility of 1, plus 25 per unit of how good the clip looks to
         the policy (prefer-real: real clips 75-90, others 50-65, broken clips below 40)."""

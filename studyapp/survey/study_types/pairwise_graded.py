@@ -141,6 +141,10 @@ class PairwiseGraded(StudyType):
         """``choice``: the trial's answer (default ``left``, clip A better)."""
         return {"choice": choice}
 
+    def catch_answers(self, position):
+        return ({"choice": "right_slightly" if position == 0 else "left_much"},
+                {"choice": "no_preference"})
+
     def bot_answer(self, page, policy):
         a, b = (page.sources[token] for token in page.tokens)
         u_a, u_b = policy.utility(a), policy.utility(b)

@@ -76,5 +76,8 @@ class RatingStudy(StudyType):
         return {f"rating_{item.token}": str((ratings or {}).get(item.position, 3))
                 for item in items if item.role == "judged"}
 
+    def catch_answers(self, position):
+        return {"ratings": {position: CATCH_MAX}}, {"ratings": {position: CATCH_MAX + 2}}
+
     def bot_answer(self, page, policy):
         return {f"rating_{token}": str(policy.rating(page.sources[token])) for token in page.tokens}
