@@ -111,6 +111,26 @@ class BestOfK(StudyAnalysis):
     design = ("each trial showed clips of one action from the sources in random order, and "
               'participants chose the best clip, or answered "all good" or "all bad" when none '
               "stood out")
+    extra_columns = ("pick",)
+
+    def simulated_trials(self, rng, n_trials, n_sources, clips_per_trial):
+        """``clips_per_trial`` clips of distinct sources (at most one per source)."""
+        k = min(clips_per_trial, n_sources)
+        return np.argsort(rng.random((n_trials, n_sources)), axis=1)[:, :k]
+
+    def simulated_answers(self, raters):
+        """Pick the best by quality + Gumbel noise (a Plackett-Luce top-1 draw); ``tie_rate``
+        of trials are answered all good (mean quality above the middle) or all bad."""
+        rng, m = raters.rng, raters.m
+        utility = (np.where(raters.random, 0.0, raters.quality)
+                   + raters.noise * rng.gumbel(size=raters.n_rows)).reshape(-1, m)
+        picks = np.full(utility.shape, "other", dtype=object)
+        picks[np.arange(len(utility)), utility.argmax(axis=1)] = "best"
+        careless = raters.random.reshape(-1, m)[:, 0]
+        tie = (rng.random(len(utility)) < raters.tie_rate) & ~careless
+        good = raters.quality.reshape(-1, m).mean(axis=1) > raters.middle
+        picks[tie] = np.where(good[tie], "all_good", "all_bad")[:, None]
+        return {"pick": picks.ravel()}
 
     def answered(self, rows):
         """Return the rows of trials with a valid answer: one clip ``best`` and the rest

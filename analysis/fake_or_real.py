@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from analysis import stats
+from analysis import simulate, stats
 from analysis.counts import ranked_sources, source_counts
 from analysis.formatting import number, p_text, participant_bootstrap_text
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
@@ -25,6 +25,17 @@ class FakeOrReal(StudyAnalysis):
     answer = "judged_real"
     agreement_level = "nominal"
     design = "each clip was judged real or generated"
+
+    def simulated_trials(self, rng, n_trials, n_sources, clips_per_trial):
+        return rng.integers(0, n_sources, (n_trials, clips_per_trial))
+
+    def simulated_answers(self, raters):
+        """Judged real with probability sigmoid((q - middle) / noise + rater bias)."""
+        bias = raters.rng.normal(0.0, 0.3, raters.participants)[raters.participant]
+        chance = np.where(raters.random, 0.5,
+                          simulate.sigmoid((raters.quality - raters.middle) / raters.noise + bias))
+        return {"judged_real": pd.array(raters.rng.random(raters.n_rows) < chance,
+                                        dtype="boolean")}
 
     def answered(self, rows):
         values = as_boolean(rows["judged_real"], "judged_real")

@@ -10,7 +10,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import PercentFormatter
 
-from analysis.ranking import rank_columns
+from analysis.counts import rank_columns
 from analysis.tables import AnalysisError
 
 STYLE = {

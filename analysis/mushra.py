@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from analysis import stats, worth
+from analysis import simulate, stats, worth
 from analysis.counts import ranked_sources, source_counts
 from analysis.formatting import bootstrap_text, number, p_text
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
@@ -78,6 +78,36 @@ class Mushra(StudyAnalysis):
     design = ("each trial showed clips of one action side by side, with a hidden real reference "
               "and a low anchor (a degraded real clip) among them, and participants scored every "
               "clip from 0 (bad) to 100 (excellent) on sliders (MUSHRA)")
+    extra_columns = ("stimulus_role", "score")
+    # Share of trials in which a simulated attentive rater misses the hidden reference.
+    simulated_slips = 0.02
+
+    def simulated_sources(self, names, strength):
+        """Add the hidden reference (above the best source) and the low anchor (below the
+        worst) as two more sources."""
+        return (np.append(names, ["reference", "anchor"]),
+                np.append(strength, [strength.max() + 1.0, strength.min() - 2.0]))
+
+    def simulated_trials(self, rng, n_trials, n_sources, clips_per_trial):
+        return simulate.every_source(n_trials, n_sources)
+
+    def simulated_answers(self, raters):
+        """Score each clip ``100 sigmoid(quality + rater bias + logistic noise - centre)``;
+        an attentive rater scores the hidden reference 90-100 but in ``simulated_slips``
+        of trials."""
+        rng, n_rows = raters.rng, raters.n_rows
+        latent = (raters.quality + rng.normal(0.0, 0.3, raters.participants)[raters.participant]
+                  + raters.noise * rng.logistic(size=n_rows))
+        scores = 100 / (1 + np.exp(-(latent - raters.centre)))
+        reference = ((raters.row_source == raters.n_sources - 2)
+                     & (rng.random(n_rows) >= self.simulated_slips))
+        scores = np.where(reference, rng.uniform(90, 100, n_rows), scores)
+        scores = np.where(raters.random, rng.uniform(0, 100, n_rows), scores)
+        return {"score": pd.array(np.rint(scores).astype(np.int64), dtype="Int64")}
+
+    def simulated_roles(self, is_catch, row_source, n_sources):
+        return np.select([is_catch, row_source == n_sources - 2, row_source == n_sources - 1],
+                         ["catch", "reference", "anchor"], "judged")
 
     def answered(self, rows):
         """Return the scored rows, scores whole numbers 0..100, the hidden reference and

@@ -13,7 +13,7 @@ import itertools
 import numpy as np
 import pandas as pd
 
-from analysis import stats, worth
+from analysis import simulate, stats, worth
 from analysis.counts import ranked_sources, source_counts
 from analysis.formatting import bootstrap_text, number, p_text, participant_bootstrap_text
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
@@ -31,6 +31,22 @@ class Pairwise(StudyAnalysis):
     required = ("position",)
     design = ("each trial showed two clips of one action side by side and participants chose the "
               "better one, or answered that both were good or both bad")
+
+    def simulated_trials(self, rng, n_trials, n_sources, clips_per_trial):
+        return simulate.pairs(rng, n_trials, n_sources)
+
+    def simulated_answers(self, raters):
+        """Left wins with probability sigmoid((q_left - q_right + position_bias) / noise);
+        ``tie_rate`` of comparisons are called both good (mean quality above the middle)
+        or both bad."""
+        rng = raters.rng
+        q_left, q_right, careless = simulate.left_right(raters)
+        chance = simulate.sigmoid((q_left - q_right + raters.position_bias) / raters.noise)
+        chance = np.where(careless, 0.5, chance)
+        picks = np.where(rng.random(len(q_left)) < chance, "left", "right").astype(object)
+        tie = (rng.random(len(q_left)) < raters.tie_rate) & ~careless
+        picks[tie] = np.where((q_left + q_right)[tie] / 2 > raters.middle, "both_good", "both_bad")
+        return {"choice": pd.Categorical(np.repeat(picks, raters.m))}
 
     def answered(self, rows):
         return comparisons_answered(rows, CHOICES)

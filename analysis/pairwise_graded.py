@@ -40,7 +40,7 @@ import itertools
 import numpy as np
 import pandas as pd
 
-from analysis import stats, worth
+from analysis import simulate, stats, worth
 from analysis.counts import ranked_sources, source_counts
 from analysis.formatting import bootstrap_text, number, p_text
 from analysis.pairwise import _matrix_plot, comparisons_answered
@@ -75,6 +75,27 @@ class PairwiseGraded(StudyAnalysis):
     design = ("each trial showed two clips of one action side by side (A left, B right) and "
               "participants answered on a symmetric 7-point scale from 'A much better' through "
               "'No preference' to 'B much better', or 'Both bad'")
+
+    def simulated_trials(self, rng, n_trials, n_sources, clips_per_trial):
+        return simulate.pairs(rng, n_trials, n_sources)
+
+    def simulated_answers(self, raters):
+        """The left clip's grade cuts ``q_left - q_right + position_bias + noise * logistic``
+        at +-0.5, +-1.5, +-2.5 into the 7-point scale (a cumulative-logit draw);
+        ``tie_rate`` of comparisons whose mean quality is below the middle are called both
+        bad."""
+        rng = raters.rng
+        q_left, q_right, careless = simulate.left_right(raters)
+        latent = (q_left - q_right + raters.position_bias
+                  + raters.noise * rng.logistic(size=len(q_left)))
+        # Index into CHOICES: 0 is "left much better" (grade +3), 6 "right much better".
+        index = 6 - np.searchsorted(np.array([-2.5, -1.5, -0.5, 0.5, 1.5, 2.5]), latent)
+        index = np.where(careless, rng.integers(0, 7, len(q_left)), index)
+        bad = ((rng.random(len(q_left)) < raters.tie_rate) & ~careless
+               & ((q_left + q_right) / 2 < raters.middle))
+        index[bad] = 7
+        choices = np.repeat(np.asarray(CHOICES, dtype=object)[index], raters.m)
+        return {"choice": pd.Categorical(choices, categories=CHOICES)}
 
     def answered(self, rows):
         return comparisons_answered(rows, CHOICES, "graded pairwise")

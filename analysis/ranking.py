@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from analysis import stats, worth
-from analysis.counts import ranked_sources, source_counts
+from analysis import simulate, stats, worth
+from analysis.counts import rank_columns, ranked_sources, source_counts
 from analysis.formatting import bootstrap_text, number, p_text, participant_bootstrap_text
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
 from analysis.tables import AnalysisError, ranked_judgements
@@ -60,12 +60,6 @@ def top_share(shares: pd.DataFrame, k: int = 2) -> pd.Series:
     return shares[columns].sum(axis=1)
 
 
-def rank_columns(shares: pd.DataFrame) -> list[str]:
-    """Return the ``rank_<r>`` columns of ``shares``, best rank first."""
-    names = [c for c in shares.columns if str(c).startswith("rank_") and str(c)[5:].isdigit()]
-    return sorted(names, key=lambda c: int(c[5:]))
-
-
 def _shares(rows: pd.DataFrame, n_ranks: int) -> pd.DataFrame:
     counts = rows.groupby(["source", "rank"], observed=True).size().unstack("rank", fill_value=0)
     counts = counts.reindex(columns=range(1, n_ranks + 1), fill_value=0)
@@ -107,6 +101,19 @@ class Ranking(StudyAnalysis):
     agreement_level = "ordinal"
     design = ("each trial showed clips of one action from the sources in random order, "
               "and participants ranked them from best (1) to worst")
+
+    def simulated_trials(self, rng, n_trials, n_sources, clips_per_trial):
+        return simulate.every_source(n_trials, n_sources)
+
+    def simulated_answers(self, raters):
+        """Rank by quality + Gumbel noise (a Plackett-Luce draw)."""
+        utility = (np.where(raters.random, 0.0, raters.quality)
+                   + raters.noise * raters.rng.gumbel(size=raters.n_rows))
+        utility = utility.reshape(-1, raters.m)
+        ranks = np.empty_like(utility, dtype=np.int64)
+        np.put_along_axis(ranks, np.argsort(-utility, axis=1), np.arange(1, raters.m + 1)[None],
+                          axis=1)
+        return {"rank": pd.array(ranks.ravel(), dtype="Int64")}
 
     def answered(self, rows):
         """Return ranked rows sorted by trial and rank, ranks renumbered 1..m within the trial.

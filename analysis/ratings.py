@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from analysis import stats
+from analysis import simulate, stats
 from analysis.counts import ranked_sources, source_counts
 from analysis.formatting import number, p_text, participant_bootstrap_text
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
@@ -28,6 +28,20 @@ class RatingStandards(StudyAnalysis):
     agreement_level = "ordinal"
     design = ("each clip was rated from 1 to 5 (higher = more realistic) after participants saw "
               "five scoring standards, each a description and an example clip")
+
+    def simulated_trials(self, rng, n_trials, n_sources, clips_per_trial):
+        return simulate.every_source(n_trials, n_sources)
+
+    def simulated_answers(self, raters):
+        """Quality + rater bias + logistic noise, cut into 1..5 at thresholds spread evenly
+        over the strengths."""
+        rng, n_rows, strength = raters.rng, raters.n_rows, raters.strength
+        latent = (raters.quality + rng.normal(0.0, 0.3, raters.participants)[raters.participant]
+                  + raters.noise * rng.logistic(size=n_rows))
+        cuts = np.linspace(strength.min() - 0.5, strength.max() + 0.5, 6)[1:-1]
+        ratings = np.where(raters.random, rng.integers(1, 6, n_rows),
+                           1 + np.searchsorted(cuts, latent))
+        return {"rating": pd.array(ratings, dtype="Int64")}
 
     def answered(self, rows):
         ratings = pd.to_numeric(rows["rating"], errors="coerce")
@@ -85,6 +99,9 @@ class RatingReference(RatingStandards):
 
     design = ("each clip was rated from 1 to 5 (higher = more realistic) while one real clip of "
               "the same action was shown as a reference")
+
+    def simulated_trials(self, rng, n_trials, n_sources, clips_per_trial):
+        return rng.integers(0, n_sources, (n_trials, 1))
 
 
 def mean_ratings(rows: pd.DataFrame, config, by=("source",)) -> pd.DataFrame:

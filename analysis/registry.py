@@ -13,8 +13,11 @@ from typing import Callable
 import pandas as pd
 
 from analysis.tables import AnalysisError
+from generation.registry import Registry
 
-_ANALYSES: dict[str, type] = {}
+# Every module of the ``analysis`` package is imported before the first lookup: each
+# study type's analysis module registers itself, so a new type needs no list here.
+ANALYSES = Registry("analysis", package="analysis")
 
 
 @dataclass
@@ -59,13 +62,19 @@ class StudyAnalysis:
     """How one study type's judgements are checked and analysed.
 
     ``answer`` is the response column holding the answer; ``agreement_level`` the
-    Krippendorff level matching it; ``design`` a phrase for the methods paragraph.
+    Krippendorff level matching it; ``design`` a phrase for the methods paragraph;
+    ``extra_columns`` the columns this type's table holds beyond
+    :data:`analysis.tables.RESPONSE_COLUMNS` (as the export adds them).
+
+    The ``simulated_*`` hooks make :func:`analysis.simulate.simulate` write this type's
+    tables; a type without ``simulated_answers`` cannot be simulated.
     """
 
     name = ""
     answer = ""
     agreement_level = "nominal"
     design = ""
+    extra_columns: tuple[str, ...] = ()
 
     def answered(self, rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
         """Return the rows with a valid answer and notes on those left out."""
@@ -90,50 +99,40 @@ class StudyAnalysis:
     def analyse(self, rows: pd.DataFrame, config) -> Analysis:
         raise NotImplementedError
 
+    # --- simulated raters (analysis.simulate) -------------------------------------------
+
+    def simulated_sources(self, names, strength):
+        """Return the names and log-strengths of the sources a simulated trial draws from:
+        the given ones, and any controls this type shows as sources of their own."""
+        return names, strength
+
+    def simulated_trials(self, rng, n_trials: int, n_sources: int, clips_per_trial: int):
+        """Return ``(n_trials, m)`` indices of the sources each simulated trial shows."""
+        raise NotImplementedError
+
+    def simulated_answers(self, raters) -> dict:
+        """Return this type's answer columns for the rows of
+        :class:`analysis.simulate.Raters` (one value per row)."""
+        raise NotImplementedError
+
+    def simulated_roles(self, is_catch, row_source, n_sources):
+        """Return the ``stimulus_role`` of each simulated row (one for all: ``judged``)."""
+        return "judged"
+
 
 def register_analysis(name: str):
     """Register a :class:`StudyAnalysis` subclass under the study type ``name``."""
-
-    def decorator(cls):
-        if name in _ANALYSES:
-            raise ValueError(f"analysis {name!r} is already registered")
-        cls.name = name
-        _ANALYSES[name] = cls
-        return cls
-
-    return decorator
-
-
-_DISCOVERED = False
-
-
-def _discover() -> None:
-    """Import every module of the ``analysis`` package once: each study type's analysis
-    module registers itself, so a new type needs no list here."""
-    global _DISCOVERED
-    if _DISCOVERED:
-        return
-    import importlib
-    import pkgutil
-    from pathlib import Path
-
-    for module in pkgutil.iter_modules([str(Path(__file__).resolve().parent)]):
-        if not module.name.startswith("_"):
-            importlib.import_module(f"analysis.{module.name}")
-    _DISCOVERED = True
+    return ANALYSES.register(name)
 
 
 def get_analysis(name: str) -> StudyAnalysis:
-    """Return an instance of the analysis registered for study type ``name``."""
-    _discover()
-    try:
-        return _ANALYSES[name]()
-    except KeyError:
+    """Return an instance of the analysis class registered for study type ``name``."""
+    if name not in ANALYSES:
         raise AnalysisError(
             f"no analysis for study type {name!r}; known types: {', '.join(list_analyses())}"
-        ) from None
+        )
+    return ANALYSES.get(name)()
 
 
 def list_analyses() -> list[str]:
-    _discover()
-    return sorted(_ANALYSES)
+    return ANALYSES.names()

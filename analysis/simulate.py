@@ -1,29 +1,18 @@
 """Simulated response tables: raters with known source strengths, for every study type.
 
 Each source has a Bradley-Terry strength (log scale); a clip's quality is its source's
-strength plus a small clip effect. Attentive raters answer from the quality with noise:
-
-- ranking: ranks by quality + Gumbel noise (a Plackett-Luce draw);
-- pairwise: left wins with probability sigmoid((q_left - q_right + position_bias) / noise),
-  with ``tie_rate`` of comparisons called both good (mean quality above the middle) or
-  both bad;
-- pairwise_graded: the left clip's grade cuts ``q_left - q_right + position_bias + noise *
-  logistic`` at +-0.5, +-1.5, +-2.5 into the 7-point scale (a cumulative-logit draw);
-  ``tie_rate`` of comparisons whose mean quality is below the middle are called both bad;
-- fake_or_real: judged real with probability sigmoid((q - middle) / noise + rater bias);
-- ratings: quality + rater bias + logistic noise, cut into 1..5 at thresholds spread
-  evenly over the strengths;
-- mushra: one clip per source plus a hidden reference (strength above the best source's)
-  and a low anchor (below the worst's), in random places, each scored 0-100 as
-  ``100 sigmoid(quality + rater bias + logistic noise - middle)``; an attentive rater
-  scores the hidden reference 90-100 but in ``MUSHRA_SLIPS`` of trials;
-- best_of_k: ``clips_per_trial`` clips of distinct sources (at most one per source), the
-  best by quality + Gumbel noise picked (a Plackett-Luce top-1 draw), with ``tie_rate``
-  of trials answered all good (mean quality above the middle) or all bad.
+strength plus a small clip effect. The shared part is here: participants, trials (main,
+catch, repeats), actions, clips, screen positions, careless raters and speeders, times.
+What a rater of a type sees and answers comes from the type's analysis plug-in
+(:class:`analysis.registry.StudyAnalysis`): ``simulated_sources`` (controls added as
+sources, e.g. a hidden reference), ``simulated_trials`` (the sources each trial shows),
+``simulated_answers`` (the answer columns, drawn from :class:`Raters`) and
+``simulated_roles``; each type's module says how its attentive raters answer.
 
 Inattentive raters answer at random and fail every catch trial; speeders answer faster
-than the clips last. The table has the columns of :mod:`analysis.tables`, so the real
-analysis runs on it. Everything is vectorised: a million judgements take about a second.
+than the clips last. The table has the columns of :mod:`analysis.tables` (and the type's
+``extra_columns``), so the real analysis runs on it. Everything is vectorised: a million
+judgements take about a second.
 """
 
 from __future__ import annotations
@@ -31,19 +20,65 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from dataclasses import dataclass
+
+from analysis.registry import StudyAnalysis, get_analysis, list_analyses
 from analysis.tables import RESPONSE_COLUMNS, AnalysisError
 
-# The answers of a graded pairwise trial, best for the left clip first (see
-# analysis.pairwise_graded).
-GRADED_CHOICES = ("left_much", "left", "left_slightly", "no_preference", "right_slightly",
-                  "right", "right_much", "both_bad")
 STRENGTHS = {"real": 4.0, "a2m": 3.0, "cond_gru": 1.0}
 ACTIONS = ("walk", "eat", "jump", "sit")
-STUDY_TYPES = ("ranking", "fake_or_real", "rating_standards", "rating_reference", "pairwise",
-               "pairwise_graded", "best_of_k", "mushra")
-# Answer columns of a type beyond analysis.tables.RESPONSE_COLUMNS (as the export adds them).
-EXTRA_COLUMNS = {"best_of_k": ("pick",), "mushra": ("stimulus_role", "score")}
-MUSHRA_SLIPS = 0.02
+
+
+@dataclass
+class Raters:
+    """What a type's ``simulated_answers`` draws from, one entry per row (judged clip).
+
+    ``rng`` is the simulation's generator (draw from it in a fixed order: the table
+    depends on it); ``quality`` the clip's latent quality, ``position`` its place on the
+    screen, ``random`` whether its rater answers at random, ``participant`` its rater's
+    index (of ``participants``), ``row_source`` its source's index (of ``n_sources``);
+    ``m`` clips per trial (rows come in trials of ``m``); ``middle`` the middle of the
+    shown sources' strengths, ``centre`` of the given ones (before controls were added).
+    """
+
+    rng: np.random.Generator
+    quality: np.ndarray
+    position: np.ndarray
+    random: np.ndarray
+    participant: np.ndarray
+    participants: int
+    row_source: np.ndarray
+    n_sources: int
+    strength: np.ndarray
+    m: int
+    noise: float
+    position_bias: float
+    tie_rate: float
+    middle: float
+    centre: float
+
+    @property
+    def n_rows(self) -> int:
+        return len(self.quality)
+
+
+def simulated_types() -> list[str]:
+    """Return the study types whose analysis can simulate raters."""
+    return [name for name in list_analyses() if can_simulate(get_analysis(name))]
+
+
+def can_simulate(analysis: StudyAnalysis) -> bool:
+    return type(analysis).simulated_answers is not StudyAnalysis.simulated_answers
+
+
+def __getattr__(name):
+    # Read from the registry when asked, not at import (the registry imports this module).
+    if name == "STUDY_TYPES":
+        return tuple(simulated_types())
+    if name == "EXTRA_COLUMNS":
+        return {t: get_analysis(t).extra_columns for t in simulated_types()
+                if get_analysis(t).extra_columns}
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def simulate(study_type: str, strengths: dict | None = None, participants: int = 200,
@@ -55,13 +90,15 @@ def simulate(study_type: str, strengths: dict | None = None, participants: int =
     """Return a response table of ``participants`` x ``trials`` main trials of ``study_type``.
 
     ``strengths`` maps source to log-strength (default :data:`STRENGTHS`);
-    ``clips_per_trial`` applies to fake_or_real (ranking and rating_standards show one
-    clip per source, rating_reference one clip, pairwise two). ``inattentive`` and
+    ``clips_per_trial`` applies to the types whose trials draw that many clips (the type's
+    ``simulated_trials`` says: others show one clip per source, one clip, or two). ``inattentive`` and
     ``speeders`` are the shares of such raters; each rater also gets ``catch_trials``
     catch trials and ``repeat_trials`` repeats of their first main trials.
     """
-    if study_type not in STUDY_TYPES:
-        raise AnalysisError(f"cannot simulate {study_type!r}; choose from {', '.join(STUDY_TYPES)}")
+    known = simulated_types()
+    if study_type not in known:
+        raise AnalysisError(f"cannot simulate {study_type!r}; choose from {', '.join(known)}")
+    plugin = get_analysis(study_type)
     strengths = dict(STRENGTHS if strengths is None else strengths)
     if participants < 1 or trials < 1 or len(strengths) < 1:
         raise AnalysisError("simulate at least one participant, one trial and one source")
@@ -69,9 +106,7 @@ def simulate(study_type: str, strengths: dict | None = None, participants: int =
     names = np.array(list(strengths), dtype=object)
     strength = np.array(list(strengths.values()), dtype=float)
     centre = (strength.min() + strength.max()) / 2
-    if study_type == "mushra":  # the hidden reference and the low anchor, as two more sources
-        names = np.append(names, ["reference", "anchor"])
-        strength = np.append(strength, [strength.max() + 1.0, strength.min() - 2.0])
+    names, strength = plugin.simulated_sources(names, strength)
     actions = np.asarray(actions, dtype=object)
     n_sources = len(names)
 
@@ -81,7 +116,7 @@ def simulate(study_type: str, strengths: dict | None = None, participants: int =
     trial_participant = np.repeat(np.arange(participants), per_participant)
     trial_index = np.tile(np.arange(per_participant), participants)
     trial_action = rng.integers(0, len(actions), n_trials)
-    sources = _trial_sources(study_type, rng, n_trials, n_sources, clips_per_trial)
+    sources = plugin.simulated_trials(rng, n_trials, n_sources, clips_per_trial)
     m = sources.shape[1]
     row_trial = np.repeat(np.arange(n_trials), m)
     row_source = sources.ravel()
@@ -108,43 +143,16 @@ def simulate(study_type: str, strengths: dict | None = None, participants: int =
     n_stimuli = len(actions) * n_sources * clips_per_source
     quality = strength[row_source] + rng.normal(0.0, clip_sd, n_stimuli)[stimulus]
     random = careless[participant]
-    table = {"rank": _missing(n_rows, np.int64), "rating": _missing(n_rows, np.int64),
-             "judged_real": _missing(n_rows, bool),
+    table = {"rank": missing(n_rows, np.int64), "rating": missing(n_rows, np.int64),
+             "judged_real": missing(n_rows, bool),
              "choice": pd.Categorical.from_codes(np.full(n_rows, -1),
                                                  ["left", "right", "both_good", "both_bad"])}
     middle = (strength.min() + strength.max()) / 2
-    if study_type == "ranking":
-        utility = np.where(random, 0.0, quality) + noise * rng.gumbel(size=n_rows)
-        utility = utility.reshape(-1, m)
-        ranks = np.empty_like(utility, dtype=np.int64)
-        np.put_along_axis(ranks, np.argsort(-utility, axis=1), np.arange(1, m + 1)[None], axis=1)
-        table["rank"] = pd.array(ranks.ravel(), dtype="Int64")
-    elif study_type == "fake_or_real":
-        bias = rng.normal(0.0, 0.3, participants)[participant]
-        chance = np.where(random, 0.5, _sigmoid((quality - middle) / noise + bias))
-        table["judged_real"] = pd.array(rng.random(n_rows) < chance, dtype="boolean")
-    elif study_type.startswith("rating"):
-        latent = quality + rng.normal(0.0, 0.3, participants)[participant] + noise * rng.logistic(size=n_rows)
-        cuts = np.linspace(strength.min() - 0.5, strength.max() + 0.5, 6)[1:-1]
-        ratings = np.where(random, rng.integers(1, 6, n_rows), 1 + np.searchsorted(cuts, latent))
-        table["rating"] = pd.array(ratings, dtype="Int64")
-    elif study_type == "pairwise_graded":
-        table["choice"] = pd.Categorical(
-            _graded_choices(rng, quality, position, random, m, noise, position_bias, tie_rate,
-                            middle), categories=GRADED_CHOICES)
-    elif study_type == "mushra":
-        latent = (quality + rng.normal(0.0, 0.3, participants)[participant]
-                  + noise * rng.logistic(size=n_rows))
-        scores = 100 / (1 + np.exp(-(latent - centre)))
-        reference = (row_source == n_sources - 2) & (rng.random(n_rows) >= MUSHRA_SLIPS)
-        scores = np.where(reference, rng.uniform(90, 100, n_rows), scores)
-        scores = np.where(random, rng.uniform(0, 100, n_rows), scores)
-        table["score"] = pd.array(np.rint(scores).astype(np.int64), dtype="Int64")
-    elif study_type == "best_of_k":
-        table["pick"] = _picks(rng, quality, random, m, noise, tie_rate, middle)
-    else:
-        table["choice"] = pd.Categorical(_choices(rng, quality, position, random, m, noise,
-                                                  position_bias, tie_rate, middle))
+    raters = Raters(rng=rng, quality=quality, position=position, random=random,
+                    participant=participant, participants=participants, row_source=row_source,
+                    n_sources=n_sources, strength=strength, m=m, noise=noise,
+                    position_bias=position_bias, tie_rate=tie_rate, middle=middle, centre=centre)
+    table.update(plugin.simulated_answers(raters))
 
     shown = np.datetime64("2025-01-06T09:00:00") + (
         trial_participant * 3600 + trial_index * 20).astype("timedelta64[s]")
@@ -177,10 +185,7 @@ def simulate(study_type: str, strengths: dict | None = None, participants: int =
         "n_items": m,
         "trial_kind": kinds,
         "is_catch": is_catch,
-        "stimulus_role": np.select(
-            [is_catch, row_source == n_sources - 2, row_source == n_sources - 1],
-            ["catch", "reference", "anchor"], "judged")
-        if study_type == "mushra" else "judged",
+        "stimulus_role": plugin.simulated_roles(is_catch, row_source, n_sources),
         **table,
         "catch_passed": pd.arrays.BooleanArray(~random, kind != "catch"),
         "plays": 1,
@@ -190,21 +195,17 @@ def simulate(study_type: str, strengths: dict | None = None, participants: int =
         "completed": True,
     })
     order = np.lexsort((frame["position"].to_numpy(), frame["trial"].to_numpy(), participant))
-    columns = list(RESPONSE_COLUMNS) + list(EXTRA_COLUMNS.get(study_type, ()))
+    columns = list(RESPONSE_COLUMNS) + list(plugin.extra_columns)
     return frame.iloc[order].reset_index(drop=True)[columns]
 
 
-def _trial_sources(study_type, rng, n_trials, n_sources, clips_per_trial) -> np.ndarray:
-    """Return ``(trials, m)`` source indices shown in each trial."""
-    if study_type in ("ranking", "rating_standards", "mushra"):
-        return np.tile(np.arange(n_sources), (n_trials, 1))
-    if study_type == "rating_reference":
-        return rng.integers(0, n_sources, (n_trials, 1))
-    if study_type == "fake_or_real":
-        return rng.integers(0, n_sources, (n_trials, clips_per_trial))
-    if study_type == "best_of_k":
-        k = min(clips_per_trial, n_sources)
-        return np.argsort(rng.random((n_trials, n_sources)), axis=1)[:, :k]
+def every_source(n_trials: int, n_sources: int) -> np.ndarray:
+    """Return trials showing one clip of every source."""
+    return np.tile(np.arange(n_sources), (n_trials, 1))
+
+
+def pairs(rng, n_trials: int, n_sources: int) -> np.ndarray:
+    """Return trials of two clips of distinct sources, drawn at random."""
     if n_sources < 2:
         raise AnalysisError("a pairwise study needs at least two sources")
     first = rng.integers(0, n_sources, n_trials)
@@ -212,54 +213,20 @@ def _trial_sources(study_type, rng, n_trials, n_sources, clips_per_trial) -> np.
     return np.stack([first, second], axis=1)
 
 
-def _choices(rng, quality, position, random, m, noise, position_bias, tie_rate, middle):
-    """Return each row's trial choice: left, right, both_good or both_bad."""
-    q = quality.reshape(-1, m)
-    left = position.reshape(-1, m) == 0
+def left_right(raters: Raters):
+    """Return per trial the left and the right clip's quality and whether its rater is careless."""
+    q = raters.quality.reshape(-1, raters.m)
+    left = raters.position.reshape(-1, raters.m) == 0
     q_left = np.where(left[:, 0], q[:, 0], q[:, 1])
     q_right = np.where(left[:, 0], q[:, 1], q[:, 0])
-    chance = _sigmoid((q_left - q_right + position_bias) / noise)
-    careless = random.reshape(-1, m)[:, 0]
-    chance = np.where(careless, 0.5, chance)
-    picks = np.where(rng.random(len(q)) < chance, "left", "right").astype(object)
-    tie = (rng.random(len(q)) < tie_rate) & ~careless
-    picks[tie] = np.where((q_left + q_right)[tie] / 2 > middle, "both_good", "both_bad")
-    return np.repeat(picks, m)
+    return q_left, q_right, raters.random.reshape(-1, raters.m)[:, 0]
 
 
-def _graded_choices(rng, quality, position, random, m, noise, position_bias, tie_rate, middle):
-    """Return each row's trial answer on the graded scale (grade of the left clip, cut from
-    a logistic draw), or both_bad."""
-    q = quality.reshape(-1, m)
-    left = position.reshape(-1, m) == 0
-    q_left = np.where(left[:, 0], q[:, 0], q[:, 1])
-    q_right = np.where(left[:, 0], q[:, 1], q[:, 0])
-    latent = q_left - q_right + position_bias + noise * rng.logistic(size=len(q))
-    # Index into GRADED_CHOICES: 0 is "left much better" (grade +3), 6 "right much better".
-    index = 6 - np.searchsorted(np.array([-2.5, -1.5, -0.5, 0.5, 1.5, 2.5]), latent)
-    careless = random.reshape(-1, m)[:, 0]
-    index = np.where(careless, rng.integers(0, 7, len(q)), index)
-    bad = (rng.random(len(q)) < tie_rate) & ~careless & ((q_left + q_right) / 2 < middle)
-    index[bad] = 7
-    return np.repeat(np.asarray(GRADED_CHOICES, dtype=object)[index], m)
-def _picks(rng, quality, random, m, noise, tie_rate, middle):
-    """Return each row's pick: best, other, all_good or all_bad."""
-    utility = np.where(random, 0.0, quality) + noise * rng.gumbel(size=len(quality))
-    utility = utility.reshape(-1, m)
-    picks = np.full(utility.shape, "other", dtype=object)
-    picks[np.arange(len(utility)), utility.argmax(axis=1)] = "best"
-    careless = random.reshape(-1, m)[:, 0]
-    tie = (rng.random(len(utility)) < tie_rate) & ~careless
-    good = quality.reshape(-1, m).mean(axis=1) > middle
-    picks[tie] = np.where(good[tie], "all_good", "all_bad")[:, None]
-    return picks.ravel()
-
-
-def _missing(n: int, dtype):
+def missing(n: int, dtype):
     """Return ``n`` missing values of a nullable integer or boolean column."""
     values, mask = np.zeros(n, dtype=dtype), np.ones(n, dtype=bool)
     return pd.arrays.BooleanArray(values, mask) if dtype is bool else pd.arrays.IntegerArray(values, mask)
 
 
-def _sigmoid(x):
+def sigmoid(x):
     return 1.0 / (1.0 + np.exp(-x))

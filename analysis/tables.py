@@ -1,18 +1,17 @@
 """The response table: one row per judgement, its columns, validation and file I/O.
 
-A judgement is one clip of one trial with its answer, in the column of the study type:
+A judgement is one clip of one trial with its answer, in the column its study type's
+analysis names (:attr:`analysis.registry.StudyAnalysis.answer`):
 
-- ``rank`` (ranking): 1 = best, among the ``n_items`` clips of the trial;
-- ``rating`` (rating_standards, rating_reference): 1..5, higher = more realistic;
-- ``judged_real`` (fake_or_real): whether the participant called the clip real;
-- ``choice`` (pairwise): the trial's answer, ``left``, ``right``, ``both_good`` or
-  ``both_bad``, on the rows of both clips; ``position`` 0 is the left clip, 1 the right;
-  for pairwise_graded the point of its 7-point scale (``left_much`` .. ``right_much``,
-  ``no_preference``; left is clip A) or ``both_bad``.
-- ``pick`` (best_of_k, a column the export adds): ``best`` on the clip picked, ``other``
-  on the rest, or ``all_good`` / ``all_bad`` on every clip of the trial.
-- ``score`` (mushra, a column the export adds): 0..100 per clip, the hidden reference
-  and the low anchor included (``stimulus_role`` ``reference`` / ``anchor``).
+- ``rank``: 1 = best, among the ``n_items`` clips of the trial;
+- ``rating``: 1..5, higher = more realistic;
+- ``judged_real``: whether the participant called the clip real;
+- ``choice``: the trial's answer on the rows of its clips (``position`` 0 is the left
+  clip, 1 the right), in the words of the type's analysis module.
+
+These four are in every table (empty where a type does not use them). A type that needs
+columns of its own declares them (``StudyAnalysis.extra_columns``) and the export adds
+them after the shared ones; the type's analysis module says what they hold.
 
 ``trial_kind`` is ``main``, ``catch``, ``instructed`` (an instructed-response check: the
 trial's text said which answer to give) or ``repeat`` (practice trials are not exported);

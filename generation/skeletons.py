@@ -15,6 +15,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from generation.registry import Registry
+
 
 @dataclass(frozen=True)
 class Skeleton:
@@ -125,7 +127,7 @@ def _chains(parents: tuple[int, ...]) -> tuple[tuple[int, ...], ...]:
 UNITS = {"m": 1.0, "mm": 0.001, "px": None}
 UP_AXES = ("x", "y", "z", "-x", "-y", "-z")
 
-_REGISTRY: dict[str, Skeleton] = {}
+_REGISTRY = Registry("skeleton")
 _CUSTOM: set[str] = set()
 
 
@@ -153,20 +155,19 @@ def register_skeleton(skeleton: Skeleton) -> Skeleton:
     if skeleton.name in _REGISTRY:
         raise ValueError(f"skeleton {skeleton.name!r} is already registered")
     _check(skeleton)
-    _REGISTRY[skeleton.name] = skeleton
-    return skeleton
+    return _REGISTRY.add(skeleton.name, skeleton)
 
 
 def register_custom(skeleton: Skeleton) -> Skeleton:
     """Add a custom skeleton, or return the registered one of the same definition."""
-    known = _REGISTRY.get(skeleton.name)
-    if known is not None:
+    if skeleton.name in _REGISTRY:
+        known = _REGISTRY.get(skeleton.name)
         if replace(known, description="") != replace(skeleton, description=""):
             raise ValueError(f"skeleton {skeleton.name!r} is registered with another "
                              "definition")
         return known
     _check(skeleton)
-    _REGISTRY[skeleton.name] = skeleton
+    _REGISTRY.add(skeleton.name, skeleton)
     _CUSTOM.add(skeleton.name)
     return skeleton
 
@@ -246,17 +247,12 @@ def flat_skeleton(skeleton: Skeleton) -> Skeleton:
 
 def get_skeleton(name: str) -> Skeleton:
     """Return a registered skeleton by name."""
-    try:
-        return _REGISTRY[name]
-    except KeyError:
-        raise KeyError(
-            f"unknown skeleton {name!r}; known skeletons: {', '.join(sorted(_REGISTRY))}"
-        ) from None
+    return _REGISTRY.get(name)
 
 
 def list_skeletons() -> list[str]:
     """Return the names of the built-in skeletons (not those made from files)."""
-    return sorted(set(_REGISTRY) - _CUSTOM)
+    return sorted(set(_REGISTRY.names()) - _CUSTOM)
 
 
 def _skeleton(name, joint_names, parents, up, dims, description, units="m"):

@@ -308,7 +308,7 @@ def _metric_table(setting: dict, metrics: list[str], tables: list[PaperTable]) -
                            for m, t in columns]
     name = setting.get("protocol") or "bootstrap"
     mmd = setting.get("mmd_protocol") or "heldout"
-    mmd_text = (f" MMD protocol: `{mmd}` ({MMD_PROTOCOLS.get(mmd, mmd)})."
+    mmd_text = (f" MMD protocol: `{mmd}` ({MMD_PROTOCOLS.get(mmd) if mmd in MMD_PROTOCOLS else mmd})."
                 if any(m.startswith("mmd_") for m in metrics) else "")
     chosen = " " + _selection_text(setting.get("selection"), short=True)
     clf = setting.get("classifier") or {}

@@ -24,6 +24,7 @@ import numpy as np
 
 from generation.datasets import Dataset, get_dataset
 from generation.motion import Motion
+from generation.registry import Registry
 from generation.recognition import ActionClassifier, ClassifierError, make_split
 from generation.skeletons import get_skeleton
 from motion_metrics import protocol
@@ -49,11 +50,11 @@ def read_extras(path: str | Path) -> dict[str, np.ndarray]:
 
 
 # How the generated motions and the Real column are drawn in each repeat.
-PROTOCOLS = {
-    "bootstrap": "one set of motions resampled per repeat; Real: held-out vs training clips",
-    "a2m": "Action2Motion's: a fresh set of motions per repeat (3,000, 20 repeats); "
-           "Real: two draws of the held-out clips",
-}
+PROTOCOLS = Registry("repeat protocol")
+PROTOCOLS.add("bootstrap",
+              "one set of motions resampled per repeat; Real: held-out vs training clips")
+PROTOCOLS.add("a2m", "Action2Motion's: a fresh set of motions per repeat (3,000, 20 repeats); "
+                     "Real: two draws of the held-out clips")
 
 
 def evaluate(dataset: Dataset | str, motions: Sequence[Motion], classifier: ActionClassifier | None = None,
@@ -230,9 +231,9 @@ def _evaluate(dataset, motions: list[Motion], classifier, metrics, repeats, seed
             result["metrics"] = {name: found[name] for name in metrics if name in found}
     except MetricError as exc:
         raise EvaluationError(str(exc)) from None
-    result["protocol"] = {"name": protocol_name, "description": PROTOCOLS[protocol_name],
+    result["protocol"] = {"name": protocol_name, "description": PROTOCOLS.get(protocol_name),
                           **result["protocol"]}
-    result["mmd_protocol"] = {"name": mmd_protocol, "description": protocol.MMD_PROTOCOLS[mmd_protocol]}
+    result["mmd_protocol"] = {"name": mmd_protocol, "description": protocol.MMD_PROTOCOLS.get(mmd_protocol)}
     return {
         "dataset": data.name,
         "skeleton": data.skeleton,

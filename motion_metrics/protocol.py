@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from generation.registry import Registry
 from motion_metrics import metrics as M
 
 METRICS = (
@@ -360,7 +361,8 @@ def _nanmean(rows: np.ndarray) -> np.ndarray:
 # MMD protocols: ``heldout`` is :func:`run`'s (distinct drawn motions against every
 # held-out clip of the action, raw coordinates); ``paper`` is :func:`paper_mmd`'s;
 # ``authors`` is :func:`motion_metrics.authors_mmd.authors_mmd`'s.
-MMD_PROTOCOLS = {
+MMD_PROTOCOLS = Registry("MMD protocol")
+for _name, _description in {
     "heldout": "distinct drawn motions against every held-out clip of the action, raw coordinates",
     "paper": "per action, equal numbers of generated motions and training clips drawn without "
              "replacement in each repeat and paired, coordinates standardised by the training clips",
@@ -368,7 +370,8 @@ MMD_PROTOCOLS = {
                "from the figure's size), standardised by the training clips; per class 100 "
                "generated motions paired with 100 training clips (the authors' number) and with "
                "held-out clips, drawn afresh in each repeat",
-}
+}.items():
+    MMD_PROTOCOLS.add(_name, _description)
 
 
 def paper_mmd(generated: MotionSet, train: MotionSet, test: MotionSet | None,

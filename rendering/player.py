@@ -34,6 +34,8 @@ from generation.skeletons import get_skeleton
 from rendering.framing import SHADOW_SLANT, Framing
 from rendering.styles.stick import BONE_RADIUS, Figure
 
+# The figures motion-player.js draws a payload as (a style's ``player_figure``).
+FIGURES = ("stick", "body")
 MAGIC = b"MPLY"
 VERSION = 1
 STEPS_PER_HEIGHT = 4096  # int16 then reaches 8 figure heights either way of the origin

@@ -27,3 +27,8 @@ def run_task(self, kind: str, params: dict):
     from studyapp.survey.tasks import execute
 
     return execute(kind, params)
+
+
+def enqueue(kind: str, params: dict):
+    """Queue job ``kind`` for a worker; return its ``AsyncResult``."""
+    return run_task.delay(kind, params)

@@ -2,9 +2,12 @@
 
 ``generation`` (datasets, methods, the classifier) is the lowest; ``motion_metrics``
 (objective metrics, evaluation, benchmark) builds on it; ``analysis`` (statistics of study
-responses) stands apart. None imports Django.
+responses) stands apart (of the others it uses only ``generation.registry``). None imports
+Django. No module of the project imports, through any chain of imports (those inside
+functions included), a module that imports it back.
 """
 
+import ast
 import subprocess
 import sys
 
@@ -45,3 +48,93 @@ def test_core_package_imports_no_django_and_no_higher_layer(package):
     assert "django" not in loaded, f"{package} imports Django"
     wrong = sorted(loaded & set(FORBIDDEN[package]))
     assert not wrong, f"{package} imports {', '.join(wrong)}"
+
+
+# --- no import cycles among the project's modules -----------------------------------
+
+PROJECT = CORE + ["studyapp"]
+
+
+def project_modules() -> dict:
+    """Return ``{dotted name: path}`` of every module of the project (migrations aside)."""
+    modules = {}
+    for package in PROJECT:
+        for path in (ROOT / package).rglob("*.py"):
+            parts = list(path.relative_to(ROOT).with_suffix("").parts)
+            if "migrations" in parts:
+                continue
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            modules[".".join(parts)] = path
+    return modules
+
+
+def import_graph() -> dict:
+    """Return ``{module: modules it imports}``, counting imports inside functions too."""
+    modules = project_modules()
+
+    def known(name):
+        while name and name not in modules:
+            name = name.rpartition(".")[0]
+        return name
+
+    graph = {}
+    for name, path in modules.items():
+        package = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+        targets = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                targets.update(known(alias.name) for alias in node.names)
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    base = ".".join(package[:len(package) - node.level + 1] + [base]).strip(".")
+                for alias in node.names:
+                    full = f"{base}.{alias.name}"
+                    targets.add(full if full in modules else known(base))
+        graph[name] = targets - {name, ""}
+    return graph
+
+
+def cycles(graph: dict) -> list[list[str]]:
+    """Return the strongly connected groups of more than one module (Tarjan's algorithm)."""
+    index, low, stack, on_stack, found = {}, {}, [], set(), []
+
+    def visit(node):
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        on_stack.add(node)
+        for other in graph.get(node, ()):
+            if other not in index:
+                visit(other)
+                low[node] = min(low[node], low[other])
+            elif other in on_stack:
+                low[node] = min(low[node], index[other])
+        if low[node] == index[node]:
+            group = []
+            while True:
+                member = stack.pop()
+                on_stack.discard(member)
+                group.append(member)
+                if member == node:
+                    break
+            if len(group) > 1:
+                found.append(sorted(group))
+
+    for node in sorted(graph):
+        if node not in index:
+            visit(node)
+    return found
+
+
+def test_the_cycle_finder_sees_imports_inside_functions():
+    graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}
+    assert cycles(graph) == [["a", "b", "c"]]
+    assert cycles({"a": {"b"}, "b": set()}) == []
+
+
+def test_no_import_cycle_among_the_projects_modules():
+    """An import inside a function that only hides a cycle is a cycle: move the shared
+    piece down, or pass the dependency in (plug-ins are found by name by their registry)."""
+    found = cycles(import_graph())
+    assert not found, "import cycles: " + "; ".join(" <-> ".join(group) for group in found)

@@ -1,7 +1,8 @@
 """Datasets of real (and one synthetic) motion, in a registry.
 
 ``get_dataset("h36m").clips()`` gives fixed-length clips; importing this package
-registers ``demo``, ``h36m``, ``h36m2d``, ``humanact12``, ``humanml3d`` and ``kit_ml``.
+registers ``demo``, ``h36m``, ``h36m2d``, ``humanact12``, ``humanml3d`` and ``kit_ml``
+(the registry imports every module of this package before its first lookup).
 """
 
 from generation.datasets.base import (
@@ -12,8 +13,6 @@ from generation.datasets.base import (
     list_datasets,
     register_dataset,
 )
-# Importing the dataset modules registers them.
-from generation.datasets import h36m, h36m2d, humanact12, humanml3d, synthetic  # noqa: F401, E402
 
 __all__ = ["Dataset", "DatasetError", "LoadReport", "get_dataset", "list_datasets",
            "register_dataset"]

@@ -11,7 +11,7 @@ from generation import ops
 from generation.motion import Motion
 from generation.registry import Registry
 
-DATASETS = Registry("dataset")
+DATASETS = Registry("dataset", package="generation.datasets")
 register_dataset = DATASETS.register
 
 logger = logging.getLogger(__name__)

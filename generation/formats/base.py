@@ -42,7 +42,7 @@ class MotionList(list):
         return self
 
 
-_FORMATS = Registry("motion format")
+_FORMATS = Registry("motion format", package="generation.formats")
 
 
 def register_format(name: str):

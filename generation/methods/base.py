@@ -18,7 +18,7 @@ from generation.motion import Motion
 from generation.registry import Registry
 from generation.skeletons import get_skeleton
 
-METHODS = Registry("method")
+METHODS = Registry("method", package="generation.methods")
 register_method = METHODS.register
 
 CHECKPOINT_FORMAT = 1

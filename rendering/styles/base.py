@@ -10,7 +10,7 @@ from generation.motion import Motion
 from generation.registry import Registry
 from rendering.framing import PAD, Framing
 
-_STYLES = Registry("rendering style")
+_STYLES = Registry("rendering style", package="rendering.styles")
 
 
 def register_style(name: str):
@@ -33,12 +33,15 @@ class Style:
 
     One instance renders many clips, so it may build scenery or GL resources once in
     ``__init__``; ``close`` releases them. ``dims`` is the joint dimension it draws;
-    ``pad`` how far it draws beyond the joints, per figure height (framings keep room).
+    ``pad`` how far it draws beyond the joints, per figure height (framings keep room);
+    ``player_figure`` the figure the in-browser player draws its clips as (one of
+    :data:`rendering.player.FIGURES`), or ``""`` when the player cannot draw them.
     """
 
     name: str
     dims: int = 3
     pad: float = PAD
+    player_figure: str = ""
 
     def __init__(self, framing: Framing, width: int, height: int):
         self.framing = framing

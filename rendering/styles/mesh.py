@@ -67,6 +67,7 @@ class MeshStyle(Style):
 
     dims = 3
     pad = 0.12  # an SMPL head reaches this far above its head joint, per figure height
+    player_figure = "body"
 
     def __init__(self, framing: Framing, width: int, height: int):
         super().__init__(framing, width, height)

@@ -146,6 +146,7 @@ class StickStyle(Style):
 
     dims = 3
     shadow = True
+    player_figure = "stick"
 
     def __init__(self, framing: Framing, width: int, height: int):
         super().__init__(framing, width, height)

@@ -10,3 +10,4 @@ class Stick2DStyle(StickStyle):
 
     dims = 2
     shadow = False
+    player_figure = ""  # the in-browser player draws 3D figures

@@ -12,3 +12,13 @@ class SurveyConfig(AppConfig):
         from studyapp.survey.ratelimit import count_failed_login
 
         user_login_failed.connect(count_failed_login, dispatch_uid="survey-login-limit")
+        from studyapp.survey import tasks
+
+        tasks.queue = _celery_queue
+
+
+def _celery_queue(kind: str, params: dict):
+    """Queue a job with Celery (imported only when a broker is set and a job starts)."""
+    from studyapp.celery import enqueue
+
+    return enqueue(kind, params)

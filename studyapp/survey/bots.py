@@ -45,6 +45,7 @@ import urllib.request
 from dataclasses import dataclass, field
 from html.parser import HTMLParser
 
+from generation.registry import Registry
 from studyapp.survey.forms import AGE_RANGES, GENDERS
 from studyapp.survey.models import Stimulus, Trial, TrialItem
 
@@ -288,8 +289,11 @@ class BradleyTerry(Policy):
         return "left" if self.rng.random() < s_left / (s_left + s_right) else "right"
 
 
-POLICIES = {"random": Policy, "prefer-real": PreferReal, "bt": BradleyTerry,
-            "inattentive": Inattentive, "decline": Decline, "screen-out": ScreenOut}
+POLICIES = Registry("bot policy")
+for _name, _policy in [("random", Policy), ("prefer-real", PreferReal), ("bt", BradleyTerry),
+                       ("inattentive", Inattentive), ("decline", Decline),
+                       ("screen-out", ScreenOut)]:
+    POLICIES.add(_name, _policy)
 
 
 def parse_strengths(text: str) -> dict[str, float]:
@@ -448,17 +452,10 @@ def person_id(run, i: int) -> str:
 
 def entry_url(study, url: str, person: str) -> str:
     """Return the participant link of ``study`` on server ``url``, for crowd id ``person``
-    (in the study's platform's id parameter, with Prolific's study id, the study's own
-    when it has one, and a session id of 24 hex digits made from ``person``)."""
+    (the parameters its platform's links carry: ``Platform.entry_params``)."""
     parts = urllib.parse.urlsplit(url)
     path = parts.path if "/s/" in parts.path else study.get_absolute_url()
-    platform = study.platform
-    query = urllib.parse.parse_qsl(parts.query) + [(platform.id_params[0], person)]
-    if "SESSION_ID" in platform.extra_params:
-        study_id = platform.prolific_study_id or hashlib.sha1(
-            f"study-{study.pk}".encode()).hexdigest()[:24]
-        session = hashlib.sha1(f"session-{person}".encode()).hexdigest()[:24]
-        query += [("STUDY_ID", study_id), ("SESSION_ID", session)]
+    query = urllib.parse.parse_qsl(parts.query) + study.platform.entry_params(study, person)
     return urllib.parse.urlunsplit(
         (parts.scheme, parts.netloc, path, urllib.parse.urlencode(query), "")
     )

@@ -1,73 +1,55 @@
 """Crowd platforms: who a participant is, and where they go with which code at the end.
 
-A study's ``crowd`` field names its platform and that platform's settings:
+A study's ``crowd`` field names its platform and that platform's settings. A platform is
+a :class:`Platform` in ``studyapp/survey/platforms/`` (one module each, registered by
+being there: ``none``, ``generic``, ``prolific``), and it decides:
 
-- ``prolific``: the entry link carries ``PROLIFIC_PID``, ``STUDY_ID`` and ``SESSION_ID``
-  (24 hex digits each, case-insensitive). With ``strict_ids`` (the default here) all three
-  are required, ``STUDY_ID`` must be the study's ``prolific_study_id`` once it has one
-  (``manage.py prolific create`` stores it) and one ``SESSION_ID`` takes the study once.
-  Each outcome has the study's own completion code (``codes``), and the last page sends
-  people to ``https://app.prolific.com/submissions/complete?cc=CODE``. The study has a
-  time limit unless it says otherwise (:func:`prolific_time_limit`).
-- ``generic``: any other platform (CloudResearch Connect, SONA, a panel of your own):
-  ``id_param`` names the query parameter that identifies a person, ``extra_params`` are
-  recorded too, ``completion_url_template`` is where people go at the end, with
-  ``{code}`` and ``{id}`` filled in.
-- no platform (an empty ``crowd``): ``PROLIFIC_PID`` or ``participant_label`` identify a
-  person when present; the completion page shows a random code and links to the study's
-  ``completion_url``.
+- entry: which query parameters identify a person and are recorded (``id_params``,
+  ``extra_params``), how they are read and checked (:meth:`Platform.read_ids`), which
+  ids take the study once (:meth:`Platform.unique_ids`), and the link a bot or a test
+  opens (:meth:`Platform.entry_params`);
+- codes: the completion code of each outcome (:meth:`Platform.code_for`) and which
+  outcomes need their own (:meth:`Platform.check_codes`, asked by the build's config
+  check and the admin);
+- exit: where the last page sends a participant (:meth:`Platform.completion_url`);
+- its rules: the default time limit and attention checks, and warnings;
+- an API client, when it has an API (:meth:`Platform.client`; None otherwise).
 
-A completion code is only ever the code of the participant's own outcome. On Prolific a
-study that can end with an outcome (``failed_attention`` when it has attention checks,
-``no_consent`` always, ``screened_out`` with screening questions) must have its code, or
-it is refused (:meth:`Platform.check_codes`, asked by the build's config check and the
-admin). Elsewhere a completed session without its own code gets a random one and any
-other outcome without its own code gets none (and no link to the platform's completion
-URL, which could credit the person). ``timed_out`` never has a code: Prolific times
-people out itself, and a code would let them submit.
+A completion code is only ever the code of the participant's own outcome. A completed
+session without its own code gets a random one and any other outcome without its own
+code gets none (and no link to the platform's completion URL, which could credit the
+person). ``timed_out`` never has a code: platforms time people out themselves, and a
+code would let them submit.
 
-Common settings: ``codes`` (``completed``, ``failed_attention``, ``no_consent``,
-``screened_out``), ``time_limit_minutes`` (a participant who consented longer ago and has
-not finished loses their place and can no longer answer, as Prolific times them out;
-``null``: no limit), ``idle_minutes`` (default 10: a participant who consented and has
-not answered a trial for this long loses their place the same way; ``null``: never),
-``screening`` (questions on the consent page; an answer not accepted ends the session
-with the ``screened_out`` outcome), ``require_id`` and ``strict_ids`` (the platform's
-ids required, well-formed and, for a session id, unique).
+Settings every platform has (:data:`SETTINGS`): ``codes`` (``completed``,
+``failed_attention``, ``no_consent``, ``screened_out``), ``time_limit_minutes`` (a
+participant who consented longer ago and has not finished loses their place and can no
+longer answer; ``null``: no limit), ``idle_minutes`` (default 10: a participant who
+consented and has not answered a trial for this long loses their place the same way;
+``null``: never), ``screening`` (questions on the consent page; an answer not accepted
+ends the session with the ``screened_out`` outcome), ``require_id`` and ``strict_ids``
+(the platform's ids required, well-formed and, for a session id, unique). A platform adds
+its own (``own_settings``).
 """
 
 from __future__ import annotations
 
-import math
 import re
+import secrets
 from datetime import timedelta
-from urllib.parse import quote
 
 from generation.registry import Registry
 
 # Outcomes a completion code can belong to; ``timed_out`` is the one without.
 OUTCOMES = ("completed", "failed_attention", "no_consent", "screened_out")
-SETTINGS = ("platform", "codes", "time_limit_minutes", "idle_minutes", "id_param",
-            "extra_params", "completion_url_template", "require_id", "strict_ids",
-            "screening", "prolific_study_id")
+# Settings of every platform; a platform adds its own (Platform.own_settings).
+SETTINGS = ("platform", "codes", "time_limit_minutes", "idle_minutes", "require_id",
+            "strict_ids", "screening")
 MAX_ID_LENGTH = 100
-PROLIFIC_ID = re.compile(r"^[0-9a-f]{24}$")
 # What a well-formed id of a platform without its own format may hold.
 PLAIN_ID = re.compile(r"^[A-Za-z0-9_.:@-]{1,100}$")
 DEFAULT_IDLE_MINUTES = 10
-# Prolific's policy: a study over this many minutes needs at least MIN_CHECKS attention
-# checks, and a submission may be rejected only after MIN_CHECKS failed ones.
-CHECKS_OVER_MINUTES = 5
-MIN_CHECKS = 2
-CODE_HELP = {
-    "completed": "the code Prolific shows for completed submissions",
-    "failed_attention": "this study has {checks} attention check(s) (catch_trials, "
-                        "instructed_checks), so a participant can fail them",
-    "no_consent": "a participant can decline on the consent page",
-    "screened_out": "this study has screening questions (crowd.screening)",
-}
-
-registry = Registry("crowd platform")
+registry = Registry("crowd platform", package="studyapp.survey.platforms")
 
 
 class EntryRefused(Exception):
@@ -84,24 +66,17 @@ def _printable(value: str) -> str:
     return "".join(c for c in value if c.isprintable()).strip()[:MAX_ID_LENGTH]
 
 
+def new_completion_code() -> str:
+    """Return a short code a participant pastes into the crowd platform."""
+    return secrets.token_hex(4).upper()
+
+
 def outcomes_of(checks: int, screening: bool) -> list[str]:
     """Return the outcomes with a code a study can end with: ``completed`` and
     ``no_consent`` always, ``failed_attention`` with ``checks`` attention checks,
     ``screened_out`` with screening questions."""
     return [o for o in OUTCOMES if (o != "failed_attention" or checks)
             and (o != "screened_out" or screening)]
-
-
-def prolific_minimum_time(minutes: int) -> int:
-    """Return the least maximum allowed time Prolific accepts for a study estimated at
-    ``minutes``: 2 + X + 2 sqrt(X) minutes (its help centre, "Timed-out submissions")."""
-    return math.ceil(2 + minutes + 2 * math.sqrt(minutes))
-
-
-def prolific_time_limit(minutes: int) -> int:
-    """Return the default time limit of a Prolific study estimated at ``minutes``: three
-    times the estimate (30 for 10), never below Prolific's minimum."""
-    return max(3 * minutes, prolific_minimum_time(minutes))
 
 
 def _minutes(settings: dict, name: str) -> None:
@@ -122,8 +97,9 @@ class Platform:
 
     label = "the study platform"
     redirects = False
-    id_params: tuple[str, ...] = ("PROLIFIC_PID", "participant_label")
-    extra_params: tuple[str, ...] = ("STUDY_ID", "SESSION_ID")
+    id_params: tuple[str, ...] = ()  # query parameters naming a person, the first preferred
+    extra_params: tuple[str, ...] = ()  # recorded with them
+    own_settings: tuple[str, ...] = ()  # this platform's settings beyond SETTINGS
     require_id = False
     strict_ids = False
     session_param = ""
@@ -131,10 +107,11 @@ class Platform:
 
     def __init__(self, settings: dict):
         settings = dict(settings or {})
-        unknown = sorted(set(settings) - set(SETTINGS))
+        known = SETTINGS + self.own_settings
+        unknown = sorted(set(settings) - set(known))
         if unknown:
             raise ValueError(f"crowd.{unknown[0]}: unknown setting; settings are "
-                             f"{', '.join(SETTINGS)}")
+                             f"{', '.join(known)}")
         self.settings = settings
         codes = settings.get("codes") or {}
         if not isinstance(codes, dict):
@@ -160,12 +137,6 @@ class Platform:
                 if not isinstance(settings[name], bool):
                     raise ValueError(f"crowd.{name}: {settings[name]!r} must be true or false")
                 setattr(self, name, settings[name])
-        study_id = settings.get("prolific_study_id")
-        if study_id is not None and not (isinstance(study_id, str)
-                                         and PROLIFIC_ID.match(study_id.lower())):
-            raise ValueError(f"crowd.prolific_study_id: {study_id!r} must be the 24 hex digits "
-                             f"of the study's id on Prolific (in its page's address)")
-        self.prolific_study_id = study_id.lower() if study_id else ""
         self.screening = self._screening(settings.get("screening") or [])
 
     @staticmethod
@@ -252,6 +223,11 @@ class Platform:
             if not self.id_format.match(ids[name]):
                 raise EntryRefused("bad_id", name)
 
+    def entry_params(self, study, person: str) -> list[tuple[str, str]]:
+        """Return the query parameters of an entry link for the person ``person`` (bots
+        and tests open it as a platform would send them)."""
+        return [(self.id_params[0], person)] if self.id_params else []
+
     def unique_ids(self, ids: dict) -> dict:
         """Return the ids of ``ids`` that no other participant of the study may share."""
         if self.strict_ids and self.session_param in ids:
@@ -263,8 +239,6 @@ class Platform:
     def code_for(self, outcome: str) -> str:
         """Return the completion code of ``outcome``: the study's own; a random one for a
         completed session without one; "" (no code) for any other outcome."""
-        from studyapp.survey.models import new_completion_code
-
         if outcome in self.codes:
             return self.codes[outcome]
         return new_completion_code() if outcome == "completed" else ""
@@ -277,111 +251,11 @@ class Platform:
     def describe(self) -> dict:
         return {"platform": self.name, "codes": self.codes}
 
+    # API
 
-@registry.register("none")
-class NoPlatform(Platform):
-    pass
-
-
-@registry.register("prolific")
-class Prolific(Platform):
-    label = "Prolific"
-    redirects = True
-    id_params = ("PROLIFIC_PID",)
-    extra_params = ("STUDY_ID", "SESSION_ID")
-    require_id = True
-    strict_ids = True
-    session_param = "SESSION_ID"
-    id_format = PROLIFIC_ID
-    COMPLETE = "https://app.prolific.com/submissions/complete?cc={code}"
-
-    def __init__(self, settings):
-        super().__init__(settings)
-        if "completed" not in self.codes:
-            raise ValueError("crowd.codes.completed: a Prolific study needs the completion "
-                             "code of its 'completed' outcome (from the study's page on "
-                             "Prolific, or `manage.py prolific create`)")
-
-    def check_codes(self, outcomes, checks=0):
-        for outcome in outcomes:
-            if outcome not in self.codes:
-                why = CODE_HELP[outcome].format(checks=checks)
-                raise ValueError(
-                    f"crowd.codes.{outcome}: {why}, and a Prolific study gives each outcome "
-                    f"its own code (never the completed one); add that code from the "
-                    f"study's page on Prolific, or build the study without crowd.platform "
-                    f"and let `manage.py prolific create` generate every code")
-
-    def default_time_limit(self, estimate):
-        return prolific_time_limit(estimate)
-
-    def default_checks(self, estimate):
-        return MIN_CHECKS if estimate > CHECKS_OVER_MINUTES else 0
-
-    def warnings(self, estimate, checks, max_failed):
-        out = []
-        if estimate > CHECKS_OVER_MINUTES and checks < MIN_CHECKS:
-            out.append(f"study: {checks} attention check(s) in a study estimated at {estimate} "
-                       f"minutes; Prolific asks for at least {MIN_CHECKS} in a study over "
-                       f"{CHECKS_OVER_MINUTES} minutes (set study.instructed_checks or "
-                       f"catch_trials)")
-        if checks and max_failed < MIN_CHECKS - 1:
-            out.append(f"study.max_failed_catch: {max_failed} fails a participant after "
-                       f"{max_failed + 1} failed check(s); Prolific allows a rejection only "
-                       f"after {MIN_CHECKS} (max_failed_catch: {MIN_CHECKS - 1})")
-        return out
-
-    def normalise(self, name, value):
-        return value.strip().lower()
-
-    def read_ids(self, query):
-        ids, key = super().read_ids(query)
-        pid = ids.get("PROLIFIC_PID")
-        if pid is not None and not PROLIFIC_ID.match(pid):
-            raise EntryRefused("bad_id", "PROLIFIC_PID")
-        if self.prolific_study_id and ids.get("STUDY_ID") != self.prolific_study_id:
-            raise EntryRefused("wrong_study", "STUDY_ID")
-        return ids, key
-
-    def completion_url(self, participant):
-        code = participant.completion_code
-        return self.COMPLETE.format(code=quote(code)) if code else ""
-
-
-@registry.register("generic")
-class Generic(Platform):
-    label = "Crowd platform"
-
-    def __init__(self, settings):
-        super().__init__(settings)
-        param = settings.get("id_param")
-        if not isinstance(param, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]{0,49}", param):
-            raise ValueError(f"crowd.id_param: {param!r} must name the query parameter that "
-                             f"identifies a person, e.g. participantId")
-        extra = settings.get("extra_params") or []
-        if not isinstance(extra, list) or not all(isinstance(p, str) for p in extra):
-            raise ValueError(f"crowd.extra_params: {extra!r} must be a list of parameter names")
-        self.id_params = (param,)
-        self.extra_params = tuple(extra)
-        self.template = settings.get("completion_url_template") or ""
-        self.redirects = bool(self.template)
-        if self.template and not self.template.startswith(("https://", "http://")):
-            raise ValueError(f"crowd.completion_url_template: {self.template!r} must be an "
-                             f"http(s) URL with {{code}} (and {{id}}) in it")
-        try:
-            self.template.format(code="", id="")
-        except (KeyError, IndexError, ValueError):
-            raise ValueError("crowd.completion_url_template: only {code} and {id} may be "
-                             "filled in") from None
-
-    def completion_url(self, participant):
-        if not participant.completion_code:
-            return ""
-        if not self.template:
-            return participant.study.completion_url
-        person = participant.external_ids.get(self.id_params[0], "")
-        return self.template.format(code=quote(participant.completion_code),
-                                    id=quote(person))
+    def client(self):
+        """Return a client of the platform's API, or None for a platform without one."""
+        return None
 
 
 def platform_of(study) -> Platform:
@@ -392,8 +266,8 @@ def platform_of(study) -> Platform:
 def make_platform(settings) -> Platform:
     settings = settings or {}
     if not isinstance(settings, dict):
-        raise ValueError(f"crowd: {settings!r} must be a mapping, e.g. {{platform: prolific, "
-                         f"codes: {{completed: C1A2B3C4}}}}")
+        raise ValueError(f"crowd: {settings!r} must be a mapping, e.g. {{platform: generic, "
+                         f"id_param: workerId, codes: {{completed: C1A2B3C4}}}}")
     name = settings.get("platform") or "none"
     try:
         cls = registry.get(name)

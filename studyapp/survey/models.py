@@ -24,6 +24,9 @@ from django.db.models.functions import Coalesce
 from django.urls import reverse
 from django.utils import timezone
 
+from studyapp.survey.crowd import outcomes_of, platform_of
+from studyapp.survey.study_type_registry import STUDY_TYPES
+
 
 def new_token() -> str:
     """Return an opaque, unguessable URL token.
@@ -38,16 +41,9 @@ def new_token() -> str:
             return token
 
 
-def new_completion_code() -> str:
-    """Return a short code a participant pastes into the crowd platform."""
-    return secrets.token_hex(4).upper()
-
-
 def study_type_choices():
     """Return the registered study types as field choices."""
-    from studyapp.survey.study_types import choices
-
-    return choices()
+    return [(name, kind.label) for name, kind in STUDY_TYPES.items()]
 
 
 class Unavailable(Exception):
@@ -67,9 +63,7 @@ def _count(queryset, group: str):
 class StudyManager(models.Manager):
     def create_study(self, study_type: str, slug: str, title: str, **fields) -> "Study":
         """Create a study of a registered type, filling in its default texts and options."""
-        from studyapp.survey.study_types import get_study_type
-
-        kind = get_study_type(study_type)
+        kind = STUDY_TYPES.get(study_type)()
         fields.setdefault("clips_per_trial", kind.default_clips_per_trial)
         fields["options"] = kind.check_options(fields.get("options") or {})
         study = self.model(study_type=study_type, slug=slug, title=title, **fields)
@@ -170,10 +164,10 @@ class Study(models.Model):
         null=True, blank=True, help_text="Finished and active participants at most."
     )
     player = models.CharField(
-        max_length=8, blank=True, choices=[("", "Video (mp4)"), ("stick", "In the page: stick figure"),
-                                           ("body", "In the page: body")],
-        help_text="Play the motion itself in the page (WebGL) where the browser can, the mp4 "
-        "otherwise; needs clips built with render.player: webgl.",
+        max_length=8, blank=True,
+        help_text="The figure the in-page player (WebGL) draws where the browser can, the mp4 "
+        "otherwise (the style's player_figure, e.g. stick or body); blank: the mp4 only. Needs "
+        "clips built with render.player: webgl.",
     )
     created_at = models.DateTimeField(auto_now_add=True)
 
@@ -192,15 +186,11 @@ class Study(models.Model):
     @property
     def kind(self):
         """Return this study's registered type (its trials, form and template)."""
-        from studyapp.survey.study_types import get_study_type
-
-        return get_study_type(self.study_type)
+        return STUDY_TYPES.get(self.study_type)()
 
     @property
     def platform(self):
         """Return this study's crowd platform adapter (:mod:`studyapp.survey.crowd`)."""
-        from studyapp.survey.crowd import platform_of
-
         return platform_of(self)
 
     def clean(self):
@@ -239,8 +229,6 @@ class Study(models.Model):
 
     def coded_outcomes(self) -> list[str]:
         """Return the outcomes with a completion code this study can end with."""
-        from studyapp.survey.crowd import outcomes_of
-
         return outcomes_of(self.n_checks(), bool((self.crowd or {}).get("screening")))
 
     def shown_instructions(self) -> str:

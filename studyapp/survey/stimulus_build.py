@@ -47,7 +47,6 @@ import json
 import os
 import shutil
 from collections import defaultdict
-from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -95,19 +94,6 @@ class BuildResult:
 
 def digest(value) -> str:
     return hashlib.sha256(json.dumps(value, sort_keys=True, default=str).encode()).hexdigest()
-
-
-@contextmanager
-def one_thread():
-    """Run torch on one thread (same numbers on any machine); restore the count after."""
-    import torch
-
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(before)
 
 
 class Build:
@@ -591,7 +577,7 @@ class Build:
         fields.update({k: v for k, v in c.study_options.items() if v is not None})
         fields["dataset"] = c.dataset
         fields["options"] = dict(c.type_options)
-        fields["player"] = "" if c.player == "video" else ("body" if c.style == "mesh" else "stick")
+        fields["player"] = "" if c.player == "video" else get_style(c.style).player_figure
         if c.prompts is not None and not fields.get("instructions"):
             draft = Study(study_type=c.study_type, options=fields["options"],
                           clips_per_trial=fields.get("clips_per_trial",

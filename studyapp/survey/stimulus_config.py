@@ -20,8 +20,8 @@ from pathlib import Path
 import yaml
 
 from generation.datasets.humanml3d import normalise as normalise_prompt  # as captions match
-from rendering import list_styles
-from studyapp.survey.crowd import CHECKS_OVER_MINUTES, make_platform, outcomes_of
+from rendering import get_style, list_styles
+from studyapp.survey.crowd import make_platform, outcomes_of
 from studyapp.survey.models import Study
 from studyapp.survey.study_types import get_study_type, list_study_types
 from studyapp.survey.study_types.base import COMMON_OPTIONS, check_criteria
@@ -189,9 +189,10 @@ def parse(raw: dict, folder: Path) -> StudyConfig:
         raise ConfigError(f"render.player: {player!r} is not a player; choose one of "
                           f"{', '.join(PLAYERS)} (video plays the mp4; webgl draws the motion "
                           f"in the page, with the mp4 where WebGL 2 is missing)")
-    if player == "webgl" and style == "stick2d":
-        raise ConfigError("render.player: webgl draws 3D figures; use style stick or mesh, or "
-                          "player video for stick2d clips")
+    if player == "webgl" and not get_style(style).player_figure:
+        drawn = [name for name in list_styles() if get_style(name).player_figure]
+        raise ConfigError(f"render.player: webgl cannot draw {style!r} clips; use a style it "
+                          f"draws ({', '.join(drawn)}), or player video for {style} clips")
     study_type, options, type_options, warnings = _study(raw.get("study") or {})
     sources = parse_sources(raw.get("sources"), seed, train)
     fps = raw.get("fps")
@@ -283,7 +284,7 @@ def _study(raw) -> tuple[str, dict, dict, list[str]]:
     except ValueError as exc:
         default = "" if given or not checks else (
             f" (study.instructed_checks defaults to {checks} for this platform in a study "
-            f"over {CHECKS_OVER_MINUTES} minutes)")
+            f"of {kind.minutes} minutes)")
         raise ConfigError(f"study.{exc}{default}") from None
     max_failed = options.get("max_failed_catch")
     if max_failed is None:

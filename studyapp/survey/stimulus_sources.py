@@ -131,7 +131,7 @@ class MethodSources:
 
     def _train(self, source, seed) -> Trained:
         from generation.methods.budget import train_within_budget
-        from studyapp.survey.stimulus_build import one_thread
+        from generation.recognition import one_thread
 
         folder = self.folder(source)
         recipe = self.recipe(source)
@@ -155,7 +155,7 @@ class MethodSources:
     def sample(self, source, actions, n: int, frames: int) -> list:
         """Return ``n`` motions per action, action by action, from the checkpoints in turn."""
         from generation.sampling import sample_method
-        from studyapp.survey.stimulus_build import one_thread
+        from generation.recognition import one_thread
 
         trained = self.trained(source)
         count = len(trained)
@@ -236,7 +236,7 @@ class MethodSources:
         """Return the metrics of each of a method source's checkpoints (cached by inputs)."""
         from generation.methods import load_checkpoint
         from motion_metrics.checkpoint_metrics import measure
-        from studyapp.survey.stimulus_build import one_thread
+        from generation.recognition import one_thread
 
         m = self.config.metrics
         out = []

@@ -10,21 +10,22 @@ Jobs must be safe to run again after a crash: ``register_stimuli`` is, because
 import logging
 import os
 import threading
-from collections.abc import Callable
+
+from generation.registry import Registry
 
 log = logging.getLogger(__name__)
+# How a job reaches a worker when a broker is set: ``queue(kind, params)`` returns its
+# ``AsyncResult``. The app's ``ready`` sets it to Celery's (``studyapp.celery.enqueue``);
+# this module never imports Celery, which imports this module to run the jobs.
+queue = None
 
-JOBS: dict[str, Callable] = {}
+JOBS = Registry("job")
 
 
 def register_job(kind: str):
     """Register a function as the job ``kind`` (keyword parameters, JSON-serialisable)."""
 
-    def decorate(function):
-        JOBS[kind] = function
-        return function
-
-    return decorate
+    return JOBS.register(kind)
 
 
 def broker_url() -> str:
@@ -35,20 +36,19 @@ def broker_url() -> str:
 
 def execute(kind: str, params: dict):
     """Run job ``kind`` here and now; return its result."""
-    if kind not in JOBS:
-        raise KeyError(f"no job {kind!r}; known: {', '.join(sorted(JOBS))}")
+    job = JOBS.get(kind)
     log.info("job %s %s", kind, params)
-    return JOBS[kind](**params)
+    return job(**params)
 
 
 def run_job(kind: str, **params):
     """Start job ``kind``; return a Celery ``AsyncResult`` or the started thread."""
-    if kind not in JOBS:
-        raise KeyError(f"no job {kind!r}; known: {', '.join(sorted(JOBS))}")
+    JOBS.get(kind)  # an unknown kind fails here, not in the worker
     if broker_url():
-        from studyapp.celery import run_task
-
-        return run_task.delay(kind, params)
+        if queue is None:
+            raise RuntimeError("STUDY_CELERY_BROKER is set but no queue is: run inside the "
+                               "Django app (its ready() sets tasks.queue)")
+        return queue(kind, params)
     thread = threading.Thread(target=_in_thread, args=(kind, params), name=f"job-{kind}", daemon=True)
     thread.start()
     return thread

@@ -2,11 +2,9 @@
 
 import pandas as pd
 
+from analysis.registry import get_analysis
 from analysis.study import AnalysisConfig
 from analysis.tables import RESPONSE_COLUMNS
-
-ANSWER = {"ranking": "rank", "rating_standards": "rating", "rating_reference": "rating",
-          "fake_or_real": "judged_real", "pairwise": None}
 
 
 def trial(participant, clips, action="eat", kind="main", time_ms=9000, choice=None,
@@ -17,7 +15,9 @@ def trial(participant, clips, action="eat", kind="main", time_ms=9000, choice=No
 
 
 def make_table(study_type, trials, study="test"):
-    """Return a response table with one row per clip of ``trials`` (see :func:`trial`)."""
+    """Return a response table with one row per clip of ``trials`` (see :func:`trial`):
+    a clip's answer goes to the type's answer column, a trial's ``choice`` to ``choice``."""
+    column = get_analysis(study_type).answer
     rows = []
     counters = {}
     for trial_id, spec in enumerate(trials, start=1):
@@ -34,8 +34,8 @@ def make_table(study_type, trials, study="test"):
                 trial_kind=spec["kind"], is_catch=source == "catch", catch_passed=spec["catch_passed"],
                 time_ms=spec["time_ms"], completed=True, choice=spec["choice"],
             )
-            if ANSWER[study_type]:
-                row[ANSWER[study_type]] = answer
+            if answer is not None:
+                row[column] = answer
             rows.append(row)
     return pd.DataFrame(rows, columns=list(RESPONSE_COLUMNS))
 

@@ -110,3 +110,10 @@ def test_a_table_with_bad_picks_is_refused(pick, message):
     table.loc[1, "pick"] = pick
     with pytest.raises(AnalysisError, match=message):
         analyse(table, config(bootstrap=0))
+
+
+def test_simulated_trials_pick_one_clip_or_call_all_good_or_bad():
+    table = simulate("best_of_k", participants=6, trials=4, catch_trials=1, repeat_trials=2, seed=1)
+    main = table.loc[table["trial_kind"] == "main"]
+    verdicts = main.groupby("trial_id")["pick"].apply(lambda p: tuple(sorted(set(p))))
+    assert set(verdicts) <= {("best", "other"), ("all_good",), ("all_bad",)}

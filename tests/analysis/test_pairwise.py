@@ -88,3 +88,11 @@ def test_unknown_choices_and_lone_clips():
     result = analyse(lonely, config())
     assert any("without exactly one left" in note for note in result.notes)
     assert result.counts["trials"] == len(COMPARISONS) - 1
+
+
+def test_simulated_trials_show_a_left_and_a_right_clip():
+    from analysis.simulate import simulate
+
+    table = simulate("pairwise", participants=6, trials=4, catch_trials=1, repeat_trials=2, seed=1)
+    main = table.loc[table["trial_kind"] == "main"]
+    assert set(main.groupby("trial_id")["position"].apply(lambda p: tuple(sorted(p)))) == {(0, 1)}

@@ -197,3 +197,10 @@ def test_a_known_position_bias_is_recovered(bias):
     else:
         assert davidson["ci_low"] <= 0 <= davidson["ci_high"]
         assert raw["ci_low"] <= 0.5 <= raw["ci_high"]
+
+
+def test_simulated_trials_show_a_left_and_a_right_clip():
+    table = simulate("pairwise_graded", participants=6, trials=4, catch_trials=1,
+                     repeat_trials=2, seed=1)
+    main = table.loc[table["trial_kind"] == "main"]
+    assert set(main.groupby("trial_id")["position"].apply(lambda p: tuple(sorted(p)))) == {(0, 1)}

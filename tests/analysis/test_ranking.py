@@ -216,3 +216,11 @@ def test_tied_ranks_are_refused():
     trials = [trial(1, [("real", 1), ("a2m", 1)]), trial(2, [("real", 1), ("a2m", 2)])]
     with pytest.raises(AnalysisError, match="1 trial\\(s\\) give two clips the same rank"):
         analyse(make_table("ranking", trials), config())
+
+
+def test_simulated_trials_rank_every_clip_once():
+    from analysis.simulate import simulate
+
+    table = simulate("ranking", participants=6, trials=4, catch_trials=1, repeat_trials=2, seed=1)
+    main = table.loc[table["trial_kind"] == "main"]
+    assert set(main.groupby("trial_id")["rank"].apply(lambda r: tuple(sorted(r)))) == {(1, 2, 3)}

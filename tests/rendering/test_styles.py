@@ -76,3 +76,13 @@ def test_the_stick_backdrop_is_lighter_than_the_shadow_everywhere():
     darkest = np.minimum(backdrop.image(None).min(axis=(0, 1)),
                          backdrop.image(np.asarray(framing.target) + 0.3).min(axis=(0, 1)))
     assert (darkest > np.array(palette.SHADOW)).all(), darkest
+
+
+@pytest.mark.parametrize("name", list_styles())
+def test_a_style_declares_its_dimensions_and_the_figure_the_in_browser_player_draws(name):
+    from rendering.player import FIGURES
+
+    style = get_style(name)
+    assert style.dims in (2, 3)
+    assert style.player_figure in FIGURES + ("",)
+    assert not style.player_figure or style.dims == 3  # the player draws 3D figures

@@ -254,35 +254,15 @@ class Bot:
             assert response.status_code == 200, response.status_code
             b"".join(response.streaming_content)
 
-    def answer_data(self, trial, ranks=None, plays=1, ratings=None, verdicts=None, choice="left",
-                    pick=None, scores=None):
-        """Return a valid POST for ``trial`` of any of the seed papers' study types.
+    def answer_data(self, trial, plays=1, **answers):
+        """Return a valid POST for ``trial`` of the study's type: ``answers`` by the type's
+        own keywords (see ``StudyType.answer_fields``), defaults where absent."""
+        from studyapp.survey.study_types import get_study_type
 
-        ``ranks``, ``ratings`` and ``verdicts`` map positions to answers (defaults: the
-        screen order, 3, "real"); ``choice`` answers a pairwise trial (graded too: "left" is "A better").
-        """
         items = list(trial.items.select_related("stimulus").order_by("position"))
-        kind = self.study.study_type
         data = {"trial": str(trial.pk)}
-        if kind in ("pairwise", "pairwise_graded"):
-            data["choice"] = choice
-        for item in items:
-            token = item.token
-            data[f"plays_{token}"] = str(plays)
-            if item.role != "judged":
-                continue
-            if kind == "ranking":
-                data[f"rank_{token}"] = str((ranks or {}).get(item.position, item.position + 1))
-            elif kind.startswith("rating"):
-                data[f"rating_{token}"] = str((ratings or {}).get(item.position, 3))
-            elif kind == "fake_or_real":
-                data[f"judged_{token}"] = (verdicts or {}).get(item.position, "real")
-        if kind == "best_of_k":  # ``pick``: the position picked (default 0), or all_good/all_bad
-            judged = {item.position: item.token for item in items if item.role == "judged"}
-            data["pick"] = pick if isinstance(pick, str) else judged[pick or 0]
-        if kind == "mushra":  # ``scores``: positions to 0-100 (default 50)
-            for item in items:
-                data[f"score_{item.token}"] = str((scores or {}).get(item.position, 50))
+        data.update({f"plays_{item.token}": str(plays) for item in items})
+        data.update(get_study_type(self.study.study_type).answer_fields(items, **answers))
         return data
 
     def answer(self, data, follow=False):

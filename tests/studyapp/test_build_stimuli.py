@@ -40,6 +40,8 @@ def write(tmp_path, raw, name="config.yaml") -> Path:
 
 @pytest.mark.parametrize("changes, words", [
     ({"render": {"style": "crayon"}}, ["render.style", "'crayon'", "stick2d"]),
+    ({"render": {"style": "stick2d", "player": "webgl"}},
+     ["render.player", "cannot draw 'stick2d'", "mesh, stick", "player video"]),
     ({"study": {"type": "poll"}}, ["study.type", "'poll'", "fake_or_real"]),
     ({"clips_per_source": 0}, ["clips_per_source", "0", "at least 1"]),
     ({"sources": ["real", "nonsense"]}, ["sources.1.method", "'nonsense'", "cond_gru"]),

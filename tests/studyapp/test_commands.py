@@ -7,6 +7,7 @@ import pytest
 from django.core.management import call_command
 from django.core.management.base import CommandError
 
+from analysis.registry import get_analysis
 from studyapp.survey import bots
 from studyapp.survey.export import participants_frame, responses_frame
 from studyapp.survey.models import Participant, Study, TrialItem
@@ -15,16 +16,6 @@ from tests.studyapp.conftest import make_study
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
-ANSWER = {
-    "ranking": "rank",
-    "fake_or_real": "judged_real",
-    "rating_standards": "rating",
-    "rating_reference": "rating",
-    "best_of_k": "pick",
-    "mushra": "score",
-    "pairwise": "choice",
-    "pairwise_graded": "choice",
-}
 
 
 @pytest.fixture
@@ -56,7 +47,8 @@ def test_bots_take_every_type_through_the_real_pages(study_of, live_server, stud
     assert not TrialItem.objects.exclude(plays=1).exists()  # every clip reported played once
     assert not TrialItem.objects.filter(required=True, fetched_at=None).exists()  # fetched
     table = responses_frame(study)
-    assert table[ANSWER[study_type]].notna().all() and len(table) > 0
+    answer = get_analysis(study_type).answer
+    assert table[answer].notna().all() and len(table) > 0
     assert set(table["trial_kind"]) == {"main", "catch", "repeat"}
     assert table.loc[table["trial_kind"] == "catch", "catch_passed"].notna().all()
     assert len(participants_frame(study)) == 2

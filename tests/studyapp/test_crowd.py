@@ -225,3 +225,29 @@ def test_every_participant_sees_the_real_share_and_stimuli_stay_balanced(media_r
     counts = Counter({s.pk: 0 for s in study.stimuli.all()})
     counts.update(TrialItem.objects.values_list("stimulus", flat=True))
     assert max(counts.values()) - min(counts.values()) <= 2, counts
+
+
+def test_the_base_platform_knows_no_platform_and_each_platform_its_own_settings():
+    import inspect
+
+    from studyapp.survey import crowd
+
+    base = inspect.getsource(crowd.Platform)
+    assert not re.search("prolific|PROLIFIC|SESSION_ID|STUDY_ID", base)
+    assert crowd.Platform.id_params == () and crowd.Platform.extra_params == ()
+    assert set(crowd.list_platforms()) >= {"none", "generic", "prolific"}
+    with pytest.raises(ValueError, match="crowd.prolific_study_id: unknown setting"):
+        make_platform({"platform": "generic", "id_param": "workerId",
+                       "prolific_study_id": "a" * 24})
+    generic = make_platform({"platform": "generic", "id_param": "workerId"})
+    assert generic.client() is None and make_platform({}).client() is None
+
+
+def test_entry_links_carry_the_platforms_own_parameters():
+    generic = make_platform({"platform": "generic", "id_param": "workerId"})
+    assert generic.entry_params(None, "w1") == [("workerId", "w1")]
+    prolific = make_platform({"platform": "prolific", "codes": {"completed": "C1"},
+                              "prolific_study_id": "b" * 24})
+    params = dict(prolific.entry_params(None, "a" * 24))
+    assert params["PROLIFIC_PID"] == "a" * 24 and params["STUDY_ID"] == "b" * 24
+    assert re.fullmatch("[0-9a-f]{24}", params["SESSION_ID"])

@@ -11,7 +11,8 @@ from django.core.exceptions import ValidationError
 from django.test import Client
 from django.utils import timezone
 
-from studyapp.survey.crowd import make_platform, prolific_minimum_time, prolific_time_limit
+from studyapp.survey.crowd import make_platform
+from studyapp.survey.platforms.prolific import prolific_minimum_time, prolific_time_limit
 from studyapp.survey.models import FailedLogin, Participant, Study, Trial
 from studyapp.survey.stimulus_config import ConfigError, parse
 from tests.studyapp.conftest import make_study

@@ -84,3 +84,34 @@ def test_a_study_on_the_old_schema_reads_back_after_migrating():
     assert len(rated) == 4  # references were never judgements, and still are not
     assert participants_frame(rating)["outcome"].tolist() == ["failed_attention"]
     assert participants_frame(pairs)["outcome"].tolist() == ["completed"]
+
+
+@pytest.mark.django_db(transaction=True)
+def test_a_study_with_the_in_page_player_reads_back_after_its_choices_go():
+    """0009 drops Study.player's choices (a style declares its figure): the value stays."""
+    latest = MigrationExecutor(connection).loader.graph.leaf_nodes("survey")
+    old = migrate([("survey", "0008_stimulus_checkpoint")])
+    Study, Stimulus = old.get_model("survey", "Study"), old.get_model("survey", "Stimulus")
+    Participant, Trial = old.get_model("survey", "Participant"), old.get_model("survey", "Trial")
+    TrialItem = old.get_model("survey", "TrialItem")
+    now = timezone.now()
+    study = Study.objects.create(slug="old-player", title="Old", study_type="pairwise",
+                                 clips_per_trial=2, player="body")
+    clips = [Stimulus.objects.create(study=study, action="walk", source=source,
+                                     video=f"stimuli/{source}.mp4", duration=1.0,
+                                     video_hash=source + "0" * 24, motion=f"payloads/{source}.motion")
+             for source in ("real", "a2m")]
+    person = Participant.objects.create(study=study, seed=1, consented_at=now, completed_at=now)
+    trial = Trial.objects.create(participant=person, index=0, action="walk", shown_at=now,
+                                 answered_at=now, time_ms=2000, answers={"preference": "left"})
+    for position, clip in enumerate(clips):
+        TrialItem.objects.create(trial=trial, stimulus=clip, position=position, plays=1,
+                                 token=f"tok{position}")
+
+    migrate(latest)
+    from studyapp.survey.models import Study as NowStudy
+
+    assert NowStudy.objects.get(slug="old-player").player == "body"
+    table = responses_frame(NowStudy.objects.get(slug="old-player"))
+    assert table["choice"].tolist() == ["left", "left"]
+    assert table["source"].tolist() == ["real", "a2m"]

@@ -33,7 +33,7 @@ def run(*args) -> str:
 def take(study, policy, url, seed):
     """A bot of ``policy`` with its own cookies takes the study from ``url``."""
     rng = random.Random(seed)
-    bot = bots.Bot(study, bots.POLICIES[policy](rng, {}, SOURCES), rng, pace=0)
+    bot = bots.Bot(study, bots.POLICIES.get(policy)(rng, {}, SOURCES), rng, pace=0)
     return bot, bot.run(url)
 
 

@@ -5,6 +5,7 @@ import re
 import threading
 from collections import Counter
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 from django.conf import settings
@@ -20,28 +21,6 @@ from tests.studyapp.conftest import SOURCES, Bot, make_stimuli, make_study, word
 pytestmark = pytest.mark.django_db
 
 TYPES = list_study_types()
-# An answer that spots the broken clip, and one that does not, per type.
-CATCH_ANSWERS = {
-    "ranking": lambda catch: ({"ranks": {catch: 3, **rest(catch, (1, 2))}},
-                              {"ranks": {catch: 1, **rest(catch, (2, 3))}}),
-    "fake_or_real": lambda catch: ({"verdicts": {catch: "generated"}},
-                                   {"verdicts": {catch: "real"}}),
-    "rating_standards": lambda catch: ({"ratings": {catch: 2}}, {"ratings": {catch: 4}}),
-    "rating_reference": lambda catch: ({"ratings": {catch: 1}}, {"ratings": {catch: 3}}),
-    "pairwise": lambda catch: ({"choice": "right" if catch == 0 else "left"},
-                               {"choice": "left" if catch == 0 else "right"}),
-    "pairwise_graded": lambda catch: ({"choice": "right_slightly" if catch == 0 else "left_much"},
-                                      {"choice": "no_preference"}),
-    "best_of_k": lambda catch: ({"pick": 1 if catch == 0 else 0}, {"pick": catch}),
-    "mushra": lambda catch: ({"scores": {catch: 10}}, {"scores": {catch: 80}}),
-}
-
-
-def rest(catch, values):
-    """Give the positions other than ``catch`` (of three) the ``values`` in order."""
-    return dict(zip([p for p in range(3) if p != catch], values))
-
-
 @pytest.fixture
 def study_of(media_root, clips, extra_clips):
     return lambda study_type, **fields: make_study(study_type, clips, extra_clips, **fields)
@@ -213,7 +192,7 @@ def test_a_catch_trial_is_graded(study_of, make_bot, study_type, spotted):
     assert len(catch) == 1 and trials[0].kind == "main"
     broken = catch[0].items.get(stimulus__role="catch")
     assert TrialItem.objects.filter(stimulus__role="catch").count() == 1
-    good, bad = CATCH_ANSWERS[study_type](broken.position)
+    good, bad = get_study_type(study_type).catch_answers(broken.position)
     while (trial := bot.participant().current_trial()) is not None:
         answers = (good if spotted else bad) if trial.kind == "catch" else {}
         bot.trial_page()
@@ -507,22 +486,9 @@ def test_the_preview_walks_every_page_and_stores_nothing(
 
 
 def preview_answer(html: str, study_type: str) -> dict:
-    """Answer a preview trial page from its own form."""
+    """Answer a preview trial page from its own form: every clip it plays, in order."""
     data = {"trial": re.search(r'name="trial" value="(\d+)"', html).group(1)}
-    for token in re.findall(r'name="plays_([\w-]+)"', html):
-        data[f"plays_{token}"] = "1"
-        if study_type == "ranking":
-            data[f"rank_{token}"] = str(len(data) // 2)
-        elif study_type == "fake_or_real":
-            data[f"judged_{token}"] = "generated"
-        elif study_type.startswith("rating"):
-            data[f"rating_{token}"] = "2"
-        elif study_type == "mushra":
-            data[f"score_{token}"] = "30"
-    if study_type == "pairwise":
-        data["choice"] = "left"
-    if study_type == "pairwise_graded":
-        data["choice"] = "left_slightly"
-    if study_type == "best_of_k":
-        data["pick"] = re.search(r'name="pick" value="([\w-]+)"', html).group(1)
-    return data
+    tokens = re.findall(r'name="plays_([\w-]+)"', html)
+    data.update({f"plays_{token}": "1" for token in tokens})
+    items = [SimpleNamespace(position=i, token=t, role="judged") for i, t in enumerate(tokens)]
+    return data | get_study_type(study_type).answer_fields(items)

@@ -13,7 +13,7 @@ import re
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
 
-from studyapp.survey.crowd import PROLIFIC_ID
+from studyapp.survey.platforms.prolific import PROLIFIC_ID
 
 PAYABLE = ("APPROVED", "AWAITING REVIEW")
 

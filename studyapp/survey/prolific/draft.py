@@ -20,7 +20,7 @@ screened_out       OTHER                   REQUEST_RETURN, reason "Screened out.
 
 ``timed_out`` has no code: Prolific times people out itself. The draft's maximum allowed
 time is the study's ``crowd.time_limit_minutes``, by default
-:func:`~studyapp.survey.crowd.prolific_time_limit` of the estimated time (stored in the
+:func:`~studyapp.survey.platforms.prolific.prolific_time_limit` of the estimated time (stored in the
 study by ``create``, so both time people out alike).
 """
 
@@ -30,7 +30,8 @@ import math
 import secrets
 from dataclasses import dataclass
 
-from studyapp.survey.crowd import OUTCOMES, prolific_minimum_time, prolific_time_limit
+from studyapp.survey.crowd import OUTCOMES
+from studyapp.survey.platforms.prolific import prolific_minimum_time, prolific_time_limit
 
 PLACEHOLDERS = ("?PROLIFIC_PID={{%PROLIFIC_PID%}}&STUDY_ID={{%STUDY_ID%}}"
                 "&SESSION_ID={{%SESSION_ID%}}")

@@ -33,7 +33,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from studyapp.survey.crowd import MIN_CHECKS
+from studyapp.survey.platforms.prolific import MIN_CHECKS
 from studyapp.survey.export import participants_frame
 from studyapp.survey.models import Participant
 

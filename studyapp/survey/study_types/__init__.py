@@ -3,11 +3,10 @@
 Each type is one module here that subclasses :class:`StudyType` and registers itself with
 ``@register_study_type("key")``, with its template beside it (``<key>.html``) and its
 analysis in ``analysis/``. ``get_study_type``, ``list_study_types`` and ``choices`` read
-the registry; every module of this folder is imported, so a new type needs no list.
+the registry, which imports every module of this folder before its first lookup, so a new
+type needs no list.
 """
 
-import importlib
-import pkgutil
 from pathlib import Path
 
 from studyapp.survey.study_types.base import StudyType, TrialPlan, registry
@@ -17,7 +16,7 @@ FOLDER = Path(__file__).resolve().parent
 
 
 def get_study_type(name: str) -> StudyType:
-    """Return the registered study type ``name`` (an instance)."""
+    """Return an instance of the study type class registered as ``name``."""
     return registry.get(name)()
 
 
@@ -27,11 +26,6 @@ def list_study_types() -> list[str]:
 
 def choices() -> list[tuple[str, str]]:
     return [(name, registry.get(name).label) for name in registry.names()]
-
-
-for _module in pkgutil.iter_modules([str(FOLDER)]):
-    if _module.name != "base":
-        importlib.import_module(f"{__name__}.{_module.name}")
 
 __all__ = [
     "FOLDER",

@@ -17,11 +17,14 @@ its key:
 - its instructed-response checks: a trial whose text says which answer to give
   (:meth:`instruct` picks it, :meth:`instruction_text` says it, :meth:`obeyed` grades it,
   :meth:`obey` gives it, for bots and tests);
-- how a simulated participant answers (:meth:`bot_answer`) and which analysis reads its
-  table (:attr:`analysis`, registered in ``analysis/``).
+- how a simulated participant answers (:meth:`bot_answer`), and for tests the answer
+  fields of a valid post (:meth:`answer_fields`) and of a catch trial spotted or missed
+  (:meth:`catch_answers`).
 
-A new type is its module here, its template here (``<key>.html``) and its analysis module
-in ``analysis/``.
+Its analysis is the one registered under the same key in ``analysis/``, which also
+brings the type's answer column, extra columns and simulated raters. A new type is its
+module here, its template here (``<key>.html``) and its analysis module in ``analysis/``;
+``tests/test_plugins.py`` fails when anything else names its key.
 """
 
 from __future__ import annotations
@@ -30,12 +33,12 @@ import re
 from collections import Counter
 from dataclasses import dataclass, field
 
-from generation.registry import Registry
 from studyapp.survey import assignment
 from studyapp.survey.answers import Criterion
 from studyapp.survey.models import Stimulus, Trial, TrialItem
+from studyapp.survey.study_type_registry import STUDY_TYPES
 
-registry = Registry("study type")
+registry = STUDY_TYPES
 
 DEFAULT_CONSENT = """\
 This study is part of academic research on how people perceive human movement. \
@@ -116,7 +119,6 @@ class StudyType:
     label = ""
     template = ""  # beside this module; "<key>.html" by default
     scripts: tuple[str, ...] = ("survey/choices.js",)
-    analysis = ""  # the analysis registered in analysis/ for this type; default: the key
     minutes = 5
     default_clips_per_trial = 6
     min_items = 2
@@ -135,9 +137,6 @@ class StudyType:
 
     def template_name(self) -> str:
         return self.template or f"{self.name}.html"
-
-    def analysis_key(self) -> str:
-        return self.analysis or self.name
 
     def default_instructions(self, study) -> str:
         raise NotImplementedError
@@ -424,6 +423,21 @@ class StudyType:
         return {}
 
     # --- bots -----------------------------------------------------------------------
+
+    def answer_fields(self, items, **given) -> dict:
+        """Return the answer fields of a valid post for a trial, for tests.
+
+        ``items`` are the trial's items in screen order (``position``, ``token``, ``role``);
+        ``given`` holds answers by this type's own keywords (positions to values, or the
+        trial's one answer), defaults where absent; keywords of other types are ignored.
+        """
+        raise NotImplementedError
+
+    def catch_answers(self, position: int) -> tuple[dict, dict]:
+        """Return two answers to a catch trial whose broken clip is at ``position``, as
+        :meth:`answer_fields` keywords: one that spots the broken clip and one that does
+        not (for tests)."""
+        raise NotImplementedError
 
     def bot_answer(self, page, policy) -> dict:
         """Return the answer fields (first criterion's names) a bot posts for a trial.

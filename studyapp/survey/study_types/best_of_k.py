@@ -112,6 +112,14 @@ class BestOfK(StudyType):
             return {"pick": trial_answer}
         return {"pick": "best" if trial_answer == item["position"] else "other"}
 
+    def answer_fields(self, items, pick=None, **given):
+        """``pick``: the position picked (default 0), or ``all_good`` / ``all_bad``."""
+        judged = {item.position: item.token for item in items if item.role == "judged"}
+        return {"pick": pick if isinstance(pick, str) else judged[pick or 0]}
+
+    def catch_answers(self, position):
+        return {"pick": 1 if position == 0 else 0}, {"pick": position}
+
     def bot_answer(self, page, policy):
         """The clip that looks best to the policy (a Plackett-Luce first choice for ``bt``)."""
         looks = {token: policy.utility(page.sources[token]) for token in page.tokens}

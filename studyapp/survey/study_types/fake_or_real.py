@@ -152,6 +152,14 @@ class FakeOrReal(StudyType):
     def export_values(self, trial_answer, item_answer, item, items):
         return {"judged_real": item_answer}
 
+    def answer_fields(self, items, verdicts=None, **given):
+        """``verdicts``: positions to ``real`` / ``generated`` (default ``real``)."""
+        return {f"judged_{item.token}": (verdicts or {}).get(item.position, "real")
+                for item in items if item.role == "judged"}
+
+    def catch_answers(self, position):
+        return {"verdicts": {position: "generated"}}, {"verdicts": {position: "real"}}
+
     def bot_answer(self, page, policy):
         return {
             f"judged_{token}": "real" if policy.is_real(page.sources[token]) else "generated"

@@ -179,6 +179,14 @@ class Mushra(StudyType):
     def export_values(self, trial_answer, item_answer, item, items):
         return {"score": item_answer}
 
+    def answer_fields(self, items, scores=None, **given):
+        """``scores``: positions to 0-100 (default 50), the reference and anchor included."""
+        return {f"score_{item.token}": str((scores or {}).get(item.position, 50))
+                for item in items}
+
+    def catch_answers(self, position):
+        return {"scores": {position: 10}}, {"scores": {position: 80}}
+
     def bot_answer(self, page, policy):
         """A score of 50 at a utility of 1, plus 25 per unit of how good the clip looks to
         the policy (prefer-real: real clips 75-90, others 50-65, broken clips below 40)."""

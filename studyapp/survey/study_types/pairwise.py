@@ -103,6 +103,14 @@ class Pairwise(StudyType):
     def export_values(self, trial_answer, item_answer, item, items):
         return {"choice": trial_answer}
 
+    def answer_fields(self, items, choice="left", **given):
+        """``choice``: the trial's answer (default ``left``, clip A better)."""
+        return {"choice": choice}
+
+    def catch_answers(self, position):
+        other = "right" if position == 0 else "left"
+        return {"choice": other}, {"choice": "left" if position == 0 else "right"}
+
     def bot_answer(self, page, policy):
         left, right = (page.sources[token] for token in page.tokens)
         ties = [value for value in page.choices if value in TIES]

@@ -137,6 +137,14 @@ class PairwiseGraded(StudyType):
     def export_values(self, trial_answer, item_answer, item, items):
         return {"choice": trial_answer, "grade": grade_of(trial_answer, item["position"])}
 
+    def answer_fields(self, items, choice="left", **given):
+        """``choice``: the trial's answer (default ``left``, clip A better)."""
+        return {"choice": choice}
+
+    def catch_answers(self, position):
+        return ({"choice": "right_slightly" if position == 0 else "left_much"},
+                {"choice": "no_preference"})
+
     def bot_answer(self, page, policy):
         a, b = (page.sources[token] for token in page.tokens)
         u_a, u_b = policy.utility(a), policy.utility(b)

@@ -95,6 +95,16 @@ class Ranking(StudyType):
     def export_values(self, trial_answer, item_answer, item, items):
         return {"rank": item_answer}
 
+    def answer_fields(self, items, ranks=None, **given):
+        """``ranks``: positions to ranks (default: the screen order)."""
+        return {f"rank_{item.token}": str((ranks or {}).get(item.position, item.position + 1))
+                for item in items if item.role == "judged"}
+
+    def catch_answers(self, position):
+        others = [p for p in range(3) if p != position]
+        return ({"ranks": {position: 3, **dict(zip(others, (1, 2)))}},
+                {"ranks": {position: 1, **dict(zip(others, (2, 3)))}})
+
     def bot_answer(self, page, policy):
         order = policy.order([page.sources[token] for token in page.tokens])
         return {f"rank_{page.tokens[i]}": str(rank) for rank, i in enumerate(order, 1)}

@@ -31,7 +31,6 @@ class RatingStudy(StudyType):
     one_per_source = True
     template = "rating.html"
     minutes = 10
-    analysis = "ratings"
     default_criterion = Criterion("realism")
     item_prefix = "rating"
     export_columns = ("rating",)
@@ -71,6 +70,14 @@ class RatingStudy(StudyType):
 
     def export_values(self, trial_answer, item_answer, item, items):
         return {"rating": item_answer}
+
+    def answer_fields(self, items, ratings=None, **given):
+        """``ratings``: positions to ratings (default 3)."""
+        return {f"rating_{item.token}": str((ratings or {}).get(item.position, 3))
+                for item in items if item.role == "judged"}
+
+    def catch_answers(self, position):
+        return {"ratings": {position: CATCH_MAX}}, {"ratings": {position: CATCH_MAX + 2}}
 
     def bot_answer(self, page, policy):
         return {f"rating_{token}": str(policy.rating(page.sources[token])) for token in page.tokens}

@@ -71,7 +71,7 @@ class Command(BaseCommand):
 
         def one(i):
             rng = random.Random(f"{run}-{i}")
-            bot = Bot(study, POLICIES[policy](rng, strengths, sources), rng, pace=pace,
+            bot = Bot(study, POLICIES.get(policy)(rng, strengths, sources), rng, pace=pace,
                       watch=not no_watch)
             person = person_id(run, i)
             try:
