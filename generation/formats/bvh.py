@@ -615,3 +615,8 @@ def save(path: str | Path, motion: Motion, units: str = "cm") -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return path
+
+
+def detect(probe) -> str | None:
+    """Recognise a ``.bvh`` file."""
+    return "a .bvh file" if probe.suffix == ".bvh" else None

@@ -135,7 +135,7 @@ def test_import_motions_auto_says_what_it_found_and_reports_skipped_files(tmp_pa
     output, errors = run(folder, "--format", "auto", "--source", "t2m_gpt", "--out",
                          tmp_path / "out.npz")
     assert "detected format 'joints'" in output and "skipped 1" in output
-    assert "c.npy: joints has shape (6, 22, 2)" in errors
+    assert "c.npy: an array of shape (6, 22, 2), which no format has; pass --format" in errors
     assert len(npz.load(tmp_path / "out.npz")) == 2
 
 

@@ -1,3 +1,5 @@
+from pathlib import Path
+
 from django.core.management.base import BaseCommand, CommandError
 
 from generation.body_models import ENV_VAR
@@ -82,6 +84,9 @@ class Command(BaseCommand):
                                  "auto (default: the unit that makes the body about 1.7 m).")
         parser.add_argument("--up", choices=("x", "y", "z"), help="bvh: the files' up axis "
                                                                   "(default: y).")
+        parser.add_argument("--per-skeleton", action="store_true",
+                            help="Write one file per skeleton (OUT_<skeleton>.npz) when the "
+                                 "files hold several (default: refuse, naming them).")
 
     def handle(self, *args, **options):
         fmt, files = options["format"], options["files"]
@@ -94,7 +99,7 @@ class Command(BaseCommand):
                 loaded = load_motions(path, fmt, fps=options["fps"], source=options["source"],
                                       **load_options)
                 for note in getattr(loaded, "notes", []):
-                    self.stdout.write(note)
+                    (self.stderr if note.startswith("warning") else self.stdout).write(note)
                 problems.extend(getattr(loaded, "problems", []))
                 motions.extend(loaded)
         except (FormatError, MotionError) as exc:
@@ -104,12 +109,28 @@ class Command(BaseCommand):
         if options["joints_only"]:
             motions = [m.with_joints(m.joints, vertices=None, faces=None, meta=dict(m.meta))
                        for m in motions]
+        groups: dict[str, list] = {}
+        for motion in motions:
+            groups.setdefault(motion.skeleton, []).append(motion)
+        if len(groups) > 1 and not options["per_skeleton"]:
+            found = ", ".join(f"{len(group)} of {name}" for name, group in groups.items())
+            raise CommandError(
+                f"the files hold motions of {len(groups)} skeletons ({found}); one .npz holds "
+                "one skeleton. Map them onto one (BVH files: --skeleton smpl22; others are "
+                "checked against it), or pass --per-skeleton to write one file per skeleton "
+                f"({Path(options['out']).stem}_<skeleton>.npz)")
+        out = Path(options["out"])
+        for name, group in groups.items():
+            target = out.with_name(f"{out.stem}_{name}{out.suffix}") if len(groups) > 1 else out
+            self.write(group, target, problems)
+
+    def write(self, motions, out: Path, problems):
         rates = sorted({motion.fps for motion in motions})
         if len(rates) > 1:
             raise CommandError(f"the files have frame rates {', '.join(map(str, rates))}; "
                                "pass --fps F to resample them to one")
         try:
-            path = npz.save(options["out"], motions)
+            path = npz.save(out, motions)
         except (FormatError, MotionError) as exc:
             raise CommandError(str(exc)) from None
         first = motions[0]
