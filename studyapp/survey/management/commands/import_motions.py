@@ -22,6 +22,8 @@ FORMAT_FLAGS = {
     "std": "std",
     "body_models": "body_models",
     "gender": "gender",
+    "person": "person",
+    "frame": "frame",
 }
 
 
@@ -30,7 +32,8 @@ class Command(BaseCommand):
         "Convert motions from other codebases or motion capture into one interchange .npz: "
         "MDM's results.npy and meshes, HumanML3D joints or feature vectors, folders of "
         "joint arrays (MoMask, T2M-GPT, MotionGPT, MotionDiffuse), AMASS, MotionCritic, "
-        "ACTOR, Action2Motion, BVH, or --format auto to detect it. Files of a folder that "
+        "ACTOR, Action2Motion, BVH, pose estimators (WHAM, 4D-Humans/PHALP, VIBE, TRAM), "
+        "AIST++, PHC motion libraries, AMP poselib files, or --format auto to detect it. Files of a folder that "
         "cannot be read are reported by name; the others are written."
     )
 
@@ -69,8 +72,9 @@ class Command(BaseCommand):
                             help="humanml3d_vec: de-normalise features with this mean ...")
         parser.add_argument("--std", metavar="Std.npy", help="... and this std.")
         parser.add_argument("--body-models", metavar="DIR",
-                            help=f"amass, motioncritic, actor, mdm meshes: the folder of SMPL / "
-                                 f"SMPL+H model files (default: ${ENV_VAR}).")
+                            help=f"amass, motioncritic, actor, mdm meshes, wham, phalp, vibe, "
+                                 f"tram, aistpp, phc: the folder of SMPL / SMPL+H model files "
+                                 f"(default: ${ENV_VAR}).")
         parser.add_argument("--gender", choices=("neutral", "male", "female"),
                             help="amass: the body model's gender (default: the file's).")
         parser.add_argument("--joints-only", action="store_true",
@@ -84,6 +88,12 @@ class Command(BaseCommand):
                                  "auto (default: the unit that makes the body about 1.7 m).")
         parser.add_argument("--up", choices=("x", "y", "z"), help="bvh: the files' up axis "
                                                                   "(default: y).")
+        parser.add_argument("--person", metavar="ID",
+                            help="wham, phalp, vibe: the tracked person to import (default: "
+                                 "every track, each a motion; the notes list the ids).")
+        parser.add_argument("--frame", choices=("world", "camera"),
+                            help="wham: the world frame WHAM estimates (default) or the "
+                                 "camera's.")
         parser.add_argument("--per-skeleton", action="store_true",
                             help="Write one file per skeleton (OUT_<skeleton>.npz) when the "
                                  "files hold several (default: refuse, naming them).")
