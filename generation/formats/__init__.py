@@ -13,6 +13,8 @@ options of each format are its ``load``'s keyword arguments:
 - ``humanml3d``, ``humanml3d_vec``: HumanML3D's ``new_joints`` and ``new_joint_vecs``;
 - ``joints``: ``.npy`` joint arrays (MoMask, T2M-GPT, MotionGPT, MotionDiffuse);
 - ``amass``: AMASS ``.npz`` pose parameters, through SMPL body models the user supplies;
+- ``smplx``: SMPL-X poses (BEAT2/EMAGE and AMASS SMPL-X ``.npz``, Motion-X ``.npy``), through
+  the user's SMPL-X model; ``hands`` keeps the finger joints;
 - ``motioncritic``: MotionCritic's ``.npz`` (rot6d SMPL parameters, 4 per file);
 - ``actor``: ACTOR's ``generation.npy`` of SMPL vertices;
 - pose estimators, through the user's SMPL model, stood upright on the floor: ``wham``
@@ -45,6 +47,7 @@ from generation.formats import (
     npz,
     phalp,
     phc,
+    smplx_motions,
     tram,
     vibe,
     wham,
@@ -61,6 +64,7 @@ from generation.motion import Motion
 for _module in (a2m, actor, aistpp, amass, amp_poselib, auto, bvh, humanml3d, humanml3d_vec,
                 joints, mdm, motioncritic, npz, phalp, phc, tram, vibe, wham):
     register_format(_module.__name__.rsplit(".", 1)[-1])(_module)
+register_format("smplx")(smplx_motions)  # the module's name keeps the smplx package's free
 
 
 def format_options(format: str) -> list[str]:

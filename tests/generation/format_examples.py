@@ -204,6 +204,23 @@ def npz(folder):
     return path, {}
 
 
+def smplx_poses(frames=FRAMES, root=np.zeros(3)):
+    """Return SMPL-X poses (T, 165): the root turned, a knee bending, fingers curling."""
+    poses = np.zeros((frames, 165))
+    poses[:, :3] = root
+    poses[:, 3 * 4] = np.linspace(0, 0.6, frames)
+    poses[:, 77:165:3] = np.linspace(0, 0.5, frames)[:, None]  # every finger joint about z
+    return poses
+
+
+def smplx(folder):
+    path = folder / "2_scott_0_1_1.npz"  # BEAT2's smplxflame_30 layout
+    np.savez(path, poses=smplx_poses(), trans=np.tile([0, 0.0, 0.1], (FRAMES, 1)),
+             betas=np.zeros(300), expressions=np.zeros((FRAMES, 100)), model="smplx2020",
+             gender="neutral", mocap_frame_rate=30)
+    return path, {}
+
+
 def a2m(folder):
     motions, classes, _, _ = write_a2m(folder)
     return motions, {"classes_path": classes}
@@ -212,7 +229,7 @@ def a2m(folder):
 EXAMPLES = {name: function for name, function in globals().items()
             if name in ("wham", "vibe", "phalp", "tram", "aistpp", "phc", "amp_poselib", "bvh",
                         "joints", "mdm", "humanml3d", "humanml3d_vec", "amass", "motioncritic",
-                        "actor", "npz", "a2m")}
+                        "actor", "npz", "a2m", "smplx")}
 
 
 def _pickled(name, value):
@@ -290,6 +307,9 @@ MALFORMED = {
                                 actions=np.array(["a", "b"]), skeleton="smpl22", fps=20.0,
                                 source="real"), "actions"),
     "a2m": (lambda folder: (_npy_pair(folder)), "class"),
+    "smplx": (lambda folder: _npz(folder / "beat.npz", poses=np.zeros((FRAMES, 165)),
+                                  trans=np.zeros((FRAMES, 2)), mocap_frame_rate=30),
+              r"trans has shape \(6, 2\); expected \(6, 3\)"),
 }
 
 

@@ -9,7 +9,7 @@ from generation.formats import FormatError, get_format, list_formats, load_motio
 from generation.formats.auto import detect
 from generation.formats.probe import Probe
 from generation.skeletons import get_skeleton
-from tests.generation.body_model_files import write_smpl
+from tests.generation.body_model_files import write_smpl, write_smplx
 from tests.generation.format_examples import EXAMPLES, MALFORMED, MALFORMED_OPTIONS
 
 FORMATS = [name for name in list_formats() if name != "auto"]
@@ -20,6 +20,7 @@ BODY_MODEL_OPTION = "body_models"
 def models(tmp_path_factory):
     root = tmp_path_factory.mktemp("body_models")
     write_smpl(root)
+    write_smplx(root)
     return root
 
 

@@ -24,6 +24,7 @@ FORMAT_FLAGS = {
     "gender": "gender",
     "person": "person",
     "frame": "frame",
+    "hands": "hands",
 }
 
 
@@ -72,11 +73,13 @@ class Command(BaseCommand):
                             help="humanml3d_vec: de-normalise features with this mean ...")
         parser.add_argument("--std", metavar="Std.npy", help="... and this std.")
         parser.add_argument("--body-models", metavar="DIR",
-                            help=f"amass, motioncritic, actor, mdm meshes, wham, phalp, vibe, "
-                                 f"tram, aistpp, phc: the folder of SMPL / SMPL+H model files "
+                            help=f"amass, smplx, motioncritic, actor, mdm meshes, wham, phalp, "
+                                 f"vibe, tram, aistpp, phc: the folder of SMPL / SMPL+H / "
+                                 f"SMPL-X model files "
                                  f"(default: ${ENV_VAR}).")
         parser.add_argument("--gender", choices=("neutral", "male", "female"),
-                            help="amass: the body model's gender (default: the file's).")
+                            help="amass, smplx: the body model's gender (default: the "
+                                 "file's).")
         parser.add_argument("--joints-only", action="store_true",
                             help="Drop the body surfaces imports carry (smaller files; the "
                                  "mesh style then draws its own body).")
@@ -94,6 +97,9 @@ class Command(BaseCommand):
         parser.add_argument("--frame", choices=("world", "camera"),
                             help="wham: the world frame WHAM estimates (default) or the "
                                  "camera's.")
+        parser.add_argument("--hands", action="store_true", default=None,
+                            help="smplx: keep the 30 finger joints (a 52-joint skeleton; "
+                                 "default: the 22 body joints, smpl22).")
         parser.add_argument("--per-skeleton", action="store_true",
                             help="Write one file per skeleton (OUT_<skeleton>.npz) when the "
                                  "files hold several (default: refuse, naming them).")
