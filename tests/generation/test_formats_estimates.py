@@ -106,3 +106,35 @@ def test_import_motions_person_and_the_missing_model(tmp_path, models, monkeypat
     with pytest.raises(CommandError, match=r"SMPL_NEUTRAL.pkl.*smpl.is.tue.mpg.de.*--body-models"):
         call_command("import_motions", str(path), "--format", "wham", "--out",
                      str(tmp_path / "x.npz"), stdout=io.StringIO(), stderr=io.StringIO())
+
+
+@pytest.mark.parametrize("fmt", ["wham", "phc", "auto"])
+def test_a_tampered_joblib_file_is_refused_and_nothing_runs(tmp_path, models, fmt):
+    import joblib
+
+    from tests.generation.untrusted_files import SYSTEM, RunsCommand
+
+    marker = tmp_path / "ran"
+    tracks = {0: {"pose": np.zeros((4, 72)), "trans": np.zeros((4, 3)), "pose_aa": np.zeros((4, 72)),
+                  "hook": RunsCommand(marker)}}
+    joblib.dump(tracks, tmp_path / "output.pkl")
+    with pytest.raises(FormatError, match=f"output.pkl.*refused.*{SYSTEM}"):
+        load_motions(tmp_path / "output.pkl", fmt, body_models=models)
+    assert not marker.exists()
+
+
+def test_a_tampered_smplx_model_is_refused(tmp_path):
+    from tests.generation.body_model_files import write_smplx
+    from tests.generation.format_examples import smplx as beat2
+    from tests.generation.untrusted_files import SYSTEM, RunsCommand
+
+    marker = tmp_path / "ran"
+    path = write_smplx(tmp_path / "models")
+    with np.load(path, allow_pickle=True) as data:  # the test's own file, to tamper with
+        arrays = {key: data[key] for key in data.files}
+    arrays["joint2num"] = np.array([RunsCommand(marker)], dtype=object)
+    np.savez(path, **arrays)
+    beat, _ = beat2(tmp_path)
+    with pytest.raises(FormatError, match=f"SMPLX_NEUTRAL.npz.*refused.*{SYSTEM}"):
+        load_motions(beat, "smplx", body_models=tmp_path / "models")
+    assert not marker.exists()
