@@ -67,19 +67,21 @@ def commit(root: Path) -> str:
     return head + ("+changes" if dirty.strip() else "")
 
 
-def cached_motions(manifest: Path, cache: list[Path], sources) -> dict[str, list]:
-    """Return, per source, the motions of its build cache files (all of them, in order)."""
+def cached_motions(cache: list[Path], shown: dict[str, set]) -> dict[str, list]:
+    """Return, per source, the motions of the build cache file that holds the motions the
+    study showed of it (``shown``: source -> motion hashes); other builds' files of the
+    same source (an older config's) are left out."""
     from generation.formats import npz
 
     out = {}
-    for source in sources:
-        motions = []
-        for folder in cache:
+    for source, hashes in shown.items():
+        for folder in dict.fromkeys(cache):
             for path in sorted((folder / "motions").glob(f"{source}-*.npz")):
-                if len(path.stem) == len(source) + 17:  # <source>-<16 hex>
-                    motions.extend(npz.load(path))
-        if motions:
-            out[source] = motions
+                if len(path.stem) != len(source) + 17:  # <source>-<16 hex>
+                    continue
+                motions = npz.load(path)
+                if hashes & {motion.content_hash() for motion in motions}:
+                    out.setdefault(source, []).extend(motions)
     return out
 
 
@@ -134,7 +136,10 @@ def write_bundle(study, out: Path, folder: Path, cache: list[Path], config_path=
     kinds = source_kinds(listed)
     stimuli = list(study.stimuli.order_by("pk").values(
         "source", "role", "action", "prompt", "motion_hash", "video_hash", "duration"))
-    motions = cached_motions(manifest, cache, sorted({s["source"] for s in stimuli}))
+    shown: dict[str, set] = {}
+    for stimulus in stimuli:
+        shown.setdefault(stimulus["source"], set()).add(stimulus["motion_hash"])
+    motions = cached_motions(cache, shown)
     missing = sorted({s["source"] for s in stimuli if s["role"] == "judged"} - set(motions))
     if missing:
         raise BundleError(f"the build cache ({', '.join(map(str, cache))}) holds no motions of "

@@ -142,7 +142,7 @@ def test_import_motions_auto_says_what_it_found_and_reports_skipped_files(tmp_pa
 @pytest.mark.parametrize("args, expected", [
     (["--format", "joints", "--classes", "c.npy"], "--classes is not an option of --format joints"),
     (["--format", "mdm", "--gender", "male"], "--gender is not an option of --format mdm "
-                                              r"\(it is for amass\)"),
+                                              r"\(it is for amass, smplx\)"),
 ])
 def test_import_motions_refuses_flags_of_other_formats(tmp_path, args, expected):
     with pytest.raises(CommandError, match=expected):
