@@ -55,6 +55,9 @@ def test_import_motions_refuses_mixed_skeletons_with_the_fix_or_splits_them(tmp_
     folder = mixed_folder(tmp_path)
     with pytest.raises(CommandError, match=r"2 skeletons .*--skeleton smpl22.*--per-skeleton"):
         run(folder, "--format", "auto", "--out", tmp_path / "out.npz")
+    with pytest.raises(CommandError, match=r"sources imported, real.*--source NAME"):
+        run(folder, "--format", "auto", "--skeleton", "smpl22", "--fps", "20", "--out",
+            tmp_path / "one.npz")
     output, errors = run(folder, "--format", "auto", "--skeleton", "smpl22", "--fps", "20",
                          "--source", "real",
                          "--out", tmp_path / "one.npz")

@@ -145,6 +145,11 @@ class Command(BaseCommand):
         if len(rates) > 1:
             raise CommandError(f"the files have frame rates {', '.join(map(str, rates))}; "
                                "pass --fps F to resample them to one")
+        sources = sorted({motion.source for motion in motions})
+        if len(sources) > 1:
+            raise CommandError(f"the files hold motions of sources {', '.join(sources)}; one "
+                               ".npz holds one source: pass --source NAME (e.g. real, or the "
+                               "method that made them), or import each kind on its own")
         try:
             path = npz.save(out, motions)
         except (FormatError, MotionError) as exc:
