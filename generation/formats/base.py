@@ -232,6 +232,8 @@ def load_each(files: list[Path], load_one: Callable[[Path], list], what: str) ->
         except (FormatError, MotionError) as exc:
             message = str(exc)
             result.problems.append(message if str(path) in message else f"{path}: {message}")
+    if not result and len(files) == 1:
+        raise FormatError(result.problems[0])  # one file: its own error, naming it
     if not result:
         shown = "; ".join(result.problems[:3])
         more = f" (and {len(result.problems) - 3} more)" if len(result.problems) > 3 else ""
