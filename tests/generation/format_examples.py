@@ -14,7 +14,6 @@ import joblib
 import numpy as np
 
 from tests.generation.bvh_layouts import write as write_bvh
-from tests.generation.test_formats import write_a2m
 from tests.generation.test_formats_smpl import rot6d_motion
 from tests.generation.test_formats_text_to_motion import encode, walking, write_results
 
@@ -177,9 +176,9 @@ def humanml3d_vec(folder):
 
 
 def amass(folder):
-    path = folder / "walk_poses.npz"
-    np.savez(path, poses=np.zeros((FRAMES, 72)), trans=np.zeros((FRAMES, 3)), betas=np.zeros(10),
-             gender="neutral", mocap_framerate=60.0)
+    path = folder / "walk_poses.npz"  # z up: the root turned onto it, the pelvis 0.95 m up
+    np.savez(path, poses=smpl_poses(Z_UP), trans=np.tile([0, -0.95, 0.95], (FRAMES, 1)),
+             betas=np.zeros(10), gender="neutral", mocap_framerate=60.0)
     return path, {}
 
 
@@ -190,8 +189,12 @@ def motioncritic(folder):
 
 
 def actor(folder):
+    from tests.generation.body_model_files import model_arrays
+
+    rest = model_arrays(24)["v_template"] * [1, -1, -1]  # the synthetic body, y down as ACTOR's
     path = folder / "generation.npy"
-    np.save(path, np.random.default_rng(0).normal(size=(1, 2, 6890, 3, 3)).astype(np.float32))
+    frames = np.stack([rest + [0, 0, 0.05 * t] for t in range(3)], axis=-1)  # (V, 3, T)
+    np.save(path, np.stack([np.stack([frames] * 2)]).astype(np.float32))  # (1, 2, V, 3, T)
     return path, {}
 
 
@@ -222,8 +225,10 @@ def smplx(folder):
 
 
 def a2m(folder):
-    motions, classes, _, _ = write_a2m(folder)
-    return motions, {"classes_path": classes}
+    joints = np.stack([walking(FRAMES, 24, seed=i) for i in range(3)])  # humanact12, y up
+    np.save(folder / "motions.npy", joints.reshape(3, FRAMES, 72))
+    np.save(folder / "classes.npy", np.array([0, 3, 5]))
+    return folder / "motions.npy", {"classes_path": folder / "classes.npy"}
 
 
 EXAMPLES = {name: function for name, function in globals().items()

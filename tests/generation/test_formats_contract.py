@@ -5,6 +5,7 @@ whose error names the file and what is wrong."""
 import numpy as np
 import pytest
 
+from generation import ops
 from generation.formats import FormatError, get_format, list_formats, load_motions
 from generation.formats.auto import detect
 from generation.formats.probe import Probe
@@ -50,6 +51,11 @@ def test_the_example_is_detected_as_its_format_and_reads(tmp_path, name, models)
     for motion in motions:
         skeleton = get_skeleton(motion.skeleton)
         assert motion.joints.shape[1:] == (skeleton.n_joints, skeleton.dims)
+        # Upright, on the floor, of a person's height, in the renderer's frame (z up, m).
+        up = ops.canonical(motion).joints[..., 2]
+        height = np.median(up.max(axis=1) - up.min(axis=1))
+        assert 1.0 < height < 2.3, f"{name}: {height:.2f} m tall"
+        assert abs(np.median(up.min(axis=1))) < 0.1, f"{name}: feet at {up.min():.2f} m"
 
 
 @pytest.mark.parametrize("name", FORMATS)
