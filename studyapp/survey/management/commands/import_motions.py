@@ -63,7 +63,9 @@ class Command(BaseCommand):
         parser.add_argument("--texts", metavar="PROMPTS",
                             help="joints, bvh: the prompts, one line per file (in name order, "
                                  "or line k+1 for files named sample<k>...) or a CSV with file "
-                                 "and text columns (default: prompts.txt/.csv beside the files).")
+                                 "and text columns (default: prompts.txt/.csv beside the files, "
+                                 "else joints: a file name that spells one, "
+                                 "a_person_is_boxing.npy).")
         parser.add_argument("--classes", metavar="CLASSES.npy",
                             help="a2m (required): each motion's class index, shape (N,).")
         parser.add_argument("--action-names", metavar="A,B,...",
