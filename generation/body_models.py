@@ -1,4 +1,4 @@
-"""SMPL and SMPL+H body models the user supplies, through the ``smplx`` package.
+"""SMPL, SMPL+H and SMPL-X body models the user supplies, through the ``smplx`` package.
 
 The SMPL licence forbids shipping the model files, so formats that need one (``amass``,
 ``motioncritic``, ``actor``, and ``mdm`` meshes without their ``results.npy``) look for
@@ -7,10 +7,12 @@ them under a folder given as ``body_models`` or ``$STUDY_BODY_MODELS``, laid out
 
     DIR/smpl/SMPL_NEUTRAL.pkl   (and SMPL_MALE.pkl, SMPL_FEMALE.pkl)
     DIR/smplh/SMPLH_MALE.npz    (or .pkl; or AMASS's layout DIR/smplh/male/model.npz)
+    DIR/smplx/SMPLX_NEUTRAL.npz (and SMPLX_MALE.npz, SMPLX_FEMALE.npz)
 
 The files are read as plain data (:mod:`generation.safe_load`: numpy arrays, and the
 chumpy arrays and scipy sparse matrices of the official SMPL ``.pkl`` files, as arrays)
-and handed to smplx parsed, so nothing in a tampered file runs. A missing file is a
+and handed to smplx parsed, so nothing in a tampered file runs (smplx's SMPL-X class
+reads a file itself: it gets a copy holding only the numeric arrays). A missing file is a
 :class:`BodyModelError` that names it, where to get it and where to put it.
 Tensors stay inside this module: callers get numpy arrays.
 """
@@ -36,12 +38,16 @@ WHERE = {
     "smplh": "the extended SMPL+H model used by AMASS from https://mano.is.tue.mpg.de "
              "(register, then 'Extended SMPL+H model': smplh.tar.xz, whose male/model.npz, "
              "female/model.npz and neutral/model.npz go here as they are)",
+    "smplx": "SMPL-X from https://smpl-x.is.tue.mpg.de (register, then 'Download SMPL-X "
+             "v1.1 (NPZ+PKL)': models/smplx/SMPLX_NEUTRAL.npz, SMPLX_MALE.npz and "
+             "SMPLX_FEMALE.npz; BEAT2's SMPLX_NEUTRAL_2020.npz is read too)",
 }
 # Names the files come with, accepted beside smplx's own (SMPL_NEUTRAL.pkl, ...).
 ORIGINAL_NAMES = {
     ("smpl", "neutral"): ("basicmodel_neutral_lbs_10_207_0_v1.1.0.pkl",),
     ("smpl", "male"): ("basicmodel_m_lbs_10_207_0_v1.1.0.pkl",),
     ("smpl", "female"): ("basicmodel_f_lbs_10_207_0_v1.1.0.pkl",),
+    ("smplx", "neutral"): ("SMPLX_NEUTRAL_2020.npz",),
 }
 
 
@@ -64,6 +70,9 @@ def candidates(kind: str, gender: str, root: Path) -> list[Path]:
     if kind == "smpl":
         names = [f"SMPL_{upper}.pkl", *ORIGINAL_NAMES.get((kind, gender), ())]
         return [root / "smpl" / name for name in names] + [root / name for name in names]
+    if kind == "smplx":
+        names = [f"SMPLX_{upper}.npz", *ORIGINAL_NAMES.get((kind, gender), ())]
+        return [root / "smplx" / name for name in names] + [root / name for name in names]
     return [root / "smplh" / f"SMPLH_{upper}.npz", root / "smplh" / f"SMPLH_{upper}.pkl",
             root / "smplh" / gender / "model.npz", root / f"SMPLH_{upper}.npz"]
 
@@ -163,13 +172,89 @@ class BodyModel:
         return np.einsum("jv,tvc->tjc", self.regressor, vertices).astype(np.float32)
 
 
+class SmplxModel:
+    """One SMPL-X model: pose parameters to joints (body, and hands) and vertices."""
+
+    HANDS = slice(25, 55)  # smplx's joint order: 22 body, jaw, eyes, 15 + 15 finger joints
+
+    def __init__(self, gender: str, path: Path):
+        import tempfile
+
+        import smplx
+        import torch
+
+        self.kind, self.gender, self.path = "smplx", gender, Path(path)
+        try:
+            data = safe_load.load_data(self.path)
+        except safe_load.RefusedObject as exc:
+            raise BodyModelError(str(exc)) from None
+        except safe_load.DataFileError as exc:
+            raise BodyModelError(f"{exc}; {WHERE['smplx']}") from None
+        if not isinstance(data, dict):
+            raise BodyModelError(f"{self.path} holds {type(data).__name__}, not a SMPL-X "
+                                 f"model; {WHERE['smplx']}")
+        arrays = {key: value for key, value in data.items() if isinstance(value, np.ndarray)
+                  and value.dtype != object}
+        width = arrays.get("shapedirs", np.zeros((1, 3, 0))).shape[-1]
+        self.n_betas = 300 if width >= 400 else 10
+        self.n_expressions = 100 if width >= 400 else 10
+        try:
+            with tempfile.TemporaryDirectory() as folder, \
+                    contextlib.redirect_stdout(io.StringIO()):
+                clean = Path(folder) / f"SMPLX_{gender.upper()}.npz"
+                np.savez(clean, **arrays)  # numbers only: smplx's np.load finds no pickle
+                self._model = smplx.SMPLX(str(clean), gender=gender, use_pca=False,
+                                          flat_hand_mean=True, num_betas=self.n_betas,
+                                          num_expression_coeffs=self.n_expressions,
+                                          ext="npz").eval()
+        except Exception as exc:
+            raise BodyModelError(f"{self.path} is not a readable SMPL-X model file "
+                                 f"({type(exc).__name__}: {exc}); {WHERE['smplx']}") from exc
+        self._torch = torch
+        self.faces = np.asarray(self._model.faces, dtype=np.int64)
+
+    def forward(self, poses, transl=None, betas=None, expression=None, hands: bool = False):
+        """Return joints ``(T, 22 or 52, 3)`` (the body's, then 30 finger joints with
+        ``hands``) and vertices of SMPL-X poses ``(T, 165)``: root 3, body 63, jaw 3,
+        eyes 3 + 3, left hand 45, right hand 45 (axis-angle)."""
+        torch = self._torch
+        poses = np.asarray(poses, dtype=np.float64)
+        frames = len(poses)
+
+        def tensor(values, width):
+            values = np.zeros((frames, width)) if values is None else np.asarray(values, float)
+            values = values.reshape(frames, -1)[:, :width]
+            values = np.pad(values, ((0, 0), (0, width - values.shape[1])))
+            return torch.as_tensor(values, dtype=torch.float32)
+
+        shape = np.zeros(self.n_betas) if betas is None else np.asarray(betas, float).ravel()
+        shape = np.tile(shape, (frames, 1))
+        arguments = {
+            "global_orient": tensor(poses[:, :3], 3), "body_pose": tensor(poses[:, 3:66], 63),
+            "jaw_pose": tensor(poses[:, 66:69], 3), "leye_pose": tensor(poses[:, 69:72], 3),
+            "reye_pose": tensor(poses[:, 72:75], 3),
+            "left_hand_pose": tensor(poses[:, 75:120], 45),
+            "right_hand_pose": tensor(poses[:, 120:165], 45),
+            "transl": tensor(transl, 3), "betas": tensor(shape, self.n_betas),
+            "expression": tensor(expression, self.n_expressions),
+        }
+        with torch.no_grad():
+            output = self._model(**arguments)
+        joints = output.joints.numpy().astype(np.float32)
+        joints = np.concatenate([joints[:, :22], joints[:, self.HANDS]], axis=1) if hands \
+            else joints[:, :22]
+        return joints, output.vertices.numpy().astype(np.float32)
+
+
 @lru_cache(maxsize=8)
-def _cached(kind: str, gender: str, path: str) -> BodyModel:
+def _cached(kind: str, gender: str, path: str):
+    if kind == "smplx":
+        return SmplxModel(gender, Path(path))
     return BodyModel(kind, gender, Path(path))
 
 
 def load_body_model(kind: str, gender: str = "neutral",
-                    root: str | Path | None = None) -> BodyModel:
+                    root: str | Path | None = None):
     """Return the body model of a kind and gender from the user's folder (cached)."""
     gender = str(gender).lower()
     path = find_body_model(kind, gender, root)

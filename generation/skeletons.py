@@ -178,13 +178,17 @@ def is_custom(name: str) -> bool:
 
 
 def side_of_name(name: str) -> str:
-    """Guess a joint's side from its name: ``LeftArm``, ``l_hip``, ``LHipJoint``, ``Right_knee``."""
+    """Guess a joint's side from its name: ``LeftArm``, ``l_hip``, ``LHipJoint``, ``Right_knee``,
+    ``UpperLeg_L``, ``thigh.R``."""
     plain = name.rsplit(":", 1)[-1]
     lower = plain.lower()
     if lower.startswith("left") or re.match(r"^[Ll](?:[A-Z_\-. ]|$)", plain):
         return "left"
     if lower.startswith("right") or re.match(r"^[Rr](?:[A-Z_\-. ]|$)", plain):
         return "right"
+    suffix = re.search(r"[_\-. ]([LlRr])$", plain)  # Bandai's UpperLeg_L, Blender's thigh.L
+    if suffix:
+        return "left" if suffix.group(1) in "Ll" else "right"
     if "left" in lower:
         return "left"
     if "right" in lower:

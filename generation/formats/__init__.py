@@ -13,9 +13,16 @@ options of each format are its ``load``'s keyword arguments:
 - ``humanml3d``, ``humanml3d_vec``: HumanML3D's ``new_joints`` and ``new_joint_vecs``;
 - ``joints``: ``.npy`` joint arrays (MoMask, T2M-GPT, MotionGPT, MotionDiffuse);
 - ``amass``: AMASS ``.npz`` pose parameters, through SMPL body models the user supplies;
+- ``smplx``: SMPL-X poses (BEAT2/EMAGE and AMASS SMPL-X ``.npz``, Motion-X ``.npy``), through
+  the user's SMPL-X model; ``hands`` keeps the finger joints;
 - ``motioncritic``: MotionCritic's ``.npz`` (rot6d SMPL parameters, 4 per file);
 - ``actor``: ACTOR's ``generation.npy`` of SMPL vertices;
-- ``auto``: any of these, detected from the content.
+- pose estimators, through the user's SMPL model, stood upright on the floor: ``wham``
+  (``person``, ``frame`` world or camera), ``phalp`` (4D-Humans; ``person``), ``vibe``
+  (``person``), ``tram``;
+- datasets and simulators: ``aistpp`` (AIST++ SMPL), ``phc`` (PHC motion libraries, z
+  up), ``amp_poselib`` (IsaacGym AMP's ``SkeletonMotion`` ``.npy``, its own skeleton);
+- ``auto``: any of these, detected from the content (every format's ``detect``).
 """
 
 from __future__ import annotations
@@ -27,7 +34,9 @@ from generation import ops
 from generation.formats import (
     a2m,
     actor,
+    aistpp,
     amass,
+    amp_poselib,
     auto,
     bvh,
     humanml3d,
@@ -36,6 +45,12 @@ from generation.formats import (
     mdm,
     motioncritic,
     npz,
+    phalp,
+    phc,
+    smplx_motions,
+    tram,
+    vibe,
+    wham,
 )
 from generation.formats.base import (
     FormatError,
@@ -46,9 +61,10 @@ from generation.formats.base import (
 )
 from generation.motion import Motion
 
-for _module in (a2m, actor, amass, auto, bvh, humanml3d, humanml3d_vec, joints, mdm,
-                motioncritic, npz):
+for _module in (a2m, actor, aistpp, amass, amp_poselib, auto, bvh, humanml3d, humanml3d_vec,
+                joints, mdm, motioncritic, npz, phalp, phc, tram, vibe, wham):
     register_format(_module.__name__.rsplit(".", 1)[-1])(_module)
+register_format("smplx")(smplx_motions)  # the module's name keeps the smplx package's free
 
 
 def format_options(format: str) -> list[str]:

@@ -80,3 +80,11 @@ def _classes(classes: np.ndarray, count: int, classes_path: Path, path: Path) ->
         raise FormatError(f"{classes_path}: class indices must be whole numbers from 0; "
                           f"got {classes.dtype} values {classes[:5].tolist()}")
     return classes.astype(np.int64)
+
+
+def detect(probe) -> str | None:
+    """Recognise Action2Motion's joints ``.npy`` when its class indices are given."""
+    shape = probe.shape
+    if shape is not None and probe.options.get("classes_path") and len(shape) in (3, 4):
+        return f"an array of shape {shape} with class indices: Action2Motion"
+    return None

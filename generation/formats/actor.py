@@ -59,3 +59,11 @@ def load(path: str | Path, body_models: str | Path | None = None, action_names=N
                                   meta={"file": str(path), "sample": sample, "class": action},
                                   vertices=surface, faces=model.faces))
     return finite_only(motions, path)
+
+
+def detect(probe) -> str | None:
+    """Recognise ACTOR's ``generation.npy``: vertices ``(S, A, V, 3, T)``."""
+    shape = probe.shape
+    if shape is not None and len(shape) == 5 and shape[3] == 3:
+        return f"an array of shape {shape}: (samples, actions, vertices, 3, T) (ACTOR)"
+    return None

@@ -91,3 +91,17 @@ def _gender(value) -> str:
     value = np.asarray(value).item()
     value = value.decode() if isinstance(value, bytes) else str(value)
     return value.strip().lower() or "neutral"
+
+
+def detect(probe) -> str | None:
+    """Recognise AMASS's SMPL+H or SMPL ``.npz`` (not its SMPL-X release)."""
+    if probe.suffix != ".npz" or not {"poses", "trans"} <= probe.keys:
+        return None
+    shape = probe.member_shape("poses")
+    kind = probe.member("surface_model_type")
+    if kind is not None and "smplx" in str(np.asarray(kind).item()).lower():
+        return None
+    if shape is not None and len(shape) == 2 and shape[1] in KINDS:
+        return (f"an .npz with poses {shape} and trans: AMASS "
+                f"{'SMPL+H' if shape[1] == 156 else 'SMPL'}")
+    return None

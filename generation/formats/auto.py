@@ -1,132 +1,163 @@
-"""Detect the format of a file or folder from its content, then read it with that format.
+"""Detect the format of each file from its content, then read it with that format.
 
-What is looked at, in order (the result's ``notes`` say what was found and why):
+Every format module has ``detect(probe)`` (see :mod:`generation.formats.probe`): the
+reason it recognises a file or folder, or ``None``. A file is the format whose detector
+recognises it; a folder is first offered whole (HumanML3D's ``new_joints/`` and
+``new_joint_vecs/`` layouts), else every motion file under it (``.npy``, ``.npz``,
+``.bvh``, ``.pkl``, ``.joblib``, ...) is detected alone and the files grouped by format.
+A folder of one format is read by that format as a folder (prompt files beside it work
+as they do there); a mixed folder is read file by file. Every group that reads is
+kept; the result's ``problems`` name each file skipped and why, its ``notes`` what was
+found (a table of format, skeleton, frame rate and count).
 
-- a folder with ``new_joint_vecs/`` or ``new_joints/``: ``humanml3d_vec`` / ``humanml3d``;
-- a folder: the format of its files, each detected alone (e.g. ``bvh``, ``joints``);
-- ``.bvh``: ``bvh``;
-- ``.npz`` with ``joints``, ``actions``, ``skeleton``: ``npz``; with ``arr_0`` holding
-  ``prompt`` and ``motion``: ``motioncritic``; with ``poses`` and ``trans``: ``amass``;
-- ``.npy`` holding a dict with ``vertices`` and ``faces``: ``mdm`` (a mesh file); with
-  ``motion`` and ``text``: ``mdm`` (``results.npy``); an array of shape
-  ``(S, A, V, 3, T)``: ``actor``; ``(T, 12 J - 1)``: ``humanml3d_vec``; ``(T, J, 3)`` or
-  ``(1, T, J, 3)``: ``joints``; ``(N, T, J*3)`` with ``classes_path``: ``a2m``.
-
-``options`` go to the detected format when it takes them; the others are ignored.
+``options`` go to each format that takes them; the others are ignored.
 """
 
 from __future__ import annotations
 
 import inspect
+from collections import Counter
 from pathlib import Path
 
-import numpy as np
+from generation.formats.base import (
+    FormatError,
+    MotionList,
+    get_format,
+    list_formats,
+    natural_key,
+)
+from generation.formats.probe import SUFFIXES, Probe
+from generation.motion import Motion, MotionError
 
-from generation import safe_load
-from generation.formats.base import FormatError, MotionList, get_format, natural_key
-from generation.motion import Motion
+IGNORED_STEMS = ("Mean", "Std")  # HumanML3D's normalisation arrays beside its features
 
 
-def detect(path: str | Path, classes_path=None) -> tuple[str, str]:
-    """Return ``(format, why)`` for a file or folder, or raise :class:`FormatError`."""
+def detectors() -> dict[str, object]:
+    """Return every format's detector by format name (``auto`` has none of its own)."""
+    return {name: get_format(name).detect for name in list_formats()
+            if name != "auto" and hasattr(get_format(name), "detect")}
+
+
+def detect(path: str | Path, options: dict | None = None) -> tuple[str, str]:
+    """Return ``(format, why)`` for one file (or a folder some format reads whole), or
+    raise :class:`FormatError` saying what was seen."""
     path = Path(path)
-    if path.is_dir():
-        for folder, fmt in (("new_joint_vecs", "humanml3d_vec"), ("new_joints", "humanml3d")):
-            if (path / folder).is_dir():
-                return fmt, f"a {folder}/ folder (HumanML3D's layout)"
-        if path.name in ("new_joint_vecs", "new_joints"):
-            return ("humanml3d_vec" if path.name == "new_joint_vecs" else "humanml3d",
-                    f"a {path.name} folder (HumanML3D's layout)")
-        files = sorted((f for f in path.rglob("*") if f.suffix.lower() in (".npy", ".npz", ".bvh")
-                        and f.stem not in ("Mean", "Std")), key=natural_key)
-        if not files:
-            raise FormatError(f"{path}: no .npy, .npz or .bvh files to detect a format from")
-        found = {}
-        for file in files:
-            try:
-                found.setdefault(detect(file, classes_path)[0], file)
-            except FormatError:
-                continue
-        if not found:
-            raise FormatError(f"{path}: no file in a known format (looked at {len(files)})")
-        fmt = max(found, key=lambda f: sum(1 for file in files if _same(file, found[f])))
-        return fmt, f"its files look like {fmt} (e.g. {found[fmt].name})"
-    if not path.is_file():
+    if not path.exists():
         raise FormatError(f"{path} does not exist")
-    suffix = path.suffix.lower()
-    if suffix == ".bvh":
-        return "bvh", "a .bvh file"
-    if suffix == ".npz":
-        return _detect_npz(path)
-    if suffix == ".npy":
-        return _detect_npy(path, classes_path)
-    raise FormatError(f"{path}: cannot tell the format of a {suffix or 'suffix-less'} file; "
-                      "pass --format")
+    probe = Probe(path, options)
+    found = [(name, why) for name, detector in detectors().items()
+             if (why := detector(probe)) is not None]
+    if found:
+        return found[0]
+    if path.is_dir():
+        raise FormatError(f"{path}: no format reads this folder whole")
+    if probe.suffix not in SUFFIXES:
+        raise FormatError(f"{path}: cannot tell the format of a {probe.suffix or 'suffix-less'} "
+                          f"file (motion files end in {', '.join(SUFFIXES)}); pass --format")
+    raise FormatError(f"{path}: {_seen(probe)}, which no format has; pass --format")
 
 
-def _same(file: Path, example: Path) -> bool:
-    return file.suffix.lower() == example.suffix.lower()
+def _seen(probe: Probe) -> str:
+    """Say what a file holds, for an error."""
+    if probe.shape is not None:
+        return f"an array of shape {probe.shape}"
+    if probe.keys:
+        return (f"a {probe.suffix} file with keys {', '.join(sorted(probe.keys)[:12])}"
+                f"{' ...' if len(probe.keys) > 12 else ''}")
+    content = probe.content
+    kind = type(content).__name__
+    if isinstance(content, (list, tuple)) and content:
+        kind += f" of {len(content)} {type(content[0]).__name__}"
+    return f"a {probe.suffix} file holding {kind}"
 
 
-def _detect_npz(path: Path) -> tuple[str, str]:
-    try:
-        keys = set(safe_load.npz_names(path))
-        data = safe_load.load_npz(path, only=["arr_0"]) if "arr_0" in keys else {}
-    except safe_load.RefusedObject as exc:
-        raise FormatError(str(exc)) from None
-    except safe_load.DataFileError as exc:
-        raise FormatError(f"{exc}; cannot tell its format") from None
-    if {"joints", "actions", "skeleton"} <= keys:
-        return "npz", "an .npz with joints, actions and skeleton (the interchange file)"
-    if "arr_0" in keys:
-        content = data["arr_0"]
-        if isinstance(content, np.ndarray) and content.dtype == object and content.shape == ():
-            content = content.item()
-        if isinstance(content, dict) and {"prompt", "motion"} <= set(content):
-            return "motioncritic", "an .npz whose arr_0 holds prompt and motion"
-    if {"poses", "trans"} <= keys:
-        return "amass", "an .npz with poses and trans (AMASS)"
-    raise FormatError(f"{path}: an .npz with keys {', '.join(sorted(keys))}, which no format "
-                      "has; pass --format")
+def survey(folder: Path, options: dict | None = None):
+    """Return the motion files under a folder grouped by format ``{format: [(file, why)]}``
+    and the files no format recognised ``[(file, reason)]``."""
+    files = sorted((f for f in Path(folder).rglob("*") if f.is_file()
+                    and f.suffix.lower() in SUFFIXES and f.stem not in IGNORED_STEMS),
+                   key=natural_key)
+    if not files:
+        raise FormatError(f"{folder}: no motion files ({', '.join(SUFFIXES)}) to detect a "
+                          "format from")
+    groups: dict[str, list[tuple[Path, str]]] = {}
+    skipped = []
+    for file in files:
+        try:
+            fmt, why = detect(file, options)
+        except FormatError as exc:
+            skipped.append((file, str(exc)))
+            continue
+        groups.setdefault(fmt, []).append((file, why))
+    return groups, skipped
 
 
-def _detect_npy(path: Path, classes_path) -> tuple[str, str]:
-    from generation.formats.humanml3d_vec import joints_of_features
-
-    try:
-        shape, dtype = safe_load.npy_header(path)
-        if dtype.hasobject:
-            value = safe_load.load_npy(path)
-    except safe_load.RefusedObject as exc:
-        raise FormatError(str(exc)) from None
-    except safe_load.DataFileError as exc:
-        raise FormatError(f"{exc}; cannot tell its format") from None
-    if dtype.hasobject:
-        content = value.item() if value.shape == () else value
-        if isinstance(content, dict) and {"vertices", "faces"} <= set(content):
-            return "mdm", "a dict with vertices and faces (MDM's *_smpl_params.npy)"
-        if isinstance(content, dict) and "motion" in content:
-            return "mdm", "a dict with motion and text (MDM's results.npy)"
-        raise FormatError(f"{path}: holds a {type(content).__name__}, which no format has")
-    if len(shape) == 5 and shape[3] == 3:
-        return "actor", f"an array of shape {shape}: (samples, actions, vertices, 3, T)"
-    if len(shape) == 2 and joints_of_features(shape[1]):
-        return "humanml3d_vec", f"an array of shape {shape}: HumanML3D features (T, 12 J - 1)"
-    if shape[-1:] == (3,) and (len(shape) == 3 or (len(shape) == 4 and shape[0] == 1)):
-        return "joints", f"an array of shape {shape}: joint positions (T, J, 3)"
-    if classes_path is not None and len(shape) in (3, 4):
-        return "a2m", f"an array of shape {shape} with class indices: Action2Motion"
-    raise FormatError(f"{path}: an array of shape {shape}, which no format has; pass --format")
+def _read(fmt: str, path: Path, options: dict):
+    module = get_format(fmt)
+    accepted = set(inspect.signature(module.load).parameters)
+    return module.load(path, **{k: v for k, v in options.items() if k in accepted})
 
 
 def load(path: str | Path, **options) -> list[Motion]:
-    """Detect the format (see the module docstring) and read the file or folder with it."""
-    fmt, why = detect(path, options.get("classes_path"))
-    module = get_format(fmt)
-    accepted = set(inspect.signature(module.load).parameters)
-    loaded = module.load(path, **{k: v for k, v in options.items() if k in accepted})
-    result = MotionList(problems=getattr(loaded, "problems", ()),
-                        notes=[f"{path}: detected format {fmt!r} ({why})"])
-    result.extend(loaded)
-    result.notes.extend(getattr(loaded, "notes", ()))
+    """Detect each file's format (see the module docstring) and read every group."""
+    path = Path(path)
+    if path.is_file() or not path.exists():
+        fmt, why = detect(path, options)
+        loaded = _read(fmt, path, options)
+        result = MotionList(problems=getattr(loaded, "problems", ()),
+                            notes=[f"{path}: detected format {fmt!r} ({why})"])
+        result.extend(loaded)
+        result.notes.extend(getattr(loaded, "notes", ()))
+        return result
+    whole = [(name, why) for name, detector in detectors().items()
+             if (why := detector(Probe(path, options))) is not None]
+    if whole:
+        fmt, why = whole[0]
+        result = MotionList(notes=[f"{path}: detected format {fmt!r} ({why})"])
+        return result.absorb(_read(fmt, path, options))
+    groups, skipped = survey(path, options)
+    result = MotionList(problems=[message if str(file) in message else f"{file}: {message}"
+                                  for file, message in skipped])
+    table = []
+    for fmt, members in groups.items():
+        files = [file for file, _ in members]
+        one_kind = len(groups) == 1 and not skipped
+        result.notes.append(f"{path}: detected format {fmt!r} for {len(files)} file"
+                            f"{'s' if len(files) > 1 else ''} ({members[0][1]}, e.g. "
+                            f"{files[0].name})")
+        group = MotionList()
+        if one_kind:
+            try:
+                group.absorb(_read(fmt, path, options))
+            except (FormatError, MotionError) as exc:
+                group.problems.append(f"{path} as {fmt}: {exc}")
+        else:
+            for file in files:
+                try:
+                    group.absorb(_read(fmt, file, options))
+                except (FormatError, MotionError) as exc:
+                    message = str(exc)
+                    group.problems.append(message if str(file) in message
+                                          else f"{file}: {message}")
+        result.absorb(group)
+        counts = Counter((motion.skeleton, motion.fps) for motion in group)
+        table += [(fmt, skeleton, fps, count) for (skeleton, fps), count in counts.items()]
+    if table:
+        result.notes.append(format_table(path, table))
+    if not result:
+        shown = "; ".join(result.problems[:3])
+        raise FormatError(f"{path}: no motions could be read: {shown}"
+                          f"{' ...' if len(result.problems) > 3 else ''}")
     return result
+
+
+def format_table(path: Path, rows) -> str:
+    """Return the table of what a folder held: format, skeleton, fps, count."""
+    header = ("format", "skeleton", "fps", "motions")
+    cells = [header] + [(fmt, skeleton, f"{fps:g}", str(count)) for fmt, skeleton, fps, count
+                        in rows]
+    widths = [max(len(row[i]) for row in cells) for i in range(4)]
+    lines = [f"{path}: found"] + ["  " + "  ".join(cell.ljust(width) for cell, width
+                                                  in zip(row, widths)).rstrip()
+                                  for row in cells]
+    return "\n".join(lines)

@@ -232,6 +232,8 @@ def load_each(files: list[Path], load_one: Callable[[Path], list], what: str) ->
         except (FormatError, MotionError) as exc:
             message = str(exc)
             result.problems.append(message if str(path) in message else f"{path}: {message}")
+    if not result and len(files) == 1:
+        raise FormatError(result.problems[0])  # one file: its own error, naming it
     if not result:
         shown = "; ".join(result.problems[:3])
         more = f" (and {len(result.problems) - 3} more)" if len(result.problems) > 3 else ""
@@ -306,3 +308,16 @@ def prompts_for(files: list[Path], prompts, source: Path) -> list[str]:
                           "give one line per file in name order, or a CSV with file and text "
                           "columns")
     return list(prompts)
+
+
+_WORD = re.compile(r"^[A-Za-z']+$")
+
+
+def prompt_from_name(stem: str) -> str | None:
+    """Return the prompt a file's name spells, as text-to-motion demos (T2M-GPT, MotionGPT)
+    save it: ``a_person_is_boxing`` -> ``"a person is boxing"``; ``None`` for names that
+    are not a sentence (fewer than three words, or any with digits: ``sample0_repeat1``)."""
+    words = [word for word in re.split(r"[_\s]+", stem.strip()) if word]
+    if len(words) < 3 or not all(_WORD.match(word) for word in words):
+        return None
+    return " ".join(words)

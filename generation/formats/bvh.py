@@ -1,11 +1,15 @@
-"""BVH motion capture files (CMU, Mixamo, MoMask, smpl2bvh, ...): parse, forward kinematics,
-map to a skeleton.
+"""BVH motion capture files (CMU, Mixamo, Bandai-Namco, LAFAN1, MoMask, smpl2bvh, Blender,
+MotionBuilder, ...): parse, forward kinematics, map to a skeleton, write.
 
 :func:`load` (the ``bvh`` format) reads a file, or a folder of them, one motion per file:
 as the file's own skeleton (its hierarchy becomes a custom skeleton, drawn and used in a
-study as it is), or mapped onto a project skeleton (``skeleton``: ``smpl22``, ``smpl24``,
+study as it is; sides from ``Left``/``Right``, ``l_``/``r_``, ``_L``/``_R``, ``.L``/``.R``;
+a static root that never turns, such as Bandai-Namco's ``joint_Root``, is a locator and
+left out), or mapped onto a project skeleton (``skeleton``: ``smpl22``, ``smpl24``,
 ``humanact12``, ``h36m17``) through the built-in maps of SMPL-, HumanML3D- (MoMask's
-``joints2bvh``), CMU- and Mixamo-style joint names. :func:`read` parses one file.
+``joints2bvh``), LAFAN1-, Bandai-Namco-, CMU- and Mixamo-style joint names (a prefix every
+joint shares, ``mixamorig:`` or MotionBuilder's ``Character1_``, is ignored).
+:func:`read` parses one file; :func:`save` writes a motion's joints as BVH.
 
 A BVH file has two parts:
 
@@ -17,9 +21,16 @@ A BVH file has two parts:
   every channel's value in hierarchy order; rotations in degrees.
 
 Forward kinematics: a joint's transform in its parent's frame is the translation by its
-offset followed by its channels in the order listed (``Zrotation Yrotation Xrotation``
-gives ``R = Rz @ Ry @ Rx``); its world position is the translation of the product of the
+offset, whose components its position channels replace (Holden's reader, the one LAFAN1
+uses: Mixamo's root OFFSET holds the rest hip height and its channels absolute hip
+positions; Bandai-Namco and Blender repeat every joint's offset in six channels), then
+its rotation channels in the order listed (``Zrotation Yrotation Xrotation`` gives
+``R = Rz @ Ry @ Rx``); its world position is the translation of the product of the
 transforms from the root down.
+
+A figure whose largest extent is outside 1.0-2.3 m, or whose lowest joint is more than
+0.25 m off the floor (up = 0), gets a warning (the result's ``notes``) saying what was
+assumed: the unit and how it was chosen, the up axis, the floor.
 
 Units: BVH files carry none. ``scale`` is metres per file unit: a number, a unit name of
 :data:`UNITS`, or ``"auto"`` (the default), which picks the unit that makes the rest pose
@@ -40,14 +51,17 @@ else the file's name.
 
 from __future__ import annotations
 
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from generation.formats.bvh_names import END_SUFFIX, JOINT_MAPS
 from generation.formats.base import (
     FormatError,
+    MotionList,
     files_in,
     load_each,
     prompt_file_beside,
@@ -62,66 +76,6 @@ UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "inch": 0.0254, "cmu": 0.0254 / 0.45
 TYPICAL_HEIGHT = 1.7  # metres
 CHANNELS = {f"{axis}{kind}": (kind, i) for i, axis in enumerate("XYZ")
             for kind in ("position", "rotation")}
-END_SUFFIX = "_End"  # an End Site is named after its joint: Head -> Head_End
-
-# Built-in maps from BVH joint names to project joints, tried in order; the first whose
-# every joint the file has is used. Names are compared ignoring case and a namespace
-# prefix ("mixamorig:Hips" is "Hips").
-_LEGS_H36M = {"RHip": "RightUpLeg", "RKnee": "RightLeg", "RFoot": "RightFoot",
-              "LHip": "LeftUpLeg", "LKnee": "LeftLeg", "LFoot": "LeftFoot"}
-_ARMS_H36M = {"LShoulder": "LeftArm", "LElbow": "LeftForeArm", "LWrist": "LeftHand",
-              "RShoulder": "RightArm", "RElbow": "RightForeArm", "RWrist": "RightHand"}
-_LIMBS_SMPL = {"left_hip": "LeftUpLeg", "right_hip": "RightUpLeg", "left_knee": "LeftLeg",
-               "right_knee": "RightLeg", "left_ankle": "LeftFoot", "right_ankle": "RightFoot",
-               "left_foot": "LeftToeBase", "right_foot": "RightToeBase",
-               "left_collar": "LeftShoulder", "right_collar": "RightShoulder",
-               "left_shoulder": "LeftArm", "right_shoulder": "RightArm",
-               "left_elbow": "LeftForeArm", "right_elbow": "RightForeArm",
-               "left_wrist": "LeftHand", "right_wrist": "RightHand"}
-_SMPL_NAMES = ("pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee",
-               "spine2", "left_ankle", "right_ankle", "spine3", "left_foot", "right_foot",
-               "neck", "left_collar", "right_collar", "head", "left_shoulder",
-               "right_shoulder", "left_elbow", "right_elbow", "left_wrist", "right_wrist",
-               "left_hand", "right_hand")
-_SIDES = (("left", "Left"), ("right", "Right"))
-# MoMask's joints2bvh (HumanML3D's 22 joints), and the 24 of its smpl2bvh.
-_HUMANML3D = {
-    "pelvis": "Hips", "spine1": "Spine", "spine2": "Spine1", "spine3": "Spine2",
-    "neck": "Neck", "head": "Head",
-    **{f"{side}_{joint}": f"{Side}{bvh}" for side, Side in _SIDES for joint, bvh in (
-        ("hip", "UpLeg"), ("knee", "Leg"), ("ankle", "Foot"), ("foot", "Toe"),
-        ("collar", "Shoulder"), ("shoulder", "Arm"), ("elbow", "ForeArm"), ("wrist", "Hand"),
-        ("hand", "Thumb"))},
-}
-# SMPL names as smpl2bvh writes them: Pelvis, Left_hip, ... (compared ignoring case).
-_SMPL_STYLE = {name: name for name in _SMPL_NAMES}
-_SMPL_PALM = {**_SMPL_STYLE, "left_hand": "Left_palm", "right_hand": "Right_palm"}
-JOINT_MAPS: dict[str, dict[str, dict[str, str]]] = {
-    "h36m17": {
-        # CMU's Neck starts where Spine1 ends, between the shoulders; Head is the skull's
-        # base and its End Site the top of the head.
-        "cmu": {"Hip": "Hips", "Spine": "Spine", "Thorax": "Neck", "Neck/Nose": "Head",
-                "Head": "Head" + END_SUFFIX, **_LEGS_H36M, **_ARMS_H36M},
-        "mixamo": {"Hip": "Hips", "Spine": "Spine1", "Thorax": "Neck", "Neck/Nose": "Head",
-                   "Head": "HeadTop_End", **_LEGS_H36M, **_ARMS_H36M},
-    },
-    "humanact12": {
-        # CMU's spine has two joints below the neck; its Neck1 (mid-neck) stands in for
-        # SMPL's spine3 so that no bone has zero length.
-        "cmu": {"pelvis": "Hips", "spine1": "Spine", "spine2": "Spine1", "spine3": "Neck1",
-                "neck": "Head", "head": "Head" + END_SUFFIX, "left_hand": "LeftHandIndex1",
-                "right_hand": "RightHandIndex1", **_LIMBS_SMPL},
-        "mixamo": {"pelvis": "Hips", "spine1": "Spine", "spine2": "Spine1", "spine3": "Spine2",
-                   "neck": "Neck", "head": "Head", "left_hand": "LeftHandMiddle1",
-                   "right_hand": "RightHandMiddle1", **_LIMBS_SMPL},
-        "smpl": _SMPL_STYLE,
-        "smpl_palm": _SMPL_PALM,
-        "humanml3d": _HUMANML3D,
-    },
-}
-# smpl24 has humanact12's joints; smpl22 its first 22 (the maps' extra joints are unused).
-JOINT_MAPS["smpl24"] = JOINT_MAPS["humanact12"]
-JOINT_MAPS["smpl22"] = JOINT_MAPS["humanact12"]
 
 
 class BvhError(FormatError):
@@ -136,6 +90,9 @@ class BvhMotion:
     the End Sites (named ``<joint>_End``, indices in ``end_sites``) in file order;
     ``offsets`` ``(J, 3)`` and ``positions`` ``(T, J, 3)`` are in metres, in the file's
     axes (``up`` names the vertical one); ``scale`` is the metres per file unit used.
+    ``locators`` are roots that only place the figure (a static ``joint_Root`` on the
+    floor, without rotation): not bones. ``warnings`` say what was assumed of a figure
+    whose size or height above the floor is implausible.
     """
 
     joint_names: tuple[str, ...]
@@ -147,6 +104,8 @@ class BvhMotion:
     up: str = "y"
     end_sites: tuple[int, ...] = ()
     path: str = ""
+    locators: tuple[int, ...] = ()
+    warnings: tuple[str, ...] = ()
 
     @property
     def frames(self) -> int:
@@ -187,10 +146,12 @@ def load(path: str | Path, skeleton: str | None = None, action: str | None = Non
     def one(file: Path, text: str | None) -> list[Motion]:
         parsed = read(file, scale, up)
         label = action or text or file.stem
+        notes = [f"warning: {warning}" for warning in parsed.warnings]
         if not skeleton:
-            return [own_skeleton(parsed, label, source, text)]
+            return MotionList([own_skeleton(parsed, label, source, text)], notes=notes)
         try:
-            return [to_skeleton(parsed, skeleton, mapping, label, source, text)]
+            return MotionList([to_skeleton(parsed, skeleton, mapping, label, source, text)],
+                              notes=notes)
         except KeyError as exc:  # an unknown skeleton name
             raise BvhError(exc.args[0]) from None
 
@@ -218,6 +179,8 @@ def read(path: str | Path, scale: float | str = "auto", up: str = "y") -> BvhMot
     offsets = np.array([j.offset for j in joints], dtype=np.float64)
     metres = _scale(scale, rest_pose(offsets, parents), path)
     positions = _forward_kinematics(joints, values) * metres
+    locators = _locators(joints, values, positions)
+    warnings = _implausible(positions, locators, up, metres, scale, path)
     return BvhMotion(
         joint_names=tuple(j.name for j in joints),
         parents=tuple(parents),
@@ -228,7 +191,53 @@ def read(path: str | Path, scale: float | str = "auto", up: str = "y") -> BvhMot
         up=up,
         end_sites=tuple(i for i, j in enumerate(joints) if j.end_site),
         path=str(path),
+        locators=locators,
+        warnings=tuple(warnings),
     )
+
+
+def _locators(joints: list[_Joint], values: np.ndarray, positions: np.ndarray) -> tuple[int, ...]:
+    """Return the root if it only places the figure: it never turns, never moves, and
+    carries one joint (Bandai-Namco's ``joint_Root`` on the floor under ``Hips``)."""
+    children = [i for i, j in enumerate(joints) if j.parent == 0 and not j.end_site]
+    if len(children) != 1 or joints[children[0]].end_site:
+        return ()
+    root = joints[0]
+    columns = [c for c, (kind, _) in enumerate(root.channels) if kind == "rotation"]
+    turns = bool(columns) and bool(np.ptp(values[:, columns], axis=0).max() > 1e-6
+                                   or np.abs(values[:, columns]).max() > 1e-6)
+    moves = float(np.ptp(positions[:, 0], axis=0).max()) > 1e-6
+    return () if turns or moves else (0,)
+
+
+PLAUSIBLE_HEIGHT = (1.0, 2.3)  # metres
+FLOOR_TOLERANCE = 0.25  # metres between the lowest joint and the floor
+
+
+def _implausible(positions: np.ndarray, locators, up: str, metres: float, scale,
+                 path: Path) -> list[str]:
+    """Return warnings for a figure of implausible size or height above the floor, saying
+    what was assumed (the unit, the up axis, the floor at zero)."""
+    body = positions[:, [j for j in range(positions.shape[1]) if j not in locators]]
+    axis = "xyz".index(up)
+    unit = next((name for name, value in UNITS.items() if value == metres), f"{metres:g} m")
+    how = "guessed from the rest pose" if scale == "auto" else "as given"
+    warnings = []
+    size = float(np.median(np.ptp(body, axis=1).max(axis=1)))
+    low, high = PLAUSIBLE_HEIGHT
+    if not low <= size <= high:
+        warnings.append(
+            f"{path.name}: the figure is {size:.2f} m tall (its largest extent), outside a "
+            f"plausible {low}-{high} m; assumed the unit {unit} ({how}); if that is wrong "
+            f"pass --scale (one of {', '.join(UNITS)}, or metres per unit)")
+    lowest = float(np.median(body[:, :, axis].min(axis=1)))
+    if abs(lowest) > FLOOR_TOLERANCE:
+        where = "above" if lowest > 0 else "below"
+        warnings.append(
+            f"{path.name}: the lowest joint is {abs(lowest):.2f} m {where} the floor (median "
+            f"over frames); assumed {up} up and the floor at {up} = 0; if the file is not "
+            f"{up} up pass --up, else it is drawn as it is, off the floor")
+    return warnings
 
 
 def _parse_hierarchy(text: str, path: Path) -> list[_Joint]:
@@ -427,21 +436,28 @@ def _rotations(axis: int, degrees: np.ndarray) -> np.ndarray:
 
 
 def _forward_kinematics(joints: list[_Joint], values: np.ndarray) -> np.ndarray:
-    """Return world positions ``(T, J, 3)`` (file units) from channel values ``(T, C)``."""
+    """Return world positions ``(T, J, 3)`` (file units) from channel values ``(T, C)``.
+
+    A joint's position channels replace its OFFSET along their axes (as Holden's reader,
+    the one LAFAN1 and much motion research use, reads them): Mixamo writes the rest hip
+    height in the root's OFFSET and absolute hip positions in its channels, Bandai-Namco
+    repeats every joint's offset in its six channels; adding the two would float the one
+    and double the bones of the other. Rotations follow in the order listed.
+    """
     frames = values.shape[0]
     world = np.empty((len(joints), frames, 4, 4))
     column = 0
     for index, joint in enumerate(joints):
         local = np.tile(np.eye(4), (frames, 1, 1))
         local[:, :3, 3] = joint.offset
+        turn = np.tile(np.eye(3), (frames, 1, 1))
         for kind, axis in joint.channels:
-            step = np.tile(np.eye(4), (frames, 1, 1))
             if kind == "position":
-                step[:, axis, 3] = values[:, column]
+                local[:, axis, 3] = values[:, column]
             else:
-                step[:, :3, :3] = _rotations(axis, values[:, column])
-            local = local @ step
+                turn = turn @ _rotations(axis, values[:, column])
             column += 1
+        local[:, :3, :3] = turn
         world[index] = local if joint.parent < 0 else world[joint.parent] @ local
     return world[:, :, :3, 3].transpose(1, 0, 2)
 
@@ -452,6 +468,15 @@ up_rotation = axis_rotation  # the rotation taking one axis onto another
 def _plain(name: str) -> str:
     """Return a joint name without a namespace prefix, lower case: 'mixamorig:Hips' -> 'hips'."""
     return name.rsplit(":", 1)[-1].lower()
+
+
+def _shared_prefix(names) -> str:
+    """Return the prefix every joint name shares up to a ``_`` or ``:`` (MotionBuilder's
+    ``Character1_Hips``, ``Character1_LeftUpLeg``), or ``""``."""
+    names = [name for name in names if not name.endswith(END_SUFFIX)]
+    common = os.path.commonprefix(names) if len(names) > 1 else ""
+    cut = max(common.rfind("_"), common.rfind(":"))
+    return common[:cut + 1] if cut >= 0 else ""
 
 
 def joint_map(bvh: BvhMotion, skeleton_name: str,
@@ -469,12 +494,17 @@ def joint_map(bvh: BvhMotion, skeleton_name: str,
                        f"{skeleton.name}; its joints are {', '.join(skeleton.joint_names)}")
     exact = {name: i for i, name in reversed(list(enumerate(bvh.joint_names)))}
     plain = {_plain(name): i for i, name in reversed(list(enumerate(bvh.joint_names)))}
+    prefix = _shared_prefix(bvh.joint_names)
+    if prefix:
+        plain.update({_plain(name[len(prefix):]): i for i, name
+                      in reversed(list(enumerate(bvh.joint_names))) if name.startswith(prefix)})
 
     def find(name: str) -> int | None:
         return exact.get(name, plain.get(_plain(name)))
 
-    candidates = [{**built_in, **mapping}
-                  for built_in in JOINT_MAPS.get(skeleton.name, {}).values()] or [mapping]
+    own_names = {name: name for name in skeleton.joint_names}  # what :func:`save` writes
+    candidates = [{**built_in, **mapping} for built_in in
+                  (*JOINT_MAPS.get(skeleton.name, {}).values(), own_names)]
     best = min(candidates, key=lambda names: sum(
         find(names.get(joint, "")) is None for joint in skeleton.joint_names))
     missing = [joint for joint in skeleton.joint_names if find(best.get(joint, "")) is None]
@@ -496,12 +526,13 @@ def own_skeleton(bvh: BvhMotion, action: str = "unlabelled", source: str = "real
     """Return the BVH's joints as a motion of its own (custom) skeleton, in its own axes.
 
     End Sites that add no length (an offset of zero) are left out; the others mark the
-    tips of the chains (head top, toes, fingers) and are kept.
+    tips of the chains (head top, toes, fingers) and are kept. A locator root is left out
+    (its joint becomes the root): it is not a bone.
     """
-    keep = [j for j in range(bvh.n_joints)
-            if j not in bvh.end_sites or np.linalg.norm(bvh.offsets[j]) > 1e-6]
+    keep = [j for j in range(bvh.n_joints) if j not in bvh.locators
+            and (j not in bvh.end_sites or np.linalg.norm(bvh.offsets[j]) > 1e-6)]
     index = {old: new for new, old in enumerate(keep)}
-    parents = [index[bvh.parents[j]] if bvh.parents[j] >= 0 else -1 for j in keep]
+    parents = [index.get(bvh.parents[j], -1) if bvh.parents[j] >= 0 else -1 for j in keep]
     names = [bvh.joint_names[j] for j in keep]
     skeleton = custom_skeleton(names, parents, up=bvh.up, units="m", prefix="bvh",
                                description=f"the hierarchy of {Path(bvh.path).name}")
@@ -530,3 +561,62 @@ def to_skeleton(bvh: BvhMotion, skeleton_name: str, mapping: dict[str, str] | No
             "bvh_joints": {name: bvh.joint_names[i] for name, i in indices.items()}}
     return Motion(joints / per_unit, skeleton.name, bvh.fps, action, source, meta=meta,
                   text=text)
+
+
+def save(path: str | Path, motion: Motion, units: str = "cm") -> Path:
+    """Write a motion's joints as a BVH file (y up, in ``units``) and return its path.
+
+    Joints are positions, not rotations, so every joint gets six channels whose positions
+    are its place relative to its parent in each frame (rotations zero), the layout the
+    Bandai-Namco dataset and Blender's exporter use: position channels replace the OFFSET
+    (which holds the first frame's), so this reader, Holden's and Blender's read the same
+    joints back. Names are the skeleton's; leaves end in a zero End Site. Reading it back
+    with the motion's skeleton (``load(path, skeleton=..., scale=units)``) gives the joints.
+    """
+    skeleton = get_skeleton(motion.skeleton)
+    if skeleton.dims != 3:
+        raise BvhError(f"skeleton {skeleton.name!r} is {skeleton.dims}D; BVH holds 3D joints")
+    roots = [j for j, parent in enumerate(skeleton.parents) if parent < 0]
+    if len(roots) != 1:
+        raise BvhError(f"skeleton {skeleton.name!r} has {len(roots)} roots; BVH has one ROOT")
+    if units not in UNITS:
+        raise BvhError(f"units {units!r}; one of {', '.join(UNITS)}")
+    per_unit = (skeleton.metres_per_unit or 1.0) / UNITS[units]
+    turn = axis_rotation(skeleton.up, "y")
+    joints = (np.asarray(motion.joints, np.float64) * per_unit) @ turn.T
+    parents = skeleton.parents
+    local = joints - np.where(np.array(parents)[None, :, None] >= 0,
+                              joints[:, [max(p, 0) for p in parents]], 0.0)
+    children: dict[int, list[int]] = {}
+    for joint, parent in enumerate(parents):
+        children.setdefault(parent, []).append(joint)
+    lines = ["HIERARCHY"]
+    order: list[int] = []
+
+    def block(joint: int, depth: int) -> None:
+        tab = "\t" * depth
+        name = re.sub(r"\s+", "_", skeleton.joint_names[joint])
+        lines.extend([f"{tab}{'ROOT' if parents[joint] < 0 else 'JOINT'} {name}", f"{tab}{{",
+                      f"{tab}\tOFFSET {' '.join(f'{v:.6f}' for v in local[0, joint])}",
+                      f"{tab}\tCHANNELS 6 Xposition Yposition Zposition Zrotation Yrotation "
+                      "Xrotation"])
+        order.append(joint)
+        for child in children.get(joint, []):
+            block(child, depth + 1)
+        if joint not in children:
+            lines.extend([f"{tab}\tEnd Site", f"{tab}\t{{", f"{tab}\t\tOFFSET 0 0 0", f"{tab}\t}}"])
+        lines.append(f"{tab}}}")
+
+    block(roots[0], 0)
+    values = np.concatenate([local[:, order], np.zeros_like(local[:, order])], axis=2)
+    lines += ["MOTION", f"Frames: {motion.frames}", f"Frame Time: {1.0 / motion.fps:.8f}"]
+    lines += [" ".join(f"{v:.6f}" for v in row) for row in values.reshape(motion.frames, -1)]
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+def detect(probe) -> str | None:
+    """Recognise a ``.bvh`` file."""
+    return "a .bvh file" if probe.suffix == ".bvh" else None

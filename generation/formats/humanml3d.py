@@ -122,3 +122,11 @@ def motion_of(file: Path, joints: np.ndarray, skeleton: str, texts: Path | None,
             "captions": [(c.text, c.start, c.end) for c in captions]}
     return Motion(joints.astype(np.float32), skeleton, file_fps or FPS[skeleton],
                   action or UNKNOWN_ACTION, source, meta=meta, text=caption_of(captions))
+
+
+def detect(probe) -> str | None:
+    """Recognise a HumanML3D folder with ``new_joints/`` (its files alone are ``joints``)."""
+    if probe.path.is_dir() and (probe.path.name == "new_joints"
+                                or (probe.path / "new_joints").is_dir()):
+        return "a new_joints/ folder (HumanML3D's layout)"
+    return None

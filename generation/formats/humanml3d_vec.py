@@ -127,3 +127,15 @@ def load(path: str | Path, mean: str | Path | None = None, std: str | Path | Non
 
 
 __all__ = ["load", "recover_from_ric", "recover_root"]
+
+
+def detect(probe) -> str | None:
+    """Recognise a ``new_joint_vecs`` folder, or an array of HumanML3D features."""
+    if probe.path.is_dir():
+        if probe.path.name == "new_joint_vecs" or (probe.path / "new_joint_vecs").is_dir():
+            return "a new_joint_vecs/ folder (HumanML3D's layout)"
+        return None
+    shape = probe.shape
+    if shape is not None and len(shape) == 2 and joints_of_features(shape[1]):
+        return f"an array of shape {shape}: HumanML3D features (T, 12 J - 1)"
+    return None

@@ -10,8 +10,9 @@ defaults to 20 (KIT-ML 12.5), the rate these models generate at.
 Prompts come from ``texts`` (a file), else a ``prompts.txt``/``prompts.csv`` beside the
 files: one line per file in name order, line ``k + 1`` for files named ``sample<k>...``
 (MoMask's repeats share their prompt), or a CSV with ``file`` and ``text`` columns;
-else from a ``<name>.txt`` beside each file (its first line). See
-:func:`generation.formats.base.read_prompts`.
+else from a ``<name>.txt`` beside each file (its first line), else from the file's name
+when it spells one (T2M-GPT's and MotionGPT's demos save ``a_person_is_boxing.npy``:
+"a person is boxing"). See :func:`generation.formats.base.read_prompts`.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from generation.formats.base import (
     files_in,
     load_each,
     prompt_file_beside,
+    prompt_from_name,
     prompts_for,
     read_npy,
     read_prompts,
@@ -72,10 +74,21 @@ def load(path: str | Path, skeleton: str | None = None, texts: str | Path | None
 
 
 def _own_prompt(file: Path) -> str | None:
-    """Return the first line of ``<name>.txt`` beside a file, if there is one."""
+    """Return the first line of ``<name>.txt`` beside a file, else the prompt its name
+    spells (``a_person_is_boxing.npy``), if any."""
     beside = file.with_suffix(".txt")
     if not beside.is_file():
-        return None
+        return prompt_from_name(file.stem)
     lines = [line.split("#", 1)[0].strip() for line in beside.read_text(
         encoding="utf-8", errors="replace").splitlines() if line.strip()]
     return lines[0] if lines else None
+
+
+def detect(probe) -> str | None:
+    """Recognise an ``.npy`` of joint positions ``(T, J, 3)`` or ``(1, T, J, 3)``."""
+    shape = probe.shape
+    if shape is None or probe.options.get("classes_path") or shape[-1:] != (3,):
+        return None
+    if len(shape) == 3 or (len(shape) == 4 and shape[0] == 1):
+        return f"an array of shape {shape}: joint positions (T, J, 3)"
+    return None

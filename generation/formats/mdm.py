@@ -181,3 +181,15 @@ def _params_joints(path: Path, vertices: np.ndarray, length: int, text, body_mod
         raise FormatError(f"{path}: its joints are in results.npy beside it (not found), or "
                           f"come from the SMPL model: {exc}") from None
     return model.regress(vertices)[:, :22], vertices, text
+
+
+def detect(probe) -> str | None:
+    """Recognise MDM's ``results.npy`` (motion and text) and ``*_smpl_params.npy``."""
+    if probe.suffix != ".npy" or probe.shape is not None:
+        return None
+    content = probe.content
+    if isinstance(content, dict) and {"vertices", "faces"} <= set(content):
+        return "a dict with vertices and faces (MDM's *_smpl_params.npy)"
+    if isinstance(content, dict) and "motion" in content:
+        return "a dict with motion and text (MDM's results.npy)"
+    return None

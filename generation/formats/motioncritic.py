@@ -73,3 +73,12 @@ def _one(path: Path, body_models, file_fps, with_vertices: bool, source: str) ->
                              meta={"file": str(path), "choice": "ABCD"[index % 4]}, text=text,
                              **body))
     return finite_only(result, path)
+
+
+def detect(probe) -> str | None:
+    """Recognise MotionCritic's ``.npz``: ``arr_0`` holding prompt and motion."""
+    if probe.suffix == ".npz" and "arr_0" in probe.keys:
+        content = probe.member("arr_0")
+        if isinstance(content, dict) and {"prompt", "motion"} <= set(content):
+            return "an .npz whose arr_0 holds prompt and motion (MotionCritic)"
+    return None

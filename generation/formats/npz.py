@@ -238,3 +238,10 @@ def _read_bodies(arrays: dict, count: int, frames: int, path: Path):
                           f"({count}, {frames}, V, 3)")
     check_finite(vertices, path, "vertices")
     return vertices, faces
+
+
+def detect(probe) -> str | None:
+    """Recognise the interchange file by its members."""
+    if probe.suffix == ".npz" and {"joints", "actions", "skeleton"} <= probe.keys:
+        return "an .npz with joints, actions and skeleton (the interchange file)"
+    return None

@@ -104,6 +104,15 @@ def load_config(path, overrides=()) -> StudyConfig:
     return parse(raw, path.resolve().parent)
 
 
+def resolved_mapping(path, overrides=()) -> dict:
+    """Return the fields of the config at ``path`` as built: ``extends`` merged and the
+    ``path=value`` overrides applied (what ``build_stimuli`` keeps beside the manifest)."""
+    raw = _read_mapping(Path(path))
+    for override in overrides:
+        apply_override(raw, override)
+    return raw
+
+
 def _read_mapping(path: Path, depth: int = 0) -> dict:
     try:
         raw = yaml.safe_load(path.read_text())

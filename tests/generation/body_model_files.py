@@ -86,3 +86,47 @@ def write_smplh(root, gender="male"):
     path.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(path, **arrays)
     return path
+
+
+SMPLX_VERTICES = 10475
+SMPLX_PARENTS = tuple(SMPL_PARENTS[:22]) + (15, 15, 15) + tuple(
+    parent for wrist in (20, 21) for finger in range(5)
+    for parent in (wrist, 25 + (wrist - 20) * 15 + finger * 3, 26 + (wrist - 20) * 15 + finger * 3))
+
+
+def smplx_rest_joints() -> np.ndarray:
+    """Return the SMPL-X rest joints (55, 3): the body's 22, jaw and eyes, 30 fingers."""
+    body = rest_joints(52)
+    face = [body[15] + (0, 0.02, 0.08), body[15] + (0.03, 0.06, 0.09), body[15] + (-0.03, 0.06, 0.09)]
+    return np.concatenate([body[:22], face, body[22:]])
+
+
+def write_smplx(root, gender="NEUTRAL"):
+    """Write ``root/smplx/SMPLX_<GENDER>.npz`` (10 shape and 10 expression directions, as
+    smplx's small models) and return its path."""
+    count = 55
+    rng = np.random.default_rng(1)
+    joints = smplx_rest_joints()
+    owner = np.arange(SMPLX_VERTICES) % count
+    offsets = rng.normal(scale=0.03, size=(SMPLX_VERTICES, 3))
+    for joint in range(count):
+        offsets[owner == joint] -= offsets[owner == joint].mean(axis=0)
+    regressor = np.zeros((count, SMPLX_VERTICES))
+    for joint in range(count):
+        regressor[joint, owner == joint] = 1.0 / np.sum(owner == joint)
+    weights = np.zeros((SMPLX_VERTICES, count))
+    weights[np.arange(SMPLX_VERTICES), owner] = 1.0
+    faces = np.array([[i, i + count, i + 2 * count] for i in range(SMPLX_VERTICES - 2 * count)])
+    path = root / "smplx" / f"SMPLX_{gender}.npz"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(
+        path, v_template=joints[owner] + offsets,
+        shapedirs=np.zeros((SMPLX_VERTICES, 3, 20), np.float32),
+        posedirs=np.zeros((SMPLX_VERTICES, 3, (count - 1) * 9), np.float32),
+        J_regressor=regressor, weights=weights, f=faces.astype(np.uint32),
+        kintree_table=np.array([[4294967295] + list(SMPLX_PARENTS[1:]), list(range(count))]),
+        hands_componentsl=np.eye(45), hands_componentsr=np.eye(45),
+        hands_meanl=np.zeros(45), hands_meanr=np.zeros(45),
+        lmk_faces_idx=np.arange(51), lmk_bary_coords=np.full((51, 3), 1 / 3),
+        joint2num=np.array({"pelvis": 0}, dtype=object))
+    return path

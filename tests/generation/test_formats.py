@@ -267,7 +267,8 @@ def test_bvh_up_rotation():
 
 def test_load_motions_dispatches_resamples_and_relabels(tmp_path):
     assert {"a2m", "bvh", "npz", "mdm", "humanml3d", "humanml3d_vec", "joints", "amass",
-            "motioncritic", "actor", "auto"} == set(list_formats())
+            "motioncritic", "actor", "auto", "wham", "phalp", "vibe", "tram", "aistpp", "phc",
+            "amp_poselib"} <= set(list_formats())
     path, classes_path, _, _ = write_a2m(tmp_path)
     motions = load_motions(path, "a2m", classes_path=classes_path, fps=10, source="theirs")
     assert len(motions) == 5 and motions[0].fps == 10 and motions[0].source == "theirs"

@@ -135,14 +135,14 @@ def test_import_motions_auto_says_what_it_found_and_reports_skipped_files(tmp_pa
     output, errors = run(folder, "--format", "auto", "--source", "t2m_gpt", "--out",
                          tmp_path / "out.npz")
     assert "detected format 'joints'" in output and "skipped 1" in output
-    assert "c.npy: joints has shape (6, 22, 2)" in errors
+    assert "c.npy: an array of shape (6, 22, 2), which no format has; pass --format" in errors
     assert len(npz.load(tmp_path / "out.npz")) == 2
 
 
 @pytest.mark.parametrize("args, expected", [
     (["--format", "joints", "--classes", "c.npy"], "--classes is not an option of --format joints"),
     (["--format", "mdm", "--gender", "male"], "--gender is not an option of --format mdm "
-                                              r"\(it is for amass\)"),
+                                              r"\(it is for amass, smplx\)"),
 ])
 def test_import_motions_refuses_flags_of_other_formats(tmp_path, args, expected):
     with pytest.raises(CommandError, match=expected):

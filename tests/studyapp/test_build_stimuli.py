@@ -45,7 +45,7 @@ def write(tmp_path, raw, name="config.yaml") -> Path:
     ({"study": {"type": "poll"}}, ["study.type", "'poll'", "fake_or_real"]),
     ({"clips_per_source": 0}, ["clips_per_source", "0", "at least 1"]),
     ({"sources": ["real", "nonsense"]}, ["sources.1.method", "'nonsense'", "cond_gru"]),
-    ({"sources": [{"file": "x.txt"}]}, ["sources.0.format", "'txt'", "a2m, actor, amass, auto, bvh"]),
+    ({"sources": [{"file": "x.txt"}]}, ["sources.0.format", "'txt'", "a2m, actor, aistpp, amass, amp_poselib, auto, bvh"]),
     ({"sources": ["real", "real"]}, ["sources.1.name", "'real'", "its own name"]),
     ({"study": {"type": "ranking", "max_participants": "many"}}, ["study.max_participants", "many", "int"]),
     ({"colour": "red"}, ["'colour'", "fields are"]),

@@ -1,7 +1,10 @@
+from pathlib import Path
+
+import yaml
 from django.core.management.base import BaseCommand, CommandError
 
 from studyapp.survey.stimulus_build import BuildError, build_stimuli, default_folders
-from studyapp.survey.stimulus_config import ConfigError, load_config
+from studyapp.survey.stimulus_config import ConfigError, load_config, resolved_mapping
 
 
 class Command(BaseCommand):
@@ -37,6 +40,11 @@ class Command(BaseCommand):
         for warning in result.warnings:
             self.stderr.write(f"Warning: {warning}")
         if not options["dry_run"]:
+            # The config as built, beside the manifest: what `bundle` puts in a study's bundle.
+            raw = resolved_mapping(options["config"], options["overrides"])
+            if raw.get("data_root") and not Path(raw["data_root"]).is_absolute():
+                raw["data_root"] = str(Path(options["config"]).resolve().parent / raw["data_root"])
+            (folder / "config.yaml").write_text(yaml.safe_dump(raw, sort_keys=False))
             self.stdout.write(
                 f"study {result.study.slug}: {len(result.entries)} clips "
                 f"({result.rendered} rendered now, sampled now: "

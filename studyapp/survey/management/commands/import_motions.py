@@ -1,3 +1,5 @@
+from pathlib import Path
+
 from django.core.management.base import BaseCommand, CommandError
 
 from generation.body_models import ENV_VAR
@@ -20,6 +22,9 @@ FORMAT_FLAGS = {
     "std": "std",
     "body_models": "body_models",
     "gender": "gender",
+    "person": "person",
+    "frame": "frame",
+    "hands": "hands",
 }
 
 
@@ -28,7 +33,8 @@ class Command(BaseCommand):
         "Convert motions from other codebases or motion capture into one interchange .npz: "
         "MDM's results.npy and meshes, HumanML3D joints or feature vectors, folders of "
         "joint arrays (MoMask, T2M-GPT, MotionGPT, MotionDiffuse), AMASS, MotionCritic, "
-        "ACTOR, Action2Motion, BVH, or --format auto to detect it. Files of a folder that "
+        "ACTOR, Action2Motion, BVH, pose estimators (WHAM, 4D-Humans/PHALP, VIBE, TRAM), "
+        "AIST++, PHC motion libraries, AMP poselib files, or --format auto to detect it. Files of a folder that "
         "cannot be read are reported by name; the others are written."
     )
 
@@ -57,7 +63,9 @@ class Command(BaseCommand):
         parser.add_argument("--texts", metavar="PROMPTS",
                             help="joints, bvh: the prompts, one line per file (in name order, "
                                  "or line k+1 for files named sample<k>...) or a CSV with file "
-                                 "and text columns (default: prompts.txt/.csv beside the files).")
+                                 "and text columns (default: prompts.txt/.csv beside the files, "
+                                 "else joints: a file name that spells one, "
+                                 "a_person_is_boxing.npy).")
         parser.add_argument("--classes", metavar="CLASSES.npy",
                             help="a2m (required): each motion's class index, shape (N,).")
         parser.add_argument("--action-names", metavar="A,B,...",
@@ -67,10 +75,13 @@ class Command(BaseCommand):
                             help="humanml3d_vec: de-normalise features with this mean ...")
         parser.add_argument("--std", metavar="Std.npy", help="... and this std.")
         parser.add_argument("--body-models", metavar="DIR",
-                            help=f"amass, motioncritic, actor, mdm meshes: the folder of SMPL / "
-                                 f"SMPL+H model files (default: ${ENV_VAR}).")
+                            help=f"amass, smplx, motioncritic, actor, mdm meshes, wham, phalp, "
+                                 f"vibe, tram, aistpp, phc: the folder of SMPL / SMPL+H / "
+                                 f"SMPL-X model files "
+                                 f"(default: ${ENV_VAR}).")
         parser.add_argument("--gender", choices=("neutral", "male", "female"),
-                            help="amass: the body model's gender (default: the file's).")
+                            help="amass, smplx: the body model's gender (default: the "
+                                 "file's).")
         parser.add_argument("--joints-only", action="store_true",
                             help="Drop the body surfaces imports carry (smaller files; the "
                                  "mesh style then draws its own body).")
@@ -82,6 +93,18 @@ class Command(BaseCommand):
                                  "auto (default: the unit that makes the body about 1.7 m).")
         parser.add_argument("--up", choices=("x", "y", "z"), help="bvh: the files' up axis "
                                                                   "(default: y).")
+        parser.add_argument("--person", metavar="ID",
+                            help="wham, phalp, vibe: the tracked person to import (default: "
+                                 "every track, each a motion; the notes list the ids).")
+        parser.add_argument("--frame", choices=("world", "camera"),
+                            help="wham: the world frame WHAM estimates (default) or the "
+                                 "camera's.")
+        parser.add_argument("--hands", action="store_true", default=None,
+                            help="smplx: keep the 30 finger joints (a 52-joint skeleton; "
+                                 "default: the 22 body joints, smpl22).")
+        parser.add_argument("--per-skeleton", action="store_true",
+                            help="Write one file per skeleton (OUT_<skeleton>.npz) when the "
+                                 "files hold several (default: refuse, naming them).")
 
     def handle(self, *args, **options):
         fmt, files = options["format"], options["files"]
@@ -94,7 +117,7 @@ class Command(BaseCommand):
                 loaded = load_motions(path, fmt, fps=options["fps"], source=options["source"],
                                       **load_options)
                 for note in getattr(loaded, "notes", []):
-                    self.stdout.write(note)
+                    (self.stderr if note.startswith("warning") else self.stdout).write(note)
                 problems.extend(getattr(loaded, "problems", []))
                 motions.extend(loaded)
         except (FormatError, MotionError) as exc:
@@ -104,12 +127,33 @@ class Command(BaseCommand):
         if options["joints_only"]:
             motions = [m.with_joints(m.joints, vertices=None, faces=None, meta=dict(m.meta))
                        for m in motions]
+        groups: dict[str, list] = {}
+        for motion in motions:
+            groups.setdefault(motion.skeleton, []).append(motion)
+        if len(groups) > 1 and not options["per_skeleton"]:
+            found = ", ".join(f"{len(group)} of {name}" for name, group in groups.items())
+            raise CommandError(
+                f"the files hold motions of {len(groups)} skeletons ({found}); one .npz holds "
+                "one skeleton. Map them onto one (BVH files: --skeleton smpl22; others are "
+                "checked against it), or pass --per-skeleton to write one file per skeleton "
+                f"({Path(options['out']).stem}_<skeleton>.npz)")
+        out = Path(options["out"])
+        for name, group in groups.items():
+            target = out.with_name(f"{out.stem}_{name}{out.suffix}") if len(groups) > 1 else out
+            self.write(group, target, problems)
+
+    def write(self, motions, out: Path, problems):
         rates = sorted({motion.fps for motion in motions})
         if len(rates) > 1:
             raise CommandError(f"the files have frame rates {', '.join(map(str, rates))}; "
                                "pass --fps F to resample them to one")
+        sources = sorted({motion.source for motion in motions})
+        if len(sources) > 1:
+            raise CommandError(f"the files hold motions of sources {', '.join(sources)}; one "
+                               ".npz holds one source: pass --source NAME (e.g. real, or the "
+                               "method that made them), or import each kind on its own")
         try:
-            path = npz.save(options["out"], motions)
+            path = npz.save(out, motions)
         except (FormatError, MotionError) as exc:
             raise CommandError(str(exc)) from None
         first = motions[0]
