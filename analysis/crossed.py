@@ -227,10 +227,11 @@ class Crossed:
         return {"participants": v_p, "clips": v_c, "observations": v_obs,
                 "clip_part": clip_part, "total": total, "df": df}
 
-    def summary(self, confidence: float = 0.95, null: float = 0.0) -> pd.DataFrame:
+    def summary(self, confidence: float = 0.95, null: float = 0.0, bounds=None) -> pd.DataFrame:
         """Return per value ``estimate``, ``se``, ``df``, ``ci_low``, ``ci_high`` (t
-        interval of the combined variance), ``p`` (t test against ``null``) and the
-        shares of its variance from ``participants``, ``clips`` and ``residual``."""
+        interval of the combined variance, cut to ``bounds`` such as ``(0, 1)`` for a
+        share), ``p`` (t test against ``null``) and the shares of its variance from
+        ``participants``, ``clips`` and ``residual``."""
         parts = self.variances()
         se = np.sqrt(parts["total"])
         quantile = scipy_stats.t.ppf(0.5 + confidence / 2, parts["df"])
@@ -240,9 +241,11 @@ class Crossed:
             residual = np.minimum(parts["observations"], parts["participants"])
             shares = np.stack([parts["participants"] - residual, parts["clip_part"], residual])
             shares = shares / parts["total"]
+        low, high = self.estimate - quantile * se, self.estimate + quantile * se
+        if bounds is not None:
+            low, high = np.clip(low, *bounds), np.clip(high, *bounds)
         return pd.DataFrame({
-            "estimate": self.estimate, "se": se, "df": parts["df"],
-            "ci_low": self.estimate - quantile * se, "ci_high": self.estimate + quantile * se,
+            "estimate": self.estimate, "se": se, "df": parts["df"], "ci_low": low, "ci_high": high,
             "p": np.where(se > 0, p, np.nan),
             "share_participants": shares[0], "share_clips": shares[1], "share_residual": shares[2],
         })
@@ -388,3 +391,31 @@ def worth_statistic(orders, n_items: int, prior: float | None = None):
         return worth.bootstrap(data, len(weights), resampled=weights, **options)["samples"]
 
     return statistic
+
+
+@dataclass
+class Report:
+    """What a type's analysis shows of a crossed bootstrap of per-source values."""
+
+    scores: pd.DataFrame
+    differences: pd.DataFrame
+    clips: pd.DataFrame
+    notes: list
+    method: str
+
+
+def report(result: Crossed, names, rows: pd.DataFrame, config) -> Report:
+    """Return the scores, differences (Holm), clip counts, warnings and methods sentence of
+    ``result``, a crossed bootstrap of one value per source of ``names``."""
+    differences_table = differences(result, names, config.confidence)
+    clips = clips_per_source(rows)
+    notes = clip_warnings(differences_table, clips)
+    single = one_clip_note(result.design)
+    if single:
+        notes.append(single)
+    return Report(scores(result, names, config.confidence), differences_table, clips, notes,
+                  methods_text(result.design, config.bootstrap, config.confidence))
+
+
+DIFFERENCE_COLUMNS = ["a", "b", "difference", "ci_low", "ci_high", "se", "df", "p", "p_holm",
+                      "share_participants", "share_clips", "share_residual"]
