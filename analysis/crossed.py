@@ -373,8 +373,8 @@ def methods_text(design: Design, repeats: int, confidence: float) -> str:
             f"{repeats} bootstrap resamples of the {design.n_participants} participants "
             f"(with all their answers) and, separately, {repeats} of the {design.n_clips} clips "
             f"(drawn within their source and condition, {per} clips each) give the two "
-            f"variances, less the single answers' noise they both contain (resampled within "
-            f"trials of the same clips); the interval is a t interval of their sum with "
+            f"variances, less the single answers' noise they both contain (answers resampled "
+            f"among those to the same clips); the interval is a t interval of their sum with "
             f"Satterthwaite's degrees of freedom, and each difference's t test uses the same "
             f"standard error, Holm-corrected across pairs")
 
@@ -419,3 +419,21 @@ def report(result: Crossed, names, rows: pd.DataFrame, config) -> Report:
 
 DIFFERENCE_COLUMNS = ["a", "b", "difference", "ci_low", "ci_high", "se", "df", "p", "p_holm",
                       "share_participants", "share_clips", "share_residual"]
+
+
+def group_means(rows: pd.DataFrame, value: str, config, by=("source",), base=None):
+    """Return the crossed bootstrap of the mean of column ``value`` per group of ``by``
+    (every row a unit; ``base`` row weights, e.g. to count each participant once) and
+    the groups (sorted)."""
+    by = list(by)
+    groups = rows.groupby(by, observed=True, sort=True).size().index
+    keys = pd.MultiIndex.from_frame(rows[by]) if len(by) > 1 else pd.Index(rows[by[0]])
+    statistic = ratio(rows[value].to_numpy(dtype=float), groups.get_indexer(keys), len(groups), base)
+    return bootstrap(design(rows), statistic, config.bootstrap, config.seed), groups
+
+
+def intervals(result: Crossed, groups, config, bounds=None) -> pd.DataFrame:
+    """Return ``score``, ``ci_low``, ``ci_high`` of ``result`` indexed by ``groups``."""
+    table = result.summary(config.confidence, bounds=bounds)
+    return pd.DataFrame({"score": table["estimate"].to_numpy(), "ci_low": table["ci_low"].to_numpy(),
+                         "ci_high": table["ci_high"].to_numpy()}, index=groups)
