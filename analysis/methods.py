@@ -41,11 +41,12 @@ def methods_paragraph(result) -> str:
     dprime = " (d' has one value per participant)" if "dprime" in result.analysis.tests else ""
     but = ", but for agreement," if agreement["n_units"] else ""
     sentences.append(
-        f"All intervals are {config.confidence:.0%} and{but} over participants: each "
-        f"bootstrap resample draws participants with replacement and keeps all of their "
-        f"judgements{dprime}, because one person's judgements are "
-        f"alike and are not independent observations; p-values of families of comparisons "
-        f"are Holm-corrected"
+        f"All intervals are {config.confidence:.0%} and{but} treat participants and clips as "
+        f"random samples: a resample of participants keeps all of their judgements{dprime}, "
+        f"a resample of clips all of theirs, because one person's judgements are alike, and "
+        f"so are the judgements of one clip, and neither are independent observations; "
+        f"no p-value counts judgements as independent, and p-values of families of "
+        f"comparisons are Holm-corrected"
     )
     if counts["participants"] < MIN_PARTICIPANTS:
         sentences.append(f"With {counts['participants']} participants (fewer than "
