@@ -388,6 +388,8 @@ def worth_statistic(orders, n_items: int, prior: float | None = None):
     options = {} if prior is None else {"prior": prior}
 
     def statistic(weights):
+        if len(orders) < 2:  # nothing to redraw: the one fit, as often as asked
+            return np.tile(worth.bootstrap(data, 0, **options)["theta"], (len(weights), 1))
         return worth.bootstrap(data, len(weights), resampled=weights, **options)["samples"]
 
     return statistic
