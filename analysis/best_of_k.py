@@ -95,8 +95,7 @@ def top1_worth(shown, chosen, rows: pd.DataFrame, config) -> crossed.Crossed:
     def statistic(weights):
         return fit_top1(choices.sets, choices.one_hot, weights @ choices.counts)
 
-    return crossed.bootstrap(crossed.design(rows, unit="trial_key"), statistic, config.bootstrap,
-                             config.seed)
+    return crossed.bootstrap(crossed.design(rows, unit="trial_key"), statistic, config)
 
 
 @register_analysis("best_of_k")
@@ -252,7 +251,7 @@ def _answer_shares(verdict, rows: pd.DataFrame, config) -> pd.DataFrame:
     for name in labels:
         result = crossed.bootstrap(design, crossed.ratio((verdict == name).astype(float),
                                                          np.zeros(n), 1),
-                                   config.bootstrap, config.seed)
+                                   config)
         row = result.summary(config.confidence, bounds=(0, 1)).iloc[0]
         low.append(row["ci_low"])
         high.append(row["ci_high"])

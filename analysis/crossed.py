@@ -258,24 +258,30 @@ class Crossed:
             return tuple(np.nanpercentile(getattr(self, scheme), [tail, 100 - tail], axis=0))
 
 
-def bootstrap(design: Design, statistic, repeats: int = 1000, seed: int = 0,
-              both: bool = False) -> Crossed:
+def bootstrap(design: Design, statistic, config, both: bool = False) -> Crossed:
     """Return the :class:`Crossed` replicates of ``statistic``.
 
     ``statistic(weights)`` takes ``(B, N)`` unit weights and returns ``(B, K)``; the
-    estimate is its value at weights of one. ``both`` also draws participants and clips
-    at once (the pure two-way bootstrap, for comparison).
+    estimate is its value at weights of one. ``config`` gives ``bootstrap`` (replicates
+    per scheme), ``seed`` and ``random_clips``: when false the clips are taken as the
+    whole population of interest (no clip resampling: intervals over participants only,
+    which hold for these clips). ``both`` also draws participants and clips at once (the
+    pure two-way bootstrap, for comparison).
     """
+    repeats, seed = config.bootstrap, config.seed
     estimate = np.asarray(statistic(np.ones((1, design.n_units))), dtype=float)[0]
     rng = np.random.default_rng(seed)
     if repeats <= 0 or design.n_participants < 2:
         empty = np.full((0, len(estimate)), np.nan)
         return Crossed(estimate, empty, empty, empty, design, empty if both else None)
-    samples = {scheme: _replicates(design, statistic, scheme, repeats, rng)
-               for scheme in ("participants", "clips", "observations")}
+    participants = _replicates(design, statistic, "participants", repeats, rng)
+    if getattr(config, "random_clips", True):
+        clips = _replicates(design, statistic, "clips", repeats, rng)
+        observations = _replicates(design, statistic, "observations", repeats, rng)
+    else:
+        clips = observations = np.zeros_like(participants)
     extra = _replicates(design, statistic, "both", repeats, rng) if both else None
-    return Crossed(estimate, samples["participants"], samples["clips"], samples["observations"],
-                   design, extra)
+    return Crossed(estimate, participants, clips, observations, design, extra)
 
 
 def ratio(values, groups, n_groups: int, base=None):
@@ -364,11 +370,21 @@ def one_clip_note(design: Design) -> str | None:
             f"these clips only; show at least 2 (better 8) clips per source and condition")
 
 
-def methods_text(design: Design, repeats: int, confidence: float) -> str:
+def methods_text(design: Design, config) -> str:
     """Return how intervals and tests were obtained, for the methods paragraph."""
+    repeats, confidence = config.bootstrap, config.confidence
+    if repeats <= 0:
+        return "no intervals or tests were computed (the bootstrap was switched off)"
     sizes = design.clips_per_stratum
     fewest, most = int(sizes.min()), int(sizes.max())
     per = f"{fewest}" if fewest == most else f"{fewest} to {most}"
+    if not getattr(config, "random_clips", True):
+        return (f"{confidence:.0%} intervals and tests hold for these {design.n_clips} clips "
+                f"({per} per source and condition) as the whole population of interest: "
+                f"{repeats} bootstrap resamples of the {design.n_participants} participants "
+                f"(with all their answers) give a t interval, and each difference's t test uses "
+                f"the same standard error, Holm-corrected across pairs; they say nothing about "
+                f"other clips of the same sources")
     return (f"{confidence:.0%} intervals and tests treat participants and clips as random: "
             f"{repeats} bootstrap resamples of the {design.n_participants} participants "
             f"(with all their answers) and, separately, {repeats} of the {design.n_clips} clips "
@@ -411,12 +427,14 @@ def report(result: Crossed, names, rows: pd.DataFrame, config) -> Report:
     ``result``, a crossed bootstrap of one value per source of ``names``."""
     differences_table = differences(result, names, config.confidence)
     clips = clips_per_source(rows)
-    notes = clip_warnings(differences_table, clips)
-    single = one_clip_note(result.design)
-    if single:
-        notes.append(single)
+    notes = []
+    if getattr(config, "random_clips", True):
+        notes = clip_warnings(differences_table, clips)
+        single = one_clip_note(result.design)
+        if single:
+            notes.append(single)
     return Report(scores(result, names, config.confidence), differences_table, clips, notes,
-                  methods_text(result.design, config.bootstrap, config.confidence))
+                  methods_text(result.design, config))
 
 
 DIFFERENCE_COLUMNS = ["a", "b", "difference", "ci_low", "ci_high", "se", "df", "p", "p_holm",
@@ -431,7 +449,7 @@ def group_means(rows: pd.DataFrame, value: str, config, by=("source",), base=Non
     groups = rows.groupby(by, observed=True, sort=True).size().index
     keys = pd.MultiIndex.from_frame(rows[by]) if len(by) > 1 else pd.Index(rows[by[0]])
     statistic = ratio(rows[value].to_numpy(dtype=float), groups.get_indexer(keys), len(groups), base)
-    return bootstrap(design(rows), statistic, config.bootstrap, config.seed), groups
+    return bootstrap(design(rows), statistic, config), groups
 
 
 def intervals(result: Crossed, groups, config, bounds=None) -> pd.DataFrame:

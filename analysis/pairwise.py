@@ -185,7 +185,7 @@ def win_rates(trials: pd.DataFrame, design, names, config):
     groups = np.array([index[(a, b)] for a, b in zip(first, second)], dtype=np.int64)
     won_first = (decided["winner"].to_numpy() == first).astype(float)
     result = crossed.bootstrap(design, crossed.ratio(won_first, groups, len(pairs)),
-                               config.bootstrap, config.seed)
+                               config)
     summary = result.summary(config.confidence, null=0.5, bounds=(0, 1))
     records = []
     for (a, b), row in zip(pairs, summary.itertuples()):
@@ -218,7 +218,7 @@ def bradley_terry(decided: pd.DataFrame, decided_rows: pd.DataFrame, names, conf
     orders = np.stack([recode[decided["winner"]], recode[decided["loser"]]], axis=1)
     design = crossed.design(decided_rows, unit="trial_key")
     return crossed.bootstrap(design, crossed.worth_statistic(orders, len(present)),
-                             config.bootstrap, config.seed)
+                             config)
 
 
 def position_bias(decided: pd.DataFrame, design, config) -> dict:
@@ -227,7 +227,7 @@ def position_bias(decided: pd.DataFrame, design, config) -> dict:
     won_left = (decided["choice"] == CHOICES.index("left")).to_numpy(dtype=float)
     n = len(decided)
     result = crossed.bootstrap(design, crossed.ratio(won_left, np.zeros(n), 1),
-                               config.bootstrap, config.seed)
+                               config)
     row = result.summary(config.confidence, null=0.5, bounds=(0, 1)).iloc[0]
     return {"share_left": won_left.mean() if n else float("nan"), "ci_low": float(row["ci_low"]),
             "ci_high": float(row["ci_high"]), "left": int(won_left.sum()), "n_decided": n,

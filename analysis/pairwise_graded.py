@@ -383,7 +383,7 @@ def fit_crossed(model, cells: Cells, design, config) -> crossed.Crossed:
             out.append(phi)
         return np.concatenate(out, axis=0)
 
-    result = crossed.bootstrap(design, statistic, config.bootstrap, config.seed)
+    result = crossed.bootstrap(design, statistic, config)
     result.converged = converged
     return result
 
@@ -411,7 +411,7 @@ def position_bias(graded, design, ordinal, davidson, k, config) -> pd.DataFrame:
     n = int(directional.sum())
     groups = np.where(directional, 0, -1)
     share = crossed.bootstrap(design, crossed.ratio((graded["grade"] > 0).to_numpy(float), groups, 1),
-                              config.bootstrap, config.seed)
+                              config)
     raw = share.summary(config.confidence, null=0.5, bounds=(0, 1)).iloc[0]
     shift = ordinal.summary(config.confidence).iloc[k]
     order = davidson.summary(config.confidence).iloc[k]
@@ -452,7 +452,7 @@ def pair_table(trials, graded, design, names, config):
     groups = np.array([index[(i, j)] for i, j in zip(ga, gb)], dtype=np.int64)
     groups = np.where(g_first != 0, groups, -1)
     result = crossed.bootstrap(design, crossed.ratio((g_first > 0).astype(float), groups, len(pairs)),
-                               config.bootstrap, config.seed)
+                               config)
     summary = result.summary(config.confidence, null=0.5, bounds=(0, 1))
     wins = np.zeros((k, k))
     records = []

@@ -237,7 +237,7 @@ def plackett_luce(rows: pd.DataFrame, names, config) -> crossed.Crossed:
     orders, _ = _orders(rows, names)
     return crossed.bootstrap(crossed.design(rows, unit="trial_key"),
                              crossed.worth_statistic(orders, len(names)),
-                             config.bootstrap, config.seed)
+                             config)
 
 
 def share_intervals(shares: pd.DataFrame, config, rows: pd.DataFrame) -> pd.DataFrame:
@@ -256,7 +256,7 @@ def share_intervals(shares: pd.DataFrame, config, rows: pd.DataFrame) -> pd.Data
     columns = []
     for r in range(1, n_ranks + 1):
         statistic = crossed.ratio((rank == r).astype(float), source, n_sources)
-        result = crossed.bootstrap(design, statistic, config.bootstrap, config.seed)
+        result = crossed.bootstrap(design, statistic, config)
         columns.append(result.summary(config.confidence, bounds=(0, 1)))
     low = np.stack([c["ci_low"].to_numpy() for c in columns], axis=1)
     high = np.stack([c["ci_high"].to_numpy() for c in columns], axis=1)

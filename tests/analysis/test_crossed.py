@@ -6,6 +6,7 @@ import pytest
 
 from analysis import crossed, simulate
 from analysis.pairwise import comparisons
+from tests.analysis.conftest import config
 
 
 def _rows(table):
@@ -49,7 +50,7 @@ def test_crossed_intervals_hold_where_participant_intervals_fail():
         trials = comparisons(rows, ["a", "b"])
         result = crossed.bootstrap(crossed.design(rows, unit="trial_key"),
                                    crossed.worth_statistic(np.stack([trials.winner, trials.loser], 1), 2),
-                                   200, seed)
+                                   config(bootstrap=200, seed=seed))
         table = crossed.differences(result, ["a", "b"])
         covered += table["ci_low"][0] <= 0 <= table["ci_high"][0]
         low, high = result.contrast([[1.0, -1.0]]).percentile("participants")
@@ -82,3 +83,19 @@ def test_single_clip_groups_are_named():
     d = crossed.Design(np.arange(4), np.array([[0], [1], [2], [2]]), np.array([0, 1, 1]),
                        np.array([0, 1, 2, 2]))
     assert "1 of 2 source-and-condition groups have a single clip" in crossed.one_clip_note(d)
+
+
+def test_fixed_clips_give_intervals_over_participants_only():
+    from analysis.study import analyse
+
+    table = simulate.simulate("rating_standards", {"a": 0.0, "b": 0.0}, participants=40, trials=6,
+                              actions=("x", "y"), clips_per_source=2, clip_sd=1.5, seed=2)
+    random = analyse(table, config())
+    fixed = analyse(table, config(random_clips=False))
+    width = lambda result: (result.analysis.sources["ci_high"] - result.analysis.sources["ci_low"]).mean()
+    assert width(fixed) < width(random) / 2
+    assert "hold for these 8 clips" in fixed.methods()
+    assert "treat participants and clips as random" in random.methods()
+    assert any("add clips, not participants" in note for note in random.notes)
+    assert not any("add clips, not participants" in note for note in fixed.notes)
+    assert "treat participants and clips as random" not in fixed.methods()
