@@ -46,11 +46,12 @@ class FakeOrReal(StudyAnalysis):
         result, _ = crossed.group_means(rows, "judged_real", config)
         sources = judged_real_shares(rows, config, result)
         real = config.real_source
-        tests, methods, notes = {}, [], []
+        tests, methods, notes = {"differences": None}, [], []
         methods.append(f"For each source{_per_action(rows)} we report the share of its clips "
                        f"judged real")
         tables = []
         shown = crossed.report(result, names, rows, config)
+        tests["differences"] = shown.differences
         if real in sources.index:
             real_rate = sources.loc[real, "score"]
             generated = [s for s in names if s != real]
