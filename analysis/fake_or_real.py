@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from analysis import crossed, stats
+from analysis import crossed, mixed, stats
 from analysis.counts import ranked_sources, source_counts
 from analysis.formatting import number, p_text
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
@@ -89,6 +89,13 @@ class FakeOrReal(StudyAnalysis):
                     f"participants (for these clips): "
                     f"{p_text(overall['p'])}"
                 )
+            model_tables, model_methods, model_notes = mixed.logistic_tables(
+                rows, "judged_real", real, config)
+            tables += model_tables
+            methods += model_methods
+            notes += model_notes
+            if model_tables:
+                tests["mixed_model"] = model_tables[0].frame
             tables.append(Table("dprime_by_source", "Mean d' of real against each generated source "
                                 "(t test against 0, Holm-corrected)",
                                 pd.DataFrame(summary["by_source"])))

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from analysis import crossed
+from analysis import crossed, mixed
 from analysis.counts import ranked_sources, source_counts
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
 from analysis.tables import AnalysisError
@@ -145,6 +145,13 @@ class Mushra(StudyAnalysis):
                   Table("clips", "Clips per condition, and per condition and action", shown.clips)]
         tests, notes = {"differences": shown.differences}, list(shown.notes)
         methods = ["conditions were compared by the differences of their mean scores", shown.method]
+        model_tables, model_methods, model_notes, fitted = mixed.linear_tables(
+            rows, "score", config, "score")
+        tables += model_tables
+        methods += model_methods
+        notes += model_notes
+        if fitted:
+            tests["mixed_model"] = fitted["differences"]
         screening = getattr(self, "screening", None)
         threshold, share = screening_rule(config)
         if screening is not None and not screening.empty:

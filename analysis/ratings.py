@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from analysis import crossed
+from analysis import crossed, mixed
 from analysis.counts import ranked_sources, source_counts
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
 from analysis.tables import AnalysisError
@@ -71,10 +71,16 @@ class RatingStandards(StudyAnalysis):
             f"by the differences of their mean ratings",
             shown.method,
         ]
+        model_tables, model_methods, model_notes, fitted = mixed.linear_tables(
+            rows, "rating", config, "rating")
+        tables += model_tables
+        methods += model_methods
+        tests = {"differences": shown.differences}
+        if fitted:
+            tests["mixed_model"] = fitted["differences"]
         plots = [Plot("mean_rating", "Mean rating", _plot(sources))]
         return Analysis(measure="mean rating", sources=sources, tables=tables, plots=plots,
-                        methods=methods, notes=shown.notes,
-                        tests={"differences": shown.differences})
+                        methods=methods, notes=shown.notes + model_notes, tests=tests)
 
 
 @register_analysis("rating_reference")

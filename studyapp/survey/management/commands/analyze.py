@@ -45,6 +45,10 @@ class Command(BaseCommand):
                             help="Take the clips shown as the whole population of interest: "
                                  "intervals over participants only, which hold for these clips "
                                  "and say nothing about other clips of the same sources.")
+        parser.add_argument("--mixed-models", action="store_true",
+                            help="Also fit mixed models with crossed random intercepts for "
+                                 "participants and clips (ratings, MUSHRA, fake or real; "
+                                 "seconds per fit) beside the bootstrap.")
         parser.add_argument("--seed", type=int, default=0, help="Seed of the bootstrap.")
         parser.add_argument("--no-audit", action="store_true",
                             help="Skip the blindness audit of the study's clips (the deep "
@@ -87,7 +91,8 @@ class Command(BaseCommand):
                 max_failed_catch=options["max_failed_catch"],
                 max_failed_repeats=options["max_failed_repeats"], completed_only=options["completed_only"],
                 bootstrap=options["bootstrap"], seed=options["seed"], real_source=options["real_source"],
-                random_clips=not options["fixed_clips"], type_options=type_options,
+                random_clips=not options["fixed_clips"], mixed_models=options["mixed_models"],
+                type_options=type_options,
             )
             results = analyse_all(table, config, participants=participants)
             _add_stimulus_sources(results, options["manifest"], None if responses else record)
