@@ -99,3 +99,18 @@ def test_fixed_clips_give_intervals_over_participants_only():
     assert any("add clips, not participants" in note for note in random.notes)
     assert not any("add clips, not participants" in note for note in fixed.notes)
     assert "treat participants and clips as random" not in fixed.methods()
+
+
+@pytest.mark.parametrize("study_type", ["rating_standards", "pairwise"])
+def test_the_coverage_benchmark_in_small(study_type):
+    from benchmarks import bench_coverage
+
+    args = bench_coverage.parse(["--studies", "10", "--bootstrap", "40", "--actions", "1",
+                                 "--participants", "30", "--trials", "6"])
+    result = bench_coverage.cell(study_type, 0.0, 1.5, 2, 0.0, args)
+    # Equal sources, clips that vary: the intervals over participants alone call most
+    # studies significant; over participants and clips, few.
+    assert result["crossed"]["rejected"] <= 0.2
+    assert result["participants"]["rejected"] >= 0.5
+    assert result["crossed"]["coverage"] >= 0.8
+    assert result["crossed"]["width"] > result["participants"]["width"]
