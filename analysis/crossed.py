@@ -111,11 +111,10 @@ def design(rows: pd.DataFrame, unit: str | None = None, clip: str = "stimulus",
     ``clip`` (a source's motion, whatever its renderings and repeats); its stratum is
     its value of the ``strata`` columns that ``rows`` has.
     """
-    clip_codes, _ = pd.factorize(rows[clip].astype(str))
+    clip_codes, _ = pd.factorize(rows[clip])
     columns = [c for c in strata if c in rows.columns]
-    keys = (rows[columns].astype(str).agg("\x1f".join, axis=1) if columns
-            else pd.Series("", index=rows.index))
-    stratum_of_row = pd.factorize(keys)[0]
+    stratum_of_row = (rows.groupby(columns, observed=True, sort=False, dropna=False).ngroup()
+                      .to_numpy() if columns else np.zeros(len(rows), dtype=np.int64))
     n_clips = int(clip_codes.max()) + 1 if len(clip_codes) else 0
     strata_codes = np.zeros(n_clips, dtype=np.int64)
     strata_codes[clip_codes] = stratum_of_row
@@ -146,28 +145,28 @@ def draws_within(groups: np.ndarray, repeats: int, rng) -> np.ndarray:
     sizes = np.bincount(groups)
     starts = np.r_[0, np.cumsum(sizes)[:-1]]
     sorted_groups = groups[order]
-    counts = np.empty((repeats, n), dtype=np.float64)
-    for r in range(repeats):
-        picked = starts[sorted_groups] + (rng.random(n) * sizes[sorted_groups]).astype(np.int64)
-        counts[r] = np.bincount(order[picked], minlength=n)
-    return counts
+    first, size = starts[sorted_groups], sizes[sorted_groups]
+    # One draw per member and replicate, all at once: replicate r's draws land in r * n + unit.
+    picked = first + (rng.random((repeats, n)) * size).astype(np.int64)
+    flat = (np.arange(repeats, dtype=np.int64)[:, None] * n + order[picked]).ravel()
+    return np.bincount(flat, minlength=repeats * n).reshape(repeats, n).astype(np.float64)
 
 
 def unit_weights(design: Design, scheme: str, repeats: int, rng) -> np.ndarray:
     """Return ``(repeats, N)`` unit weights of one resampling ``scheme``: ``participants``,
     ``clips``, ``observations`` or ``both`` (participants and clips at once)."""
-    weights = np.ones((repeats, design.n_units))
+    if scheme == "observations":
+        return draws_within(design.cells, repeats, rng)
+    weights = None
     if scheme in ("participants", "both"):
         drawn = draws_within(np.zeros(design.n_participants, dtype=np.int64), repeats, rng)
-        weights *= drawn[:, design.participants]
+        weights = drawn[:, design.participants]
     if scheme in ("clips", "both"):
         drawn = draws_within(design.strata, repeats, rng)
         drawn = np.concatenate([drawn, np.ones((repeats, 1))], axis=1)  # -1 pads weigh 1
         for column in design.clips.T:
-            weights *= drawn[:, column]
-    if scheme == "observations":
-        weights = draws_within(design.cells, repeats, rng)
-    return weights
+            weights = drawn[:, column] if weights is None else weights * drawn[:, column]
+    return np.ones((repeats, design.n_units)) if weights is None else weights
 
 
 def _replicates(design, statistic, scheme, repeats, rng):

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+from scipy import sparse
 
 from analysis import crossed, stats
 from analysis.counts import ranked_sources, source_counts
@@ -252,14 +253,22 @@ def share_intervals(shares: pd.DataFrame, config, rows: pd.DataFrame) -> pd.Data
     n_sources, n_ranks = len(shares), len(ranks)
     source = shares.index.get_indexer(rows["source"])
     rank = rows["rank"].to_numpy()
-    design = crossed.design(rows)
-    columns = []
-    for r in range(1, n_ranks + 1):
-        statistic = crossed.ratio((rank == r).astype(float), source, n_sources)
-        result = crossed.bootstrap(design, statistic, config)
-        columns.append(result.summary(config.confidence, bounds=(0, 1)))
-    low = np.stack([c["ci_low"].to_numpy() for c in columns], axis=1)
-    high = np.stack([c["ci_high"].to_numpy() for c in columns], axis=1)
+    n_rows = len(rows)
+    # One statistic for every (source, rank) share: judgements at the rank over the source's.
+    at_rank = sparse.csr_matrix((np.ones(n_rows), (np.arange(n_rows), source * n_ranks + rank - 1)),
+                                shape=(n_rows, n_sources * n_ranks))
+    of_source = sparse.csr_matrix((np.ones(n_rows), (np.arange(n_rows), source)),
+                                  shape=(n_rows, n_sources))
+
+    def statistic(weights):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return (np.asarray(weights @ at_rank)
+                    / np.repeat(np.asarray(weights @ of_source), n_ranks, axis=1))
+
+    result = crossed.bootstrap(crossed.design(rows), statistic, config)
+    summary = result.summary(config.confidence, bounds=(0, 1))
+    low = summary["ci_low"].to_numpy().reshape(n_sources, n_ranks)
+    high = summary["ci_high"].to_numpy().reshape(n_sources, n_ranks)
     frame = pd.DataFrame({
         "source": np.repeat(shares.index.to_numpy(), len(ranks)),
         "rank": np.tile([int(r[5:]) for r in ranks], len(shares)),
