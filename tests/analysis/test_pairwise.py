@@ -5,7 +5,6 @@ import pytest
 from scipy import stats as scipy_stats
 
 from analysis import worth
-from analysis.stats import wilson_interval
 from analysis.study import analyse
 from analysis.tables import AnalysisError
 from tests.analysis.conftest import config, make_table, trial
