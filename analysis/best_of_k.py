@@ -6,11 +6,11 @@ source ``i`` is picked with probability ``w_i / sum_j w_j`` over the clips shown
 source shown twice counts twice). The worths are fitted here by Hunter's MM algorithm
 on choice counts, with a weak prior of ``PRIOR`` virtual wins and as many virtual losses
 per source against a reference of worth 1 (as :mod:`analysis.worth`), which keeps every
-worth finite; intervals come from resampling participants
-(:func:`analysis.worth.resample_participants`), every replicate refitted at once.
+worth finite; intervals and tests of differences treat participants and clips as random
+(:mod:`analysis.crossed`), every replicate refitted at once.
 
 Trials answered "all good" or "all bad" pick no clip: they leave the fit and are
-reported as shares (with bootstrap intervals over participants), overall and per source shown.
+reported as shares (with intervals over participants and clips), overall and per source shown.
 """
 
 from __future__ import annotations
@@ -18,9 +18,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from analysis import stats, worth
+from analysis import crossed
 from analysis.counts import ranked_sources, source_counts
-from analysis.formatting import bootstrap_text
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
 from analysis.tables import AnalysisError
 
@@ -86,20 +85,17 @@ def log_likelihood(sets, chosen, counts, theta) -> float:
     return float(np.asarray(counts, dtype=float) @ (theta[np.asarray(chosen)] - log_shown))
 
 
-def top1_worth(choices: Choices, config, resampled=None) -> dict:
-    """Return ``theta``, ``ci_low``, ``ci_high`` ``(K,)``: the fit on all participants and
-    percentile intervals over participants resampled (``resampled`` ``(R, P)``)."""
-    totals = choices.counts.sum(axis=0)
-    theta = fit_top1(choices.sets, choices.one_hot, totals)[0]
-    nan = np.full(choices.n_sources, np.nan)
-    active = int((choices.counts.sum(axis=1) > 0).sum())
-    if config.bootstrap <= 0 or active < 2:
-        return {"theta": theta, "ci_low": nan, "ci_high": nan}
-    if resampled is None:
-        resampled = worth.resample_participants(len(choices.counts), config.bootstrap, config.seed)
-    samples = fit_top1(choices.sets, choices.one_hot, resampled.astype(float) @ choices.counts)
-    low, high = stats.percentile_interval(samples, config.confidence)
-    return {"theta": theta, "ci_low": low, "ci_high": high}
+def top1_worth(shown, chosen, rows: pd.DataFrame, config) -> crossed.Crossed:
+    """Return the crossed bootstrap of the top-1 log-worths of the trials that picked a
+    clip: ``shown`` ``(T, K)`` source counts, ``chosen`` ``(T,)`` the source picked, and
+    ``rows`` those trials' rows (in the same trial order). Each trial is a unit, weighed
+    by its participant's and all its clips' draws, every replicate refitted at once."""
+    choices = Choices(shown, chosen, np.arange(len(shown)), shown.shape[1], len(shown))
+
+    def statistic(weights):
+        return fit_top1(choices.sets, choices.one_hot, weights @ choices.counts)
+
+    return crossed.bootstrap(crossed.design(rows, unit="trial_key"), statistic, config)
 
 
 @register_analysis("best_of_k")
@@ -179,18 +175,15 @@ class BestOfK(StudyAnalysis):
         if not picked.any():
             raise AnalysisError('no trial picked a clip (every answer is "all good" or "all bad"): '
                                 "there is nothing to fit worths to")
-        choices = Choices(shown[picked], chosen[picked], participant[picked], len(names),
-                          n_participants)
-        resampled = worth.resample_participants(n_participants, config.bootstrap, config.seed) \
-            if config.bootstrap > 0 else None
-        fitted = top1_worth(choices, config, resampled)
+        picked_rows = np.isin(trial, np.flatnonzero(picked))
+        result = top1_worth(shown[picked], chosen[picked], rows.loc[picked_rows], config)
+        shown_result = crossed.report(result, names, rows.loc[picked_rows], config)
+        fitted = shown_result.scores
 
         sources = source_counts(rows)
-        sources["score"] = fitted["theta"]
-        sources["ci_low"], sources["ci_high"] = fitted["ci_low"], fitted["ci_high"]
+        sources = sources.join(fitted[["score", "ci_low", "ci_high"]])
         # How often a shown clip of the source was picked, and its expected share under
         # the fit (both per clip shown, in trials that picked a clip).
-        picked_rows = np.isin(trial, np.flatnonzero(picked))
         frame = pd.DataFrame({"source": rows["source"].to_numpy()[picked_rows],
                               "best": is_best[picked_rows]})
         sources["best_share"] = frame.groupby("source")["best"].mean()
@@ -205,31 +198,36 @@ class BestOfK(StudyAnalysis):
                                            "all_good_share", "all_bad_share", "n_participants",
                                            "n_judgements"]]
 
-        answers = _answer_shares(verdict, participant, n_participants, config)
+        answers = _answer_shares(verdict, rows, config)
         tables = [
             Table("sources", "Plackett-Luce (top-1) worth (log scale, 0 = average source) with "
-                  f"{config.confidence:.0%} bootstrap intervals over participants, the share of "
+                  f"{config.confidence:.0%} intervals over participants and clips, the share of "
                   'shown clips picked as best, and the share of all-good and all-bad trials '
                   "that showed the source", sources),
+            Table("differences", "Difference of top-1 worths a - b, t test over participants "
+                  "and clips (Holm), and the shares of its variance from participants, clips "
+                  "and single answers", shown_result.differences[crossed.DIFFERENCE_COLUMNS]),
             Table("answers", "Share of trials with a clip picked, all good and all bad, "
-                  f"with {config.confidence:.0%} bootstrap intervals over participants", answers),
+                  f"with {config.confidence:.0%} intervals over participants and clips", answers),
+            Table("clips", "Clips per source, and per source and condition", shown_result.clips),
         ]
-        notes = []
+        notes = list(shown_result.notes)
         if n_participants < FEW_PARTICIPANTS:
             notes.append(f"only {n_participants} participant(s): with fewer than "
                          f"{FEW_PARTICIPANTS} the bootstrap over participants gives unreliable "
                          "intervals")
         if "action" in rows.columns and rows["action"].nunique() > 1:
             tables.append(Table("by_action", "Plackett-Luce (top-1) worth per action",
-                                self._by_action(rows, shown, chosen, participant, trial, names,
-                                                n_participants, config, resampled)))
+                                self._by_action(rows, shown, chosen, trial, names, config)))
         share_none = answers.set_index("answer")["share"]
         methods = [
             (f"Each trial that picked a clip was read as a top-1 choice among the clips shown, "
              f"and a Plackett-Luce worth per source was fitted to these choices by "
              f"minorisation-maximisation (log scale, centred on 0; a weak prior of one virtual "
              f"win and one virtual loss per source against a reference keeps estimates "
-             f"finite), {bootstrap_text(config)}"),
+             f"finite), refitted in every bootstrap resample; sources were compared by the "
+             f"differences of their worths"),
+            shown_result.method,
             (f'{share_none.get("all_good", 0):.0%} of trials were answered "all good" and '
              f'{share_none.get("all_bad", 0):.0%} "all bad"; these pick no clip and do not '
              f"enter the worths"),
@@ -237,10 +235,9 @@ class BestOfK(StudyAnalysis):
         plots = [Plot("worth", "Plackett-Luce (top-1) worth", _worth_plot(sources))]
         return Analysis(measure="Plackett-Luce top-1 worth (log scale)", sources=sources,
                         tables=tables, plots=plots, methods=methods, notes=notes,
-                        tests={"answers": answers})
+                        tests={"answers": answers, "differences": shown_result.differences})
 
-    def _by_action(self, rows, shown, chosen, participant, trial, names, n_participants,
-                   config, resampled):
+    def _by_action(self, rows, shown, chosen, trial, names, config):
         action = np.empty(len(shown), dtype=object)
         action[trial] = rows["action"].astype(str).to_numpy()
         frames = []
@@ -252,12 +249,10 @@ class BestOfK(StudyAnalysis):
                 keep = np.flatnonzero(present)
                 remap = np.full(len(names), -1)
                 remap[keep] = np.arange(len(keep))
-                choices = Choices(shown[mine][:, keep], remap[chosen[mine]], participant[mine],
-                                  len(keep), n_participants)
-                fitted = top1_worth(choices, config, resampled)
-                for column in ("theta", "ci_low", "ci_high"):
-                    counts[{"theta": "score"}.get(column, column)] = pd.Series(
-                        fitted[column], index=[names[i] for i in keep])
+                subset = rows.loc[np.isin(trial, np.flatnonzero(mine))]
+                result = top1_worth(shown[mine][:, keep], remap[chosen[mine]], subset, config)
+                fitted = crossed.scores(result, [names[i] for i in keep], config.confidence)
+                counts = counts.join(fitted[["score", "ci_low", "ci_high"]])
             counts.insert(0, "action", name)
             frames.append(counts.reset_index())
         columns = ["action", "source", "score", "ci_low", "ci_high", "n_participants",
@@ -265,17 +260,21 @@ class BestOfK(StudyAnalysis):
         return pd.concat(frames, ignore_index=True).reindex(columns=columns)
 
 
-def _answer_shares(verdict, participant, n_participants, config) -> pd.DataFrame:
-    """Return the share of trials of each kind of answer, with intervals over participants."""
+def _answer_shares(verdict, rows: pd.DataFrame, config) -> pd.DataFrame:
+    """Return the share of trials of each kind of answer (``verdict`` per trial, in the
+    trial order of ``rows``), with intervals over participants and clips."""
     n = len(verdict)
     labels = {"pick": "a clip picked as best", "all_good": "all good", "all_bad": "all bad"}
     counts = np.array([(verdict == name).sum() for name in labels])
-    kinds = pd.Categorical(verdict, categories=list(labels)).codes
-    answered = stats.per_participant(participant, kinds, len(labels),
-                                     n_participants=n_participants)
-    trials = np.repeat(answered.sum(axis=1, keepdims=True), len(labels), axis=1)
-    _, low, high = stats.ratio_bootstrap(answered, trials, config.bootstrap, config.seed,
-                                         config.confidence)
+    design = crossed.design(rows, unit="trial_key")
+    low, high = [], []
+    for name in labels:
+        result = crossed.bootstrap(design, crossed.ratio((verdict == name).astype(float),
+                                                         np.zeros(n), 1),
+                                   config)
+        row = result.summary(config.confidence, bounds=(0, 1)).iloc[0]
+        low.append(row["ci_low"])
+        high.append(row["ci_high"])
     return pd.DataFrame({"answer": list(labels), "meaning": list(labels.values()),
                          "trials": counts, "share": counts / n, "ci_low": low, "ci_high": high})
 

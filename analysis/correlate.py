@@ -17,8 +17,11 @@ Intervals: bootstrap draw ``b`` pairs the human scores of one resample of partic
 (:func:`human_draws`: participants drawn with replacement with all their judgements, the
 study's analysis run again on them) with the metrics of one resample of each source's
 motions (``metric_draws``: the metric protocol's repeats); the correlation of each draw
-gives a percentile interval. Below :data:`MIN_SOURCES` sources a rank correlation says
-next to nothing (with 3 sources, 1 in 6 random orders gives +1), and the result says so.
+gives a percentile interval. Each correlation has a two-sided permutation p-value over
+the sources (:func:`permutation_p`, exact up to 8): the methods are the units, so with 4
+of them no p-value falls below 2 / 24 = 0.083, and the result says so plainly. Below
+:data:`MIN_SOURCES` sources a rank correlation says next to nothing (with 3 sources, 1
+in 6 random orders gives +1), and the result says so.
 
 This module never imports :mod:`motion_metrics`: the caller computes the metrics and
 passes them (and their directions) in.
@@ -27,6 +30,8 @@ passes them (and their directions) in.
 from __future__ import annotations
 
 import html
+import itertools
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -87,6 +92,49 @@ def rank_correlations(x, y) -> tuple[float, float]:
     return float(rho), float(tau)
 
 
+# Up to this many permutations the permutation test enumerates them all (exact: 8! sources).
+EXACT_PERMUTATIONS = 40_320
+
+
+def permutation_p(x, y, seed: int = 0) -> tuple[float, float]:
+    """Return two-sided permutation p-values of Spearman's rho and Kendall's tau-b over
+    the pairs of ``x`` and ``y``: exact (every order of ``y`` against ``x``) up to 8
+    sources, else from :data:`EXACT_PERMUTATIONS` random orders. The sources, not the
+    judgements, are the units; NaN when a correlation is undefined."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    keep = np.isfinite(x) & np.isfinite(y)
+    x, y = x[keep], y[keep]
+    n = len(x)
+    if n < 3 or np.ptp(x) == 0 or np.ptp(y) == 0:
+        return float("nan"), float("nan")
+    rx, ry = scipy_stats.rankdata(x), scipy_stats.rankdata(y)
+    if math.factorial(n) <= EXACT_PERMUTATIONS:
+        orders = np.array(list(itertools.permutations(range(n))))
+    else:
+        rng = np.random.default_rng(seed)
+        orders = np.argsort(rng.random((EXACT_PERMUTATIONS, n)), axis=1)
+    permuted = ry[orders]  # (R, n): y's ranks in every order, the identity among them
+    cx = rx - rx.mean()
+    cy = permuted - permuted.mean(axis=1, keepdims=True)
+    rho = cy @ cx / np.sqrt((cx ** 2).sum() * (cy ** 2).sum(axis=1))
+    upper = np.triu_indices(n, 1)
+    sx = np.sign(x[:, None] - x[None, :])[upper]
+    values = y[orders]
+    sy = np.sign(values[:, :, None] - values[:, None, :])[:, upper[0], upper[1]]
+    tau = sy @ sx / np.sqrt(np.abs(sx).sum() * np.abs(sy).sum(axis=1))
+    observed_rho = scipy_stats.spearmanr(x, y).statistic
+    observed_tau = scipy_stats.kendalltau(x, y).statistic
+    tolerance = 1e-12
+    p_rho = float(np.mean(np.abs(rho) >= abs(observed_rho) - tolerance))
+    p_tau = float(np.mean(np.abs(tau) >= abs(observed_tau) - tolerance))
+    return p_rho, p_tau
+
+
+def smallest_p(n_sources: int) -> float:
+    """Return the smallest two-sided permutation p-value ``n_sources`` can give (2 / n!)."""
+    return 2.0 / float(np.prod(np.arange(1, n_sources + 1))) if n_sources > 1 else 1.0
+
+
 @dataclass
 class Correlation:
     """What :func:`correlate` returns: the table, per-source values and notes."""
@@ -138,6 +186,10 @@ def correlate(human: pd.DataFrame, metrics: pd.DataFrame, *, directions: dict | 
     few = too_few_note(len(sources))
     if few:
         notes.append(few)
+    elif smallest_p(len(sources)) > 0.05:
+        notes.append(f"with {len(sources)} methods no ordering can reach p < 0.05 (the smallest "
+                     f"permutation p-value is {smallest_p(len(sources)):.3f}): nothing can be "
+                     f"concluded about whether the metrics order methods as people do")
     score = human.loc[sources, "score"].to_numpy(float)
     rows = []
     for name in metrics.columns:
@@ -151,8 +203,10 @@ def correlate(human: pd.DataFrame, metrics: pd.DataFrame, *, directions: dict | 
             continue
         good = goodness(values, direction, real.get(name))
         rho, tau = rank_correlations(score, good)
+        rho_p, tau_p = permutation_p(score, good)
         row.update({"spearman": rho, "spearman_low": np.nan, "spearman_high": np.nan,
-                    "kendall": tau, "kendall_low": np.nan, "kendall_high": np.nan})
+                    "spearman_p": rho_p, "kendall": tau, "kendall_low": np.nan,
+                    "kendall_high": np.nan, "kendall_p": tau_p})
         if human_draws is not None and metric_draws is not None and name in metric_draws:
             h = human_draws.reindex(columns=sources).to_numpy(float)
             m = metric_draws[name].reindex(columns=sources).to_numpy(float)
@@ -174,8 +228,8 @@ def correlate(human: pd.DataFrame, metrics: pd.DataFrame, *, directions: dict | 
 
 
 def _empty() -> dict:
-    return {key: np.nan for key in ("spearman", "spearman_low", "spearman_high", "kendall",
-                                    "kendall_low", "kendall_high")}
+    return {key: np.nan for key in ("spearman", "spearman_low", "spearman_high", "spearman_p",
+                                    "kendall", "kendall_low", "kendall_high", "kendall_p")}
 
 
 def _percentiles(values: np.ndarray, confidence: float) -> tuple[float, float]:

@@ -1,9 +1,11 @@
 """Fake or real: the share of each source's clips judged real (seed 000, Fig. 5).
 
-Shares come with percentile intervals from a bootstrap over participants. Each
-generated source's rate is tested against the real clips' rate (exact binomial,
-Holm-corrected), and each participant's sensitivity d' says how well they told real
-from generated (hit = a real clip called real, false alarm = a generated one).
+Shares come with intervals over participants and clips (:mod:`analysis.crossed`). Each
+generated source's rate is compared with the real clips' rate, itself an estimate from
+its own clips, by the t test of their difference (Holm-corrected), and each
+participant's sensitivity d' says how well they told real from generated (hit = a real
+clip called real, false alarm = a generated one; its t test is over participants, for
+these clips).
 """
 
 from __future__ import annotations
@@ -11,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from analysis import simulate, stats
+from analysis import crossed, mixed, simulate, stats
 from analysis.counts import ranked_sources, source_counts
-from analysis.formatting import number, p_text, participant_bootstrap_text
+from analysis.formatting import number, p_text
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
 from analysis.tables import as_boolean
 
@@ -51,28 +53,38 @@ class FakeOrReal(StudyAnalysis):
                              "value": rows["judged_real"].to_numpy(dtype=int)})
 
     def analyse(self, rows, config):
-        sources = judged_real_shares(rows, config)
+        names = sorted(rows["source"].unique())
+        result, _ = crossed.group_means(rows, "judged_real", config)
+        sources = judged_real_shares(rows, config, result)
         real = config.real_source
-        tests, methods, notes = {}, [], []
-        methods.append(
-            f"For each source{_per_action(rows)} we report the share of its clips judged real, "
-            f"{participant_bootstrap_text(config)}"
-        )
+        tests, methods, notes = {"differences": None}, [], []
+        methods.append(f"For each source{_per_action(rows)} we report the share of its clips "
+                       f"judged real")
         tables = []
+        shown = crossed.report(result, names, rows, config)
+        tests["differences"] = shown.differences
         if real in sources.index:
             real_rate = sources.loc[real, "score"]
-            generated = [s for s in sources.index if s != real]
-            p = [stats.binomial_p(sources.loc[s, "judged_real"], sources.loc[s, "n_judgements"], real_rate)
-                 for s in generated]
+            generated = [s for s in names if s != real]
+            contrast = np.zeros((len(generated), len(names)))
+            for row, source in enumerate(generated):
+                contrast[row, names.index(source)], contrast[row, names.index(real)] = 1.0, -1.0
+            against = result.contrast(contrast).summary(config.confidence)
+            against.index = generated
             sources["difference"] = sources["score"] - real_rate
-            sources.loc[generated, "p"] = p
-            sources.loc[generated, "p_holm"] = stats.holm(p)
+            sources.loc[generated, "diff_ci_low"] = against["ci_low"]
+            sources.loc[generated, "diff_ci_high"] = against["ci_high"]
+            sources.loc[generated, "p"] = against["p"]
+            sources.loc[generated, "p_holm"] = stats.holm(against["p"])
+            sources.loc[generated, "share_clips"] = against["share_clips"]
             methods.append(
                 f"each generated source's rate was compared with the rate of the real clips "
-                f"({number(real_rate, 3)}) by an exact two-sided binomial test, Holm-corrected over "
-                f"the {len(generated)} generated source(s) (the test counts judgements as "
-                f"independent, so with participants who differ its p-values are too small)"
+                f"({number(real_rate, 3)}) by the t test of their difference over participants "
+                f"and clips (the real clips' rate is an estimate too, from its own clips), "
+                f"Holm-corrected over the {len(generated)} generated source(s)"
             )
+            notes += crossed.clip_warnings(
+                against.assign(a=generated, b=real), shown.clips)
             per_participant, summary = sensitivity(rows, real, config.confidence)
             tests["dprime"] = summary
             tables.append(Table("dprime", "Sensitivity d' per participant (hit: real judged real; "
@@ -84,21 +96,35 @@ class FakeOrReal(StudyAnalysis):
                     f"each participant's sensitivity d' = z(H) - z(F) was computed with the "
                     f"log-linear correction (H: real clips judged real; F: generated clips judged "
                     f"real); mean d' = {number(overall['mean'], 2)} "
-                    f"{_interval(overall)} over {overall['n']} participants, t test against 0: "
+                    f"{_interval(overall)} over {overall['n']} participants, t test against 0 over "
+                    f"participants (for these clips): "
                     f"{p_text(overall['p'])}"
                 )
+            model_tables, model_methods, model_notes = mixed.logistic_tables(
+                rows, "judged_real", real, config)
+            tables += model_tables
+            methods += model_methods
+            notes += model_notes
+            if model_tables:
+                tests["mixed_model"] = model_tables[0].frame
             tables.append(Table("dprime_by_source", "Mean d' of real against each generated source "
                                 "(t test against 0, Holm-corrected)",
                                 pd.DataFrame(summary["by_source"])))
         else:
             notes.append(f"no source is called {real!r}: the tests against real clips and d' were "
                          f"skipped (set the real source's name)")
-        columns = ["score", "ci_low", "ci_high", "judged_real", "difference", "p", "p_holm",
-                   "n_participants", "n_judgements"]
+        notes += [note for note in shown.notes if "single clip" in note]
+        methods.append(shown.method)
+        columns = ["score", "ci_low", "ci_high", "judged_real", "difference", "diff_ci_low",
+                   "diff_ci_high", "p", "p_holm", "share_clips", "n_participants", "n_judgements"]
         sources = ranked_sources(sources).reindex(columns=[c for c in columns if c in sources.columns])
         tables.insert(0, Table("sources", f"Share judged real with {config.confidence:.0%} intervals "
-                               f"over participants (bootstrap); binomial tests against the real "
-                               f"clips' rate", sources))
+                               f"over participants and clips; difference from the real clips' "
+                               f"rate, its interval and t test (Holm)", sources))
+        tables.insert(1, Table("differences", "Difference of shares judged real a - b, t test over "
+                               "participants and clips (Holm), and the shares of its variance",
+                               shown.differences[crossed.DIFFERENCE_COLUMNS]))
+        tables.append(Table("clips", "Clips per source, and per source and condition", shown.clips))
         if "action" in rows.columns and rows["action"].nunique() > 1:
             by_action = judged_real_shares(rows, config, by=("action", "source"))
             tables.append(Table("by_action", "Share judged real per action", by_action.reset_index()))
@@ -107,13 +133,17 @@ class FakeOrReal(StudyAnalysis):
                         methods=methods, notes=notes, tests=tests)
 
 
-def judged_real_shares(rows: pd.DataFrame, config, by=("source",)) -> pd.DataFrame:
-    """Return ``score`` (share judged real), ``ci_low``/``ci_high`` over participants
-    (:func:`analysis.stats.bootstrap_means`) and counts per group of ``by``."""
+def judged_real_shares(rows: pd.DataFrame, config, result=None, by=("source",)) -> pd.DataFrame:
+    """Return ``score`` (share judged real), ``ci_low``/``ci_high`` over participants and
+    clips (:func:`analysis.crossed.group_means`, or ``result`` when drawn) and counts per
+    group of ``by``."""
     frame = source_counts(rows, by)
     frame["judged_real"] = rows.groupby(list(by), observed=True)["judged_real"].sum().astype(int)
-    frame = frame.join(stats.bootstrap_means(rows, "judged_real", by, config.bootstrap,
-                                             config.seed, config.confidence))
+    if result is None:
+        result, index = crossed.group_means(rows, "judged_real", config, by)
+    else:
+        index = frame.index
+    frame = frame.join(crossed.intervals(result, index, config, bounds=(0, 1)))
     return frame[["score", "ci_low", "ci_high", "judged_real", "n_participants", "n_judgements"]]
 
 

@@ -40,13 +40,23 @@ def methods_paragraph(result) -> str:
                          f"{row.participants} participants)")
     dprime = " (d' has one value per participant)" if "dprime" in result.analysis.tests else ""
     but = ", but for agreement," if agreement["n_units"] else ""
-    sentences.append(
-        f"All intervals are {config.confidence:.0%} and{but} over participants: each "
-        f"bootstrap resample draws participants with replacement and keeps all of their "
-        f"judgements{dprime}, because one person's judgements are "
-        f"alike and are not independent observations; p-values of families of comparisons "
-        f"are Holm-corrected"
-    )
+    if getattr(config, "random_clips", True):
+        sentences.append(
+            f"All intervals are {config.confidence:.0%} and{but} treat participants and clips as "
+            f"random samples: a resample of participants keeps all of their judgements{dprime}, "
+            f"a resample of clips all of theirs, because one person's judgements are alike, and "
+            f"so are the judgements of one clip, and neither are independent observations; "
+            f"no p-value counts judgements as independent, and p-values of families of "
+            f"comparisons are Holm-corrected"
+        )
+    else:
+        sentences.append(
+            f"All intervals are {config.confidence:.0%} and{but} over participants, for these "
+            f"clips: a resample of participants keeps all of their judgements{dprime}, because "
+            f"one person's judgements are alike and are not independent observations; the clips "
+            f"were held fixed, so no verdict reaches other clips of the same sources; p-values "
+            f"of families of comparisons are Holm-corrected"
+        )
     if counts["participants"] < MIN_PARTICIPANTS:
         sentences.append(f"With {counts['participants']} participants (fewer than "
                          f"{MIN_PARTICIPANTS}) these intervals are rough")

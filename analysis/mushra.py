@@ -9,10 +9,9 @@ analysed with its study).
 
 Each participant contributes one number per condition, their mean score (as the
 recommendation analyses MUSHRA data); a condition's score is the mean over participants,
-with a percentile interval from resampling participants
-(:func:`analysis.worth.resample_participants`). Conditions are compared with Friedman's
-test and Wilcoxon signed-rank tests between every pair, Holm-corrected, on the
-participants who scored every condition.
+with an interval over participants and clips (:mod:`analysis.crossed`). Conditions are
+compared by the differences of these means, t tests over participants and clips,
+Holm-corrected.
 """
 
 from __future__ import annotations
@@ -20,9 +19,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from analysis import simulate, stats, worth
+from analysis import crossed, mixed, simulate
 from analysis.counts import ranked_sources, source_counts
-from analysis.formatting import bootstrap_text, number, p_text
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
 from analysis.tables import AnalysisError
 
@@ -55,17 +53,6 @@ def reference_failures(rows: pd.DataFrame, threshold: int) -> pd.DataFrame:
 def participant_means(rows: pd.DataFrame) -> pd.DataFrame:
     """Return ``(participants, conditions)``: each participant's mean score per condition."""
     return rows.groupby(["pcode", "source"])["score"].mean().unstack("source")
-
-
-def bootstrap_means(means: pd.DataFrame, resampled: np.ndarray, confidence: float):
-    """Return percentile intervals of the mean over participants of ``means`` (NaN where a
-    participant did not score a condition), participants resampled as ``resampled``."""
-    values = means.to_numpy(dtype=float)
-    present = np.isfinite(values)
-    weights = resampled[:, means.index.to_numpy()].astype(float)  # (R, P) of these participants
-    with np.errstate(invalid="ignore", divide="ignore"):
-        samples = (weights @ np.where(present, values, 0.0)) / (weights @ present)
-    return stats.percentile_interval(samples, confidence)
 
 
 @register_analysis("mushra")
@@ -165,41 +152,36 @@ class Mushra(StudyAnalysis):
         sources["score"] = means.mean(axis=0)
         sources["sd"] = means.std(axis=0, ddof=1)
         sources["median"] = means.median(axis=0)
-        if config.bootstrap > 0 and len(means) >= 2:
-            resampled = worth.resample_participants(int(rows["pcode"].max()) + 1, config.bootstrap,
-                                                    config.seed)
-            low, high = bootstrap_means(means, resampled, config.confidence)
-        else:
-            low = high = np.full(means.shape[1], np.nan)
-        sources["ci_low"] = pd.Series(low, index=means.columns)
-        sources["ci_high"] = pd.Series(high, index=means.columns)
+        names = sorted(means.columns)
+        # Each row weighs 1 / (the participant's rows of its condition): a condition's
+        # mean is then the mean over participants of their means.
+        per_cell = rows.groupby(["pcode", "source"])["score"].transform("size").to_numpy(dtype=float)
+        result, _ = crossed.group_means(rows, "score", config, base=1.0 / per_cell)
+        shown = crossed.report(result, names, rows, config)
+        sources = sources.join(crossed.intervals(result, pd.Index(names), config, bounds=SCALE)
+                               [["ci_low", "ci_high"]])
         sources["condition"] = [
             {HIDDEN_REFERENCE: "hidden reference", ANCHOR: "low anchor"}.get(s, "source")
             for s in sources.index]
         sources = ranked_sources(sources)[["score", "ci_low", "ci_high", "sd", "median",
                                            "condition", "n_participants", "n_judgements"]]
-        names = list(sources.index)
         tables = [Table("sources", "Mean over participants of each participant's mean score "
-                        f"(0-100) with {config.confidence:.0%} bootstrap intervals over "
-                        "participants", sources)]
-        tests, methods, notes = {}, [], []
-        complete = means[names].dropna()
-        if len(complete) >= 2:
-            omnibus = stats.friedman(complete.to_numpy())
-            tests["friedman"] = {k: v for k, v in omnibus.items() if k != "mean_ranks"}
-            posthoc = stats.pairwise_wilcoxon(complete.to_numpy(), names)
-            tables.append(Table("pairwise_tests", "Wilcoxon signed-rank tests on participants' "
-                                "mean scores (a - b), Holm-corrected", posthoc))
-            methods.append(
-                f"Conditions were compared with Friedman's test on each participant's mean score "
-                f"({len(complete)} participants who scored every condition; chi2({omnibus['df']}) "
-                f"= {number(omnibus['statistic'], 2)}, {p_text(omnibus['p'])}) and Wilcoxon "
-                f"signed-rank tests between every pair of conditions with Holm's correction")
-        else:
-            notes.append("fewer than two participants scored every condition: no tests")
-        if len(complete) < len(means):
-            notes.append(f"{len(means) - len(complete)} participant(s) did not score every "
-                         f"condition and are left out of the tests")
+                        f"(0-100) with {config.confidence:.0%} intervals over participants and "
+                        "clips", sources),
+                  Table("differences", "Difference of mean scores a - b, t test over "
+                        "participants and clips (Holm), and the shares of its variance from "
+                        "participants, clips and single answers",
+                        shown.differences[crossed.DIFFERENCE_COLUMNS]),
+                  Table("clips", "Clips per condition, and per condition and action", shown.clips)]
+        tests, notes = {"differences": shown.differences}, list(shown.notes)
+        methods = ["conditions were compared by the differences of their mean scores", shown.method]
+        model_tables, model_methods, model_notes, fitted = mixed.linear_tables(
+            rows, "score", config, "score")
+        tables += model_tables
+        methods += model_methods
+        notes += model_notes
+        if fitted:
+            tests["mixed_model"] = fitted["differences"]
         screening = getattr(self, "screening", None)
         threshold, share = screening_rule(config)
         if screening is not None and not screening.empty:
@@ -208,8 +190,7 @@ class Mushra(StudyAnalysis):
                                 f"per participant (excluded above {share:.0%} of trials)", frame))
         methods.insert(0, (
             f"For each condition (the sources, the hidden reference and the low anchor) we "
-            f"report the mean over participants of each participant's mean score, "
-            f"{bootstrap_text(config)}; following the MUSHRA recommendation, participants who "
+            f"report the mean over participants of each participant's mean score; following the MUSHRA recommendation, participants who "
             f"scored the hidden reference below {threshold} in more than {share:.0%} of trials "
             f"were excluded beforehand"))
         plots = [Plot("mean_score", "Mean score (0-100)", _plot(sources))]

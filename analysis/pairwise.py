@@ -1,9 +1,9 @@
 """Pairwise preference: two clips side by side, the better one (or both good, both bad).
 
 Reported: the win rate of each pair of sources over the comparisons one of them won
-(binomial test against 50 %, Holm-corrected), Bradley-Terry worths (ties left out), and
-the left/right position bias; every interval resamples participants with all their
-comparisons.
+(tested against 50 %, Holm-corrected), Bradley-Terry worths (ties left out) and their
+differences, and the left/right position bias; every interval and test treats
+participants and clips as random (:mod:`analysis.crossed`).
 """
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ import itertools
 import numpy as np
 import pandas as pd
 
-from analysis import simulate, stats, worth
+from analysis import crossed, simulate, stats
 from analysis.counts import ranked_sources, source_counts
-from analysis.formatting import bootstrap_text, number, p_text, participant_bootstrap_text
+from analysis.formatting import number, p_text
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
 from analysis.tables import AnalysisError
 
@@ -72,11 +72,12 @@ class Pairwise(StudyAnalysis):
     def analyse(self, rows, config):
         names = sorted(rows["source"].unique())
         trials = comparisons(rows, names)
-        pairs, matrix = win_rates(trials, names, config)
-        resampled = worth.resample_participants(int(rows["pcode"].max()) + 1, config.bootstrap, config.seed)
-        fitted = bradley_terry(trials, names, config, resampled)
-        sources = source_counts(rows).join(fitted)
-        decided = trials.loc[trials["winner"] >= 0]
+        decided_rows = decided_trial_rows(rows, trials)
+        decided = trials.loc[trials["winner"] >= 0].reset_index(drop=True)
+        design = crossed.design(decided_rows, unit="trial_key")
+        fitted = bradley_terry(decided, decided_rows, names, config)
+        shown = crossed.report(fitted, names, decided_rows, config)
+        sources = source_counts(rows).join(shown.scores[["score", "ci_low", "ci_high"]])
         wins = np.bincount(decided["winner"], minlength=len(names))
         played = (np.bincount(decided["left"], minlength=len(names))
                   + np.bincount(decided["right"], minlength=len(names)))
@@ -84,35 +85,39 @@ class Pairwise(StudyAnalysis):
             sources["win_rate"] = pd.Series(wins / played, index=names)
         sources = ranked_sources(sources)[["score", "ci_low", "ci_high", "win_rate", "n_participants",
                                            "n_judgements"]]
-        bias = position_bias(trials, config)
+        pairs, matrix = win_rates(trials, design, names, config)
+        bias = position_bias(decided, design, config)
         ties = int((trials["winner"] < 0).sum())
         tables = [
             Table("sources", f"Bradley-Terry worth (log scale, 0 = average source) with "
-                  f"{config.confidence:.0%} bootstrap intervals, and the share of decided "
-                  f"comparisons won", sources),
+                  f"{config.confidence:.0%} intervals over participants and clips, and the share "
+                  f"of decided comparisons won", sources),
+            Table("differences", "Difference of Bradley-Terry worths a - b, t test over "
+                  "participants and clips (Holm), and the shares of its variance from "
+                  "participants, clips and single answers",
+                  shown.differences[crossed.DIFFERENCE_COLUMNS]),
             Table("win_rates", f"Win rate of a over b among decided comparisons, {config.confidence:.0%} "
-                  f"intervals over participants (bootstrap), binomial test against 50 % (Holm)",
-                  pairs),
+                  f"intervals over participants and clips, t test against 50 % (Holm)", pairs),
             Table("position_bias", "Share of decided comparisons won by the left clip, with "
-                  "its interval over participants",
+                  "its interval over participants and clips",
                   pd.DataFrame([bias])),
+            Table("clips", "Clips per source, and per source and condition", shown.clips),
         ]
         if "action" in rows.columns and rows["action"].nunique() > 1:
             tables.append(Table("by_action", "Bradley-Terry worth per action",
-                                self._by_action(rows, trials, names, config, resampled)))
+                                self._by_action(rows, decided, decided_rows, names, config)))
         methods = [
             f"For each pair of sources we report the share of decided comparisons (a clip chosen) "
-            f"won by each, {participant_bootstrap_text(config)}, and exact binomial tests "
-            f"against 50 % with Holm's correction (these tests count comparisons as "
-            f"independent, so with participants who differ their p-values are too small); {ties} comparison(s) answered 'both good' or "
+            f"won by each, tested against 50 %; {ties} comparison(s) answered 'both good' or "
             f"'both bad' count as ties and are left out of win rates and worths",
-            f"a Bradley-Terry worth per source was fitted to the decided comparisons (log scale, "
-            f"centred on 0, with a weak prior of one virtual win and loss per source), "
-            f"{bootstrap_text(config)}",
+            "a Bradley-Terry worth per source was fitted to the decided comparisons (log scale, "
+            "centred on 0, with a weak prior of one virtual win and loss per source), and refitted "
+            "in every bootstrap resample",
+            shown.method,
             f"position bias: the left clip won {number(bias['share_left'], 3)} "
             f"[{number(bias['ci_low'], 3)}, {number(bias['ci_high'], 3)}] of "
-            f"{bias['n_decided']} decided comparisons (binomial test against 0.5: "
-            f"{p_text(bias['p'])})",
+            f"{bias['n_decided']} decided comparisons (t test against 0.5 over participants and "
+            f"clips: {p_text(bias['p'])})",
         ]
         plots = [
             Plot("worth", "Bradley-Terry worth", _worth_plot(sources)),
@@ -120,16 +125,21 @@ class Pairwise(StudyAnalysis):
                  _matrix_plot(matrix.loc[sources.index, sources.index])),
         ]
         return Analysis(measure="Bradley-Terry worth (log scale)", sources=sources, tables=tables,
-                        plots=plots, methods=methods, tests={"position_bias": bias, "ties": ties})
+                        plots=plots, methods=methods, notes=shown.notes,
+                        tests={"position_bias": bias, "ties": ties,
+                               "differences": shown.differences})
 
-    def _by_action(self, rows, trials, names, config, resampled):
+    def _by_action(self, rows, decided, decided_rows, names, config):
         frames = []
         actions = rows["action"].to_numpy()
-        for action, group in trials.groupby("action", sort=True):
+        for action, group in decided.groupby("action", sort=True):
             present = np.unique(np.concatenate([group["left"], group["right"]]))
             frame = source_counts(rows.loc[actions == action])
             if len(present) > 1:
-                frame = frame.join(bradley_terry(group, names, config, resampled, present))
+                subset = decided_rows.loc[(decided_rows["action"] == action).to_numpy()]
+                fitted = bradley_terry(group.reset_index(drop=True), subset, names, config, present)
+                scores = crossed.scores(fitted, [names[i] for i in present], config.confidence)
+                frame = frame.join(scores[["score", "ci_low", "ci_high"]])
             frame.insert(0, "action", action)
             frames.append(frame.reset_index())
         columns = ["action", "source", "score", "ci_low", "ci_high", "n_participants", "n_judgements"]
@@ -164,11 +174,18 @@ def comparisons(rows: pd.DataFrame, names) -> pd.DataFrame:
     return frame
 
 
-def win_rates(trials: pd.DataFrame, names, config):
+def decided_trial_rows(rows: pd.DataFrame, trials: pd.DataFrame) -> pd.DataFrame:
+    """Return the rows (two per trial, in trial order) of the decided comparisons."""
+    keys = trials.loc[trials["winner"] >= 0, "trial_key"]
+    return rows.loc[rows["trial_key"].isin(keys).to_numpy()]
+
+
+def win_rates(trials: pd.DataFrame, design, names, config):
     """Return the per-pair table and the ``(K, K)`` matrix of row-over-column win rates.
 
-    Intervals resample participants with all their comparisons
-    (:func:`analysis.stats.participant_bootstrap`).
+    ``design`` is the crossed design of the decided trials (in their order); intervals
+    and tests against 50 % treat participants and clips as random
+    (:mod:`analysis.crossed`).
     """
     k = len(names)
     decided = trials.loc[trials["winner"] >= 0]
@@ -178,23 +195,23 @@ def win_rates(trials: pd.DataFrame, names, config):
     ties = {name: np.bincount(pair[tied["choice"] == CHOICES.index(name)], minlength=k * k).reshape(k, k)
             for name in ("both_good", "both_bad")}
     pairs = list(itertools.combinations(range(k), 2))
-    first = np.array([a for a, _ in pairs], dtype=np.int64)
-    second = np.array([b for _, b in pairs], dtype=np.int64)
-    people = pd.factorize(decided["pcode"])[0]
-    won = stats.per_participant(people, decided["winner"].to_numpy() * k + decided["loser"].to_numpy(),
-                          k * k).reshape(-1, k, k)
-    _, lows, highs = stats.ratio_bootstrap(
-        won[:, first, second], won[:, first, second] + won[:, second, first],
-        config.bootstrap, config.seed, config.confidence)
+    index = {pair: i for i, pair in enumerate(pairs)}
+    first = np.minimum(decided["winner"], decided["loser"]).to_numpy()
+    second = np.maximum(decided["winner"], decided["loser"]).to_numpy()
+    groups = np.array([index[(a, b)] for a, b in zip(first, second)], dtype=np.int64)
+    won_first = (decided["winner"].to_numpy() == first).astype(float)
+    result = crossed.bootstrap(design, crossed.ratio(won_first, groups, len(pairs)),
+                               config)
+    summary = result.summary(config.confidence, null=0.5, bounds=(0, 1))
     records = []
-    for (a, b), low, high in zip(pairs, np.atleast_1d(lows), np.atleast_1d(highs)):
+    for (a, b), row in zip(pairs, summary.itertuples()):
         won_a, won_b = int(wins[a, b]), int(wins[b, a])
         n = won_a + won_b
         records.append({
             "a": names[a], "b": names[b], "wins_a": won_a, "wins_b": won_b,
             "both_good": int(ties["both_good"][a, b]), "both_bad": int(ties["both_bad"][a, b]),
-            "win_rate_a": won_a / n if n else np.nan, "ci_low": float(low), "ci_high": float(high),
-            "p": stats.binomial_p(won_a, n, 0.5),
+            "win_rate_a": won_a / n if n else np.nan, "ci_low": float(row.ci_low),
+            "ci_high": float(row.ci_high), "p": float(row.p) if n else np.nan,
         })
     table = pd.DataFrame(records)
     if len(table):
@@ -204,44 +221,33 @@ def win_rates(trials: pd.DataFrame, names, config):
     return table, matrix
 
 
-def bradley_terry(trials: pd.DataFrame, names, config, resampled=None, present=None) -> pd.DataFrame:
-    """Return ``score`` (log-worth), ``ci_low``, ``ci_high`` per source from decided comparisons.
+def bradley_terry(decided: pd.DataFrame, decided_rows: pd.DataFrame, names, config,
+                  present=None) -> crossed.Crossed:
+    """Return the crossed bootstrap of the Bradley-Terry log-worths of the decided
+    comparisons ``decided`` (their rows ``decided_rows``, two per trial in the same order).
 
     ``present`` (source codes) restricts the fit to the sources a subset compared.
     """
     present = np.arange(len(names)) if present is None else np.asarray(present)
-    index = pd.Index([names[i] for i in present], name="source")
-    decided = trials.loc[trials["winner"] >= 0]
-    columns = ["score", "ci_low", "ci_high"]
-    if decided.empty:
-        return pd.DataFrame(np.nan, index=index, columns=columns)
     recode = np.full(len(names), -1)
     recode[present] = np.arange(len(present))
     orders = np.stack([recode[decided["winner"]], recode[decided["loser"]]], axis=1)
-    n_participants = None if resampled is None else resampled.shape[1]
-    data = worth.rankings(orders, decided["pcode"].to_numpy(), len(present), n_participants)
-    fitted = worth.bootstrap(data, config.bootstrap, seed=config.seed, confidence=config.confidence,
-                             resampled=resampled)
-    return pd.DataFrame({"score": fitted["theta"], "ci_low": fitted["ci_low"],
-                         "ci_high": fitted["ci_high"]}, index=index)
+    design = crossed.design(decided_rows, unit="trial_key")
+    return crossed.bootstrap(design, crossed.worth_statistic(orders, len(present)),
+                             config)
 
 
-def position_bias(trials: pd.DataFrame, config) -> dict:
+def position_bias(decided: pd.DataFrame, design, config) -> dict:
     """Return the share of decided comparisons won by the left clip, its interval over
-    participants and its test."""
-    decided = trials["winner"] >= 0
-    left = int((trials["choice"] == CHOICES.index("left")).sum())
-    n = int(decided.sum())
-    people = pd.factorize(trials.loc[decided, "pcode"])[0]
-    won_left = (trials.loc[decided, "choice"] == CHOICES.index("left")).to_numpy(dtype=float)
-    _, low, high = stats.ratio_bootstrap(
-        stats.per_participant(people, np.zeros(len(people)), 1, won_left),
-        stats.per_participant(people, np.zeros(len(people)), 1),
-        config.bootstrap, config.seed, config.confidence)
-    low, high = float(low[0]), float(high[0])
-    return {"share_left": left / n if n else float("nan"), "ci_low": float(low), "ci_high": float(high),
-            "left": left, "n_decided": n, "p": stats.binomial_p(left, n, 0.5),
-            "n_participants": int(trials.loc[decided, "pcode"].nunique())}
+    participants and clips and its t test against 0.5."""
+    won_left = (decided["choice"] == CHOICES.index("left")).to_numpy(dtype=float)
+    n = len(decided)
+    result = crossed.bootstrap(design, crossed.ratio(won_left, np.zeros(n), 1),
+                               config)
+    row = result.summary(config.confidence, null=0.5, bounds=(0, 1)).iloc[0]
+    return {"share_left": won_left.mean() if n else float("nan"), "ci_low": float(row["ci_low"]),
+            "ci_high": float(row["ci_high"]), "left": int(won_left.sum()), "n_decided": n,
+            "p": float(row["p"]), "n_participants": int(decided["pcode"].nunique())}
 
 
 def _worth_plot(sources):

@@ -5,8 +5,9 @@ The answer (column ``choice``) is side-based: ``left_much``, ``left``, ``left_sl
 ``right_slightly``, ``right``, ``right_much`` and ``both_bad``. Its grade for clip A runs
 from +3 (``left_much``) to -3 (``right_much``).
 
-Reported, every interval from one bootstrap over participants (a replicate redraws the
-participants with replacement and keeps all their judgements):
+Reported, every interval and test over participants and clips (:mod:`analysis.crossed`:
+participants redrawn with all their judgements, and clips within their source and
+condition with all of theirs):
 
 - an ordinal model of the grades (cumulative logit): ``P(grade of A <= k) =
   logistic(c_k - (theta_A - theta_B + beta))`` with a source effect ``theta`` (the
@@ -19,8 +20,8 @@ participants with replacement and keeps all their judgements):
   propensity to tie;
 - the position bias of both models and the raw share of directional answers that favour
   the left clip;
-- per pair of sources the directional win rate (bootstrap intervals over participants,
-  binomial tests against 50 % with Holm's correction) and the mean grade;
+- per pair of sources the directional win rate (tested against 50 % with Holm's
+  correction) and the mean grade, and the differences of the ordinal source effects;
 - Elo ratings, descriptive only: no model, no interval, averaged over random orders of
   the comparisons because Elo depends on the order it reads them in;
 - the share of each source's comparisons answered "Both bad" (those answers carry no
@@ -40,9 +41,9 @@ import itertools
 import numpy as np
 import pandas as pd
 
-from analysis import simulate, stats, worth
+from analysis import crossed, simulate, stats
 from analysis.counts import ranked_sources, source_counts
-from analysis.formatting import bootstrap_text, number, p_text
+from analysis.formatting import number, p_text
 from analysis.pairwise import _matrix_plot, comparisons_answered
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
 
@@ -120,30 +121,32 @@ class PairwiseGraded(StudyAnalysis):
         names = sorted(rows["source"].unique())
         k = len(names)
         trials = comparisons(rows, names)
-        n_participants = int(rows["pcode"].max()) + 1
-        resampled = worth.resample_participants(n_participants, config.bootstrap, config.seed)
-        cells = Cells.of(trials, k, n_participants)
-        ordinal = fit_bootstrap(OrdinalModel(cells, k), cells, resampled, config.confidence)
-        davidson = fit_bootstrap(DavidsonModel(cells, k), cells, resampled, config.confidence)
+        graded = trials.loc[trials["graded"]].reset_index(drop=True)
+        graded_rows = rows.loc[rows["trial_key"].isin(graded["trial_key"]).to_numpy()]
+        design = crossed.design(graded_rows, unit="trial_key")
+        cells = Cells.of(graded.assign(pcode=np.arange(len(graded))), k, len(graded))
+        ordinal = fit_crossed(OrdinalModel(cells, k), cells, design, config)
+        davidson = fit_crossed(DavidsonModel(cells, k), cells, design, config)
+        effects = ordinal.contrast(np.eye(len(ordinal.estimate))[:k])
+        shown = crossed.report(effects, names, graded_rows, config)
+        worths = crossed.scores(davidson.contrast(np.eye(len(davidson.estimate))[:k]), names,
+                                config.confidence)
 
-        sources = source_counts(rows)
-        sources["score"] = _centred(ordinal, slice(0, k), "theta")
-        sources["ci_low"], sources["ci_high"] = _centred(ordinal, slice(0, k), "low"), _centred(
-            ordinal, slice(0, k), "high")
-        sources["davidson"] = _centred(davidson, slice(0, k), "theta")
-        sources["davidson_low"] = _centred(davidson, slice(0, k), "low")
-        sources["davidson_high"] = _centred(davidson, slice(0, k), "high")
+        sources = source_counts(rows).join(shown.scores[["score", "ci_low", "ci_high"]])
+        sources["davidson"] = worths["score"]
+        sources["davidson_low"] = worths["ci_low"]
+        sources["davidson_high"] = worths["ci_high"]
         sources["elo"] = elo(trials, k, config.seed)
-        both_bad, shown = both_bad_counts(trials, k)
+        both_bad, n_shown = both_bad_counts(trials, k)
         with np.errstate(invalid="ignore", divide="ignore"):
-            sources["both_bad_share"] = both_bad / shown
+            sources["both_bad_share"] = both_bad / n_shown
         sources["both_bad"] = both_bad
         sources = ranked_sources(sources)[[
             "score", "ci_low", "ci_high", "davidson", "davidson_low", "davidson_high", "elo",
             "both_bad_share", "both_bad", "n_participants", "n_judgements"]]
 
-        bias = position_bias(trials, ordinal, davidson, k, config)
-        pairs, matrix = pair_table(trials, names, config)
+        bias = position_bias(graded, design, ordinal, davidson, k, config)
+        pairs, matrix = pair_table(trials, graded, design, names, config)
         cuts = thresholds(ordinal, k, config.confidence)
         n_graded = int(trials["graded"].sum())
         n_both_bad = int((~trials["graded"]).sum())
@@ -152,15 +155,20 @@ class PairwiseGraded(StudyAnalysis):
         ci = f"{config.confidence:.0%}"
         tables = [
             Table("sources", f"Source effect of the ordinal (cumulative-logit) model of the grades "
-                  f"(logit scale, 0 = average source) with {ci} bootstrap intervals over "
-                  f"participants; Davidson log-worth of the direction (ties = no preference) "
+                  f"(logit scale, 0 = average source) with {ci} intervals over "
+                  f"participants and clips; Davidson log-worth of the direction (ties = no preference) "
                   f"with its intervals; Elo rating (descriptive, no interval); share of the "
                   f"source's comparisons answered 'Both bad'", sources),
+            Table("differences", "Difference of the ordinal model's source effects a - b, t "
+                  "test over participants and clips (Holm), and the shares of its variance from "
+                  "participants, clips and single answers",
+                  shown.differences[crossed.DIFFERENCE_COLUMNS]),
             Table("position_bias", "Left/right position bias: a positive shift, or a share above 0.5, "
-                  "means the left clip (A) is favoured", bias),
+                  "means the left clip (A) is favoured (t tests over participants and clips)", bias),
             Table("pairs", f"Per pair of sources: answers, mean grade of a over b, and the win "
-                  f"rate of a among directional answers ({ci} bootstrap intervals over participants, binomial test "
-                  f"against 50 %, Holm)", pairs),
+                  f"rate of a among directional answers ({ci} intervals over participants and "
+                  f"clips, t test against 50 %, Holm)", pairs),
+            Table("clips", "Clips per source, and per source and condition", shown.clips),
             Table("thresholds", "Cut points of the ordinal model (grade of A at most the "
                   "category)", cuts),
         ]
@@ -170,7 +178,8 @@ class PairwiseGraded(StudyAnalysis):
             f"logistic(c_k - (theta_A - theta_B + beta)), with a source effect theta, a left/right "
             f"shift beta and six ordered cut points symmetric about 0 (as the scale is), fitted by maximum likelihood (normal prior "
             f"with SD {PRIOR_SD:g} on each source effect and on the shift) to {n_graded} graded comparisons; "
-            f"source effects are centred on 0, {bootstrap_text(config)}",
+            f"source effects are centred on 0 and compared by their differences, the model "
+            f"refitted in every bootstrap resample",
             f"the direction of the answers (A better, B better, or no preference as a tie; "
             f"{n_ties} tie(s)) was fitted with Davidson's Bradley-Terry model with ties and "
             f"Davidson and Beaver's order effect for the left clip",
@@ -178,18 +187,17 @@ class PairwiseGraded(StudyAnalysis):
             f"{_interval_text(bias, 'ordinal shift beta (logit)')}; Davidson's log order effect "
             f"{_interval_text(bias, 'Davidson log order effect')}; the left clip was favoured in "
             f"{_interval_text(bias, 'share of directional answers favouring the left clip')} "
-            f"of directional answers (binomial test against 0.5: {p_text(_bias_row(bias, 'share of directional answers favouring the left clip')['p'])})",
-            f"per pair of sources, the win rate among directional answers has bootstrap intervals "
-            f"over participants and an exact binomial test against 50 % with Holm's correction "
-            f"(the tests treat answers as independent, so their p-values are too small when "
-            f"participants differ)",
+            f"of directional answers (t test against 0.5: {p_text(_bias_row(bias, 'share of directional answers favouring the left clip')['p'])})",
+            "per pair of sources, the win rate among directional answers is tested against 50 % "
+            "with Holm's correction",
+            shown.method,
             f"Elo ratings (K = {ELO_K:g}, start {ELO_START:g}, averaged over {ELO_ORDERS} random "
             f"orders of the comparisons) are given for comparison only; they are descriptive, "
             f"with no model behind them and no interval",
             f"{n_both_bad} comparison(s) answered 'Both bad' carry no direction: they are left out "
             f"of both models and Elo and reported as each source's share of its comparisons",
         ]
-        notes = []
+        notes = list(shown.notes)
         if n_people < MIN_PARTICIPANTS:
             notes.append(f"only {n_people} participant(s) were analysed: bootstrap intervals over "
                          f"fewer than {MIN_PARTICIPANTS} participants mean little; collect more "
@@ -200,8 +208,8 @@ class PairwiseGraded(StudyAnalysis):
                  "each other (column)", _matrix_plot(matrix.loc[sources.index, sources.index])),
         ]
         tests = {"position_bias": bias, "n_graded": n_graded, "n_ties": n_ties,
-                 "n_both_bad": n_both_bad, "ordinal_converged": ordinal["converged"],
-                 "davidson_converged": davidson["converged"]}
+                 "n_both_bad": n_both_bad, "ordinal_converged": ordinal.converged,
+                 "davidson_converged": davidson.converged, "differences": shown.differences}
         return Analysis(measure="ordinal source effect (logit scale)", sources=sources,
                         tables=tables, plots=plots, methods=methods, notes=notes, tests=tests)
 
@@ -373,120 +381,116 @@ def fisher_scoring(model, counts, start, iterations=60, tolerance=1e-8):
     return phi, converged
 
 
-def fit_bootstrap(model, cells: Cells, resampled, confidence):
-    """Return the fit on all participants (``theta``) and percentile intervals (``low``,
-    ``high``; NaN without replicates or with fewer than 2 participants) of every
-    parameter, from the participants' redraws ``resampled`` ``(R, P)``."""
+def fit_crossed(model, cells: Cells, design, config) -> crossed.Crossed:
+    """Return the crossed bootstrap of the model's parameters, source effects centred,
+    with the ordinal model's six cut points after them. ``cells`` count each graded
+    comparison as its own unit (in the order of ``design``'s units); a replicate weighs
+    them by its participants' and clips' draws and refits."""
     n_cells = len(cells.pairs)
+    k = model.k
     full = model.counts(cells.totals().reshape(1, n_cells, N_GRADES))
     theta, converged = fisher_scoring(model, full, model.start[None])
-    theta = theta[0]
-    nan = np.full(model.n_params, np.nan)
-    active = np.count_nonzero(cells.by_participant.sum(axis=1))
-    out = {"theta": theta, "low": nan, "high": nan, "samples": None, "converged": converged}
-    if len(resampled) == 0 or active < 2:
-        return out
     per = max(1, CHUNK_ELEMENTS // ((n_cells + 1) * N_GRADES * model.n_params ** 2))
-    samples = np.empty((len(resampled), model.n_params))
-    for first in range(0, len(resampled), per):
-        weights = resampled[first:first + per].astype(float)
-        counts = (weights @ cells.by_participant).reshape(len(weights), n_cells, N_GRADES)
-        start = np.tile(theta, (len(weights), 1))
-        samples[first:first + per], _ = fisher_scoring(model, model.counts(counts), start)
-    out["samples"] = samples
-    out["low"], out["high"] = _centred_interval(samples, model, confidence)
-    return out
+
+    def statistic(weights):
+        out = []
+        for first in range(0, len(weights), per):
+            chunk = weights[first:first + per]
+            counts = (chunk @ cells.by_participant).reshape(len(chunk), n_cells, N_GRADES)
+            phi, _ = fisher_scoring(model, model.counts(counts), np.tile(theta, (len(chunk), 1)))
+            phi[:, :k] -= phi[:, :k].mean(axis=1, keepdims=True)
+            if isinstance(model, OrdinalModel):
+                phi = np.concatenate([phi, symmetric_cuts(phi, k)[0]], axis=1)
+            out.append(phi)
+        return np.concatenate(out, axis=0)
+
+    result = crossed.bootstrap(design, statistic, config)
+    result.converged = converged
+    return result
 
 
-def _centred_interval(samples, model, confidence):
-    """Percentile intervals; source effects are centred per replicate first."""
-    shown = samples.copy()
-    shown[:, :model.k] -= shown[:, :model.k].mean(axis=1, keepdims=True)
-    return stats.percentile_interval(shown, confidence)
-
-
-def _centred(fitted, which, key):
-    values = np.asarray(fitted[key], dtype=float)[which]
-    if key == "theta":
-        return values - values.mean()
-    return values  # intervals are of centred replicates already
-
-
-def thresholds(fitted, k, confidence=0.95) -> pd.DataFrame:
+def thresholds(fitted: crossed.Crossed, k, confidence=0.95) -> pd.DataFrame:
     """Return the ordinal model's six cut points (symmetric about 0) with their intervals."""
-    point = symmetric_cuts(np.atleast_2d(fitted["theta"]), k)[0][0]
-    low = high = np.full(6, np.nan)
-    if fitted["samples"] is not None:
-        low, high = stats.percentile_interval(symmetric_cuts(fitted["samples"], k)[0], confidence)
+    summary = fitted.summary(confidence).iloc[k + 4:]
     labels = [f"A's grade <= {g}" for g in range(-3, 3)]
-    return pd.DataFrame({"cut": labels, "estimate": point, "ci_low": low, "ci_high": high})
+    return pd.DataFrame({"cut": labels, "estimate": summary["estimate"].to_numpy(),
+                         "ci_low": summary["ci_low"].to_numpy(),
+                         "ci_high": summary["ci_high"].to_numpy()})
 
 
-def _share_interval(wins, people, groups, n_groups, config):
-    """Return ``(ci_low, ci_high)`` of each group's share of ``wins`` (booleans, one per
-    answer) with a bootstrap over participants (``people``: codes 0..P-1)."""
-    won = stats.per_participant(people, groups, n_groups, wins.astype(float))
-    asked = stats.per_participant(people, groups, n_groups)
-    _, low, high = stats.ratio_bootstrap(won, asked, config.bootstrap, config.seed,
-                                         config.confidence)
-    return low, high
+def _directional(graded):
+    """Return which graded comparisons have a direction (a grade other than 0)."""
+    return (graded["grade"] != 0).to_numpy()
 
 
-def position_bias(trials, ordinal, davidson, k, config) -> pd.DataFrame:
+def position_bias(graded, design, ordinal, davidson, k, config) -> pd.DataFrame:
     """Return the position bias three ways: the ordinal shift, Davidson's log order effect,
-    and the raw share of directional answers that favour the left clip."""
-    directional = trials.loc[trials["graded"] & (trials["grade"] != 0)]
-    left = int((directional["grade"] > 0).sum())
-    n = len(directional)
-    people = pd.factorize(directional["pcode"])[0]
-    low, high = _share_interval((directional["grade"] > 0).to_numpy(), people,
-                                np.zeros(n, dtype=np.int64), 1, config)
-    low, high = low[0], high[0]
-    n_people = int(trials.loc[trials["graded"], "pcode"].nunique())
+    and the raw share of directional answers that favour the left clip, each with its
+    interval and t test over participants and clips."""
+    directional = _directional(graded)
+    left = int((graded["grade"].to_numpy() > 0).sum())
+    n = int(directional.sum())
+    groups = np.where(directional, 0, -1)
+    share = crossed.bootstrap(design, crossed.ratio((graded["grade"] > 0).to_numpy(float), groups, 1),
+                              config)
+    raw = share.summary(config.confidence, null=0.5, bounds=(0, 1)).iloc[0]
+    shift = ordinal.summary(config.confidence).iloc[k]
+    order = davidson.summary(config.confidence).iloc[k]
+    n_people = int(graded["pcode"].nunique())
     records = [
-        {"measure": "ordinal shift beta (logit)", "estimate": float(ordinal["theta"][k]),
-         "ci_low": float(ordinal["low"][k]), "ci_high": float(ordinal["high"][k]),
-         "n": int(trials["graded"].sum()), "p": np.nan},
-        {"measure": "Davidson log order effect", "estimate": float(davidson["theta"][k]),
-         "ci_low": float(davidson["low"][k]), "ci_high": float(davidson["high"][k]),
-         "n": int(trials["graded"].sum()), "p": np.nan},
+        {"measure": "ordinal shift beta (logit)", "estimate": float(shift["estimate"]),
+         "ci_low": float(shift["ci_low"]), "ci_high": float(shift["ci_high"]),
+         "n": len(graded), "p": float(shift["p"])},
+        {"measure": "Davidson log order effect", "estimate": float(order["estimate"]),
+         "ci_low": float(order["ci_low"]), "ci_high": float(order["ci_high"]),
+         "n": len(graded), "p": float(order["p"])},
         {"measure": "share of directional answers favouring the left clip",
-         "estimate": left / n if n else np.nan, "ci_low": float(low), "ci_high": float(high),
-         "n": n, "p": stats.binomial_p(left, n, 0.5)},
+         "estimate": left / n if n else np.nan, "ci_low": float(raw["ci_low"]),
+         "ci_high": float(raw["ci_high"]), "n": n, "p": float(raw["p"]) if n else np.nan},
     ]
     frame = pd.DataFrame(records)
     frame["n_participants"] = n_people
     return frame
 
 
-def pair_table(trials, names, config):
-    """Return the per-pair table and the ``(K, K)`` matrix of directional win rates."""
+def pair_table(trials, graded, design, names, config):
+    """Return the per-pair table and the ``(K, K)`` matrix of directional win rates; win
+    rates have intervals and t tests against 50 % over participants and clips (``design``
+    of the ``graded`` comparisons), Holm-corrected."""
     k = len(names)
-    people = trials["pcode"].to_numpy()
-    a = np.minimum(trials["left"], trials["right"]).to_numpy()
-    b = np.maximum(trials["left"], trials["right"]).to_numpy()
-    # The grade of the pair's first source (a), whichever side it was shown on.
-    grade_a = np.where(trials["left"].to_numpy() == a, 1, -1) * trials["grade"].to_numpy()
-    graded = trials["graded"].to_numpy()
+
+    def grade_of_first(frame):
+        a = np.minimum(frame["left"], frame["right"]).to_numpy()
+        b = np.maximum(frame["left"], frame["right"]).to_numpy()
+        # The grade of the pair's first source (a), whichever side it was shown on.
+        return a, b, np.where(frame["left"].to_numpy() == a, 1, -1) * frame["grade"].to_numpy()
+
+    a, b, grade_a = grade_of_first(trials)
+    is_graded = trials["graded"].to_numpy()
+    pairs = list(itertools.combinations(range(k), 2))
+    ga, gb, g_first = grade_of_first(graded)
+    index = {pair: i for i, pair in enumerate(pairs)}
+    groups = np.array([index[(i, j)] for i, j in zip(ga, gb)], dtype=np.int64)
+    groups = np.where(g_first != 0, groups, -1)
+    result = crossed.bootstrap(design, crossed.ratio((g_first > 0).astype(float), groups, len(pairs)),
+                               config)
+    summary = result.summary(config.confidence, null=0.5, bounds=(0, 1))
     wins = np.zeros((k, k))
     records = []
-    for i, j in itertools.combinations(range(k), 2):
+    for (i, j), row in zip(pairs, summary.itertuples()):
         here = (a == i) & (b == j)
-        g = grade_a[here & graded]
+        g = grade_a[here & is_graded]
         won_a, won_b = int((g > 0).sum()), int((g < 0).sum())
         wins[i, j], wins[j, i] = won_a, won_b
         n = won_a + won_b
-        decided = here & graded & (grade_a != 0)
-        low, high = _share_interval(grade_a[decided] > 0, pd.factorize(people[decided])[0],
-                                    np.zeros(int(decided.sum()), dtype=np.int64), 1, config)
-        low, high = (low[0], high[0]) if n else (np.nan, np.nan)
         records.append({
             "a": names[i], "b": names[j], "n": int(here.sum()), "a_better": won_a,
             "no_preference": int((g == 0).sum()), "b_better": won_b,
-            "both_bad": int((here & ~graded).sum()),
+            "both_bad": int((here & ~is_graded).sum()),
             "mean_grade_a": float(g.mean()) if len(g) else np.nan,
-            "win_rate_a": won_a / n if n else np.nan, "ci_low": float(low), "ci_high": float(high),
-            "p": stats.binomial_p(won_a, n, 0.5),
+            "win_rate_a": won_a / n if n else np.nan,
+            "ci_low": float(row.ci_low) if n else np.nan,
+            "ci_high": float(row.ci_high) if n else np.nan, "p": float(row.p) if n else np.nan,
         })
     table = pd.DataFrame(records)
     if len(table):

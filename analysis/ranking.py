@@ -1,19 +1,21 @@
 """Preference ranking: the share of each source's clips at each rank, and its worth.
 
 The shares are the statistic behind seed 000, Fig. 4 ("64 % of A2M motions in the top
-2"). The study analysis adds intervals to the shares and Plackett-Luce worths (both
-bootstraps over participants), Friedman's test with Kendall's W and pairwise Wilcoxon tests on
-each participant's mean rank per source, and the same per action.
+2"). The study analysis adds intervals to the shares and Plackett-Luce worths, and tests of the
+worths' differences, all over participants and clips (:mod:`analysis.crossed`), Kendall's W
+(with Friedman's test, for these clips) as participants' concordance, and the same per
+action.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+from scipy import sparse
 
-from analysis import simulate, stats, worth
+from analysis import crossed, simulate, stats
 from analysis.counts import rank_columns, ranked_sources, source_counts
-from analysis.formatting import bootstrap_text, number, p_text, participant_bootstrap_text
+from analysis.formatting import number, p_text
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
 from analysis.tables import AnalysisError, ranked_judgements
 
@@ -152,10 +154,9 @@ class Ranking(StudyAnalysis):
         slim = slim.rename(columns={"pcode": "participant"})
         shares = rank_shares(slim)
         names = sorted(rows["source"].unique())
-        # One resampling of participants serves every fit, so per-action intervals agree.
-        resampled = worth.resample_participants(int(rows["pcode"].max()) + 1, config.bootstrap, config.seed)
-        fitted = plackett_luce(rows, names, config, resampled)
-        sources = source_counts(rows).join(fitted)
+        fitted = plackett_luce(rows, names, config)
+        shown = crossed.report(fitted, names, rows, config)
+        sources = source_counts(rows).join(shown.scores[["score", "ci_low", "ci_high"]])
         sources["mean_rank"] = rows.groupby("source")["rank"].mean()
         sources["top_1"] = shares["rank_1"]
         sources["top_2"] = top_share(shares, 2)
@@ -166,43 +167,48 @@ class Ranking(StudyAnalysis):
 
         tables = [
             Table("sources", "Plackett-Luce worth (log scale, 0 = average source) with "
-                  f"{config.confidence:.0%} bootstrap intervals, mean rank and top-k shares", sources),
+                  f"{config.confidence:.0%} intervals over participants and clips, mean rank and "
+                  f"top-k shares", sources),
+            Table("differences", "Difference of Plackett-Luce worths a - b, t test over "
+                  "participants and clips (Holm), and the shares of its variance from "
+                  "participants, clips and single answers",
+                  shown.differences[crossed.DIFFERENCE_COLUMNS]),
             Table("rank_shares", "Share of each source's judgements at each rank (as seed 000, Fig. 4)",
                   shares),
             Table("rank_share_intervals", f"Rank shares with {config.confidence:.0%} intervals over "
-                  f"participants (bootstrap)",
+                  f"participants and clips",
                   intervals),
+            Table("clips", "Clips per source, and per source and condition", shown.clips),
         ]
-        tests, methods, notes = {}, [], []
+        tests, methods, notes = {"differences": shown.differences}, [], list(shown.notes)
         means = rows.groupby(["pcode", "source"])["rank"].mean().unstack("source")[names]
         complete = means.dropna()
         if len(complete) >= 2:
             result = stats.friedman(complete.to_numpy())
-            posthoc = stats.pairwise_wilcoxon(complete.to_numpy(), names)
             tests["friedman"] = {k: v for k, v in result.items() if k != "mean_ranks"}
             tests["kendall_w"] = result["kendall_w"]
-            tables.append(Table("pairwise_tests", "Pairwise Wilcoxon signed-rank tests on participants' "
-                                "mean ranks (a - b), Holm-corrected", posthoc))
             methods.append(
-                f"Differences between sources were tested with Friedman's test on each participant's "
-                f"mean rank per source ({len(complete)} participants who ranked every source; "
-                f"chi2({result['df']}) = {number(result['statistic'], 2)}, {p_text(result['p'])}), "
-                f"with Kendall's W = {number(result['kendall_w'], 3)} as the concordance of "
-                f"participants' orderings, followed by Wilcoxon signed-rank tests between every pair "
-                f"of sources with Holm's correction"
+                f"Kendall's W = {number(result['kendall_w'], 3)} measures how far participants' "
+                f"orderings agree (Friedman's test on each participant's mean rank per source, "
+                f"{len(complete)} participants who ranked every source: chi2({result['df']}) = "
+                f"{number(result['statistic'], 2)}, {p_text(result['p'])}; it holds these clips "
+                f"fixed, so it says participants agree about them, not that the sources differ: "
+                f"the differences of worths are the test of that)"
             )
         if len(complete) < len(means):
             notes.append(f"{len(means) - len(complete)} participant(s) did not rank every source "
                          f"and are left out of Friedman's test")
         methods.insert(0, (
-            f"For each source we report the share of its judgements at each rank, "
-            f"{participant_bootstrap_text(config)}, and a Plackett-Luce worth fitted to the rankings "
-            f"(log scale, centred on 0; a weak prior of one virtual win and one virtual loss per "
-            f"source against a reference keeps estimates finite), {bootstrap_text(config)}"
+            f"For each source we report the share of its judgements at each rank and a "
+            f"Plackett-Luce worth fitted to the rankings (log scale, centred on 0; a weak prior of "
+            f"one virtual win and one virtual loss per source against a reference keeps estimates "
+            f"finite), refitted in every bootstrap resample; sources were compared by the "
+            f"differences of their worths"
         ))
+        methods.insert(1, shown.method)
         if "action" in rows.columns and rows["action"].nunique() > 1:
             tables.append(Table("by_action", "Plackett-Luce worth and mean rank per action",
-                                self._by_action(rows, config, resampled)))
+                                self._by_action(rows, config)))
             tables.append(Table("rank_shares_by_action", "Rank shares per action",
                                 rank_shares(slim, by_action=True)))
         plots = [
@@ -214,14 +220,17 @@ class Ranking(StudyAnalysis):
             methods=methods, notes=notes, tests=tests,
         )
 
-    def _by_action(self, rows, config, resampled) -> pd.DataFrame:
+    def _by_action(self, rows, config) -> pd.DataFrame:
         frames = []
         for action, group in rows.groupby("action", sort=True):
             present = sorted(group["source"].unique())
-            fitted = plackett_luce(group, present, config, resampled) if len(present) > 1 else None
             counts = source_counts(group)
             counts["mean_rank"] = group.groupby("source")["rank"].mean()
-            frame = counts.join(fitted) if fitted is not None else counts
+            frame = counts
+            if len(present) > 1:
+                fitted = crossed.scores(plackett_luce(group, present, config), present,
+                                        config.confidence)
+                frame = counts.join(fitted[["score", "ci_low", "ci_high"]])
             frame.insert(0, "action", action)
             frames.append(frame.reset_index())
         columns = ["action", "source", "score", "ci_low", "ci_high", "mean_rank", "n_participants",
@@ -229,38 +238,44 @@ class Ranking(StudyAnalysis):
         return pd.concat(frames, ignore_index=True).reindex(columns=columns)
 
 
-def plackett_luce(rows: pd.DataFrame, names, config, resampled=None) -> pd.DataFrame:
-    """Return ``score`` (log-worth), ``ci_low``, ``ci_high`` per source of ranked ``rows``.
-
-    ``rows`` are sorted by trial and rank, as :meth:`Ranking.answered` leaves them;
-    ``resampled`` is the bootstrap's participant draws (see ``worth.resample_participants``).
-    """
-    orders, participants = _orders(rows, names)
-    n_participants = None if resampled is None else resampled.shape[1]
-    fitted = worth.bootstrap(worth.rankings(orders, participants, len(names), n_participants),
-                             config.bootstrap, seed=config.seed, confidence=config.confidence,
-                             resampled=resampled)
-    return pd.DataFrame({"score": fitted["theta"], "ci_low": fitted["ci_low"],
-                         "ci_high": fitted["ci_high"]}, index=pd.Index(names, name="source"))
+def plackett_luce(rows: pd.DataFrame, names, config) -> crossed.Crossed:
+    """Return the crossed bootstrap of the Plackett-Luce log-worths per source of ranked
+    ``rows`` (sorted by trial and rank, as :meth:`Ranking.answered` leaves them); each
+    trial is a unit, weighed by its participant's and all its clips' draws."""
+    orders, _ = _orders(rows, names)
+    return crossed.bootstrap(crossed.design(rows, unit="trial_key"),
+                             crossed.worth_statistic(orders, len(names)),
+                             config)
 
 
 def share_intervals(shares: pd.DataFrame, config, rows: pd.DataFrame) -> pd.DataFrame:
     """Return one row per source and rank: ``share``, ``ci_low``/``ci_high``, counts.
 
-    Intervals resample the participants (``pcode``) of the ranked ``rows`` with all
-    their rankings (:func:`analysis.stats.participant_bootstrap`).
+    Intervals treat participants and clips as random (:mod:`analysis.crossed`; each
+    judgement a unit, weighed by its participant's and its clip's draws).
     """
     ranks = rank_columns(shares)
     n = shares["n_judgements"].to_numpy(dtype=float)[:, None]
     counts = np.rint(shares[ranks].to_numpy(dtype=float) * n)
     n_sources, n_ranks = len(shares), len(ranks)
-    people = pd.factorize(rows["pcode"])[0]
     source = shares.index.get_indexer(rows["source"])
-    cells = stats.per_participant(people, source * n_ranks + rows["rank"].to_numpy() - 1,
-                                  n_sources * n_ranks)
-    judged = np.repeat(stats.per_participant(people, source, n_sources), n_ranks, axis=1)
-    _, low, high = stats.ratio_bootstrap(cells, judged, config.bootstrap, config.seed,
-                                         config.confidence)
+    rank = rows["rank"].to_numpy()
+    n_rows = len(rows)
+    # One statistic for every (source, rank) share: judgements at the rank over the source's.
+    at_rank = sparse.csr_matrix((np.ones(n_rows), (np.arange(n_rows), source * n_ranks + rank - 1)),
+                                shape=(n_rows, n_sources * n_ranks))
+    of_source = sparse.csr_matrix((np.ones(n_rows), (np.arange(n_rows), source)),
+                                  shape=(n_rows, n_sources))
+
+    def statistic(weights):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return (np.asarray(weights @ at_rank)
+                    / np.repeat(np.asarray(weights @ of_source), n_ranks, axis=1))
+
+    result = crossed.bootstrap(crossed.design(rows), statistic, config)
+    summary = result.summary(config.confidence, bounds=(0, 1))
+    low = summary["ci_low"].to_numpy().reshape(n_sources, n_ranks)
+    high = summary["ci_high"].to_numpy().reshape(n_sources, n_ranks)
     frame = pd.DataFrame({
         "source": np.repeat(shares.index.to_numpy(), len(ranks)),
         "rank": np.tile([int(r[5:]) for r in ranks], len(shares)),

@@ -1,9 +1,10 @@
 """Realism ratings 1-5: the mean score per source (seed 003, Table 3; seed 004, Table 5).
 
-Means come with percentile intervals from a bootstrap over participants (each
-participant's ratings stay together); sources are compared by their rating
-distributions (Kruskal-Wallis across all, Mann-Whitney U between each pair with Holm's
-correction), which respects that the scale is ordinal.
+Means come with intervals over participants and clips (:mod:`analysis.crossed`: a
+participant's ratings stay together, a clip's ratings too, and both are redrawn);
+sources are compared by the differences of their means with the same standard errors,
+Holm-corrected. (Rank tests across all ratings, such as Kruskal-Wallis, would treat a
+within-subject design's ratings as independent.)
 """
 
 from __future__ import annotations
@@ -11,9 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from analysis import simulate, stats
+from analysis import crossed, mixed, simulate
 from analysis.counts import ranked_sources, source_counts
-from analysis.formatting import number, p_text, participant_bootstrap_text
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
 from analysis.tables import AnalysisError
 
@@ -59,10 +59,9 @@ class RatingStandards(StudyAnalysis):
 
     def analyse(self, rows, config):
         names = sorted(rows["source"].unique())
-        sources = mean_ratings(rows, config)
-        values, groups = rows["rating"].to_numpy(), rows["source"].to_numpy()
-        omnibus = stats.kruskal_wallis(values, groups, names)
-        posthoc = stats.pairwise_mann_whitney(values, groups, names)
+        result, _ = crossed.group_means(rows, "rating", config)
+        shown = crossed.report(result, names, rows, config)
+        sources = mean_ratings(rows, config, result)
         sources = ranked_sources(sources)
         low, high = SCALE
         distribution = (pd.crosstab(rows["source"], rows["rating"], normalize="index")
@@ -71,26 +70,31 @@ class RatingStandards(StudyAnalysis):
         distribution["n_judgements"] = sources["n_judgements"]
         tables = [
             Table("sources", f"Mean rating ({low}-{high}, higher = more realistic) with "
-                  f"{config.confidence:.0%} intervals over participants (bootstrap)", sources),
+                  f"{config.confidence:.0%} intervals over participants and clips", sources),
             Table("rating_shares", "Share of each source's clips at each rating", distribution),
-            Table("pairwise_tests", "Mann-Whitney U tests between sources (superiority: chance "
-                  "that a rating of a beats one of b, ties half), Holm-corrected", posthoc),
+            Table("differences", "Difference of mean ratings a - b, t test over participants "
+                  "and clips (Holm), and the shares of its variance from participants, clips "
+                  "and single answers", shown.differences[crossed.DIFFERENCE_COLUMNS]),
+            Table("clips", "Clips per source, and per source and condition", shown.clips),
         ]
         if "action" in rows.columns and rows["action"].nunique() > 1:
             by_action = mean_ratings(rows, config, by=("action", "source"))
             tables.append(Table("by_action", "Mean rating per action", by_action.reset_index()))
         methods = [
-            f"For each source{_per_action(rows)} we report the mean rating, "
-            f"{participant_bootstrap_text(config)}",
-            f"sources were compared with a Kruskal-Wallis test (H({omnibus['df']}) = "
-            f"{number(omnibus['statistic'], 2)}, {p_text(omnibus['p'])}) and pairwise "
-            f"two-sided Mann-Whitney U tests with Holm's correction, which treat the ratings as "
-            f"ordinal and count them as independent (with participants who differ, their "
-            f"p-values are too small)",
+            f"For each source{_per_action(rows)} we report the mean rating; sources were compared "
+            f"by the differences of their mean ratings",
+            shown.method,
         ]
+        model_tables, model_methods, model_notes, fitted = mixed.linear_tables(
+            rows, "rating", config, "rating")
+        tables += model_tables
+        methods += model_methods
+        tests = {"differences": shown.differences}
+        if fitted:
+            tests["mixed_model"] = fitted["differences"]
         plots = [Plot("mean_rating", "Mean rating", _plot(sources))]
         return Analysis(measure="mean rating", sources=sources, tables=tables, plots=plots,
-                        methods=methods, tests={"kruskal_wallis": omnibus})
+                        methods=methods, notes=shown.notes + model_notes, tests=tests)
 
 
 @register_analysis("rating_reference")
@@ -104,20 +108,22 @@ class RatingReference(RatingStandards):
         return rng.integers(0, n_sources, (n_trials, 1))
 
 
-def mean_ratings(rows: pd.DataFrame, config, by=("source",)) -> pd.DataFrame:
-    """Return ``score`` (mean rating), ``ci_low``/``ci_high`` over participants, ``sd`` and
-    counts per group of ``by``.
+def mean_ratings(rows: pd.DataFrame, config, result=None, by=("source",)) -> pd.DataFrame:
+    """Return ``score`` (mean rating), ``ci_low``/``ci_high`` over participants and clips,
+    ``sd`` and counts per group of ``by``.
 
-    The interval resamples participants with all their ratings
-    (:func:`analysis.stats.participant_bootstrap`; ``config`` gives the number of
-    resamples, seed and confidence).
+    ``result`` is the crossed bootstrap of these means when already drawn
+    (:func:`analysis.crossed.group_means`; ``config`` gives the number of resamples,
+    seed and confidence).
     """
     frame = source_counts(rows, by)
     groups = rows.groupby(list(by), observed=True)["rating"]
     frame["sd"] = groups.std(ddof=1)
-    means = stats.bootstrap_means(rows, "rating", by, config.bootstrap, config.seed,
-                                  config.confidence)
-    frame = frame.join(means)
+    if result is None:
+        result, index = crossed.group_means(rows, "rating", config, by)
+    else:
+        index = frame.index
+    frame = frame.join(crossed.intervals(result, index, config, bounds=SCALE))
     return frame[["score", "ci_low", "ci_high", "sd", "n_participants", "n_judgements"]]
 
 

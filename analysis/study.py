@@ -34,6 +34,11 @@ class AnalysisConfig:
     confidence: float = 0.95
     seed: int = 0
     real_source: str = "real"
+    # Clips as a random sample of each source's motions (the default: verdicts about the
+    # sources), or as the whole population of interest (verdicts about these clips only).
+    random_clips: bool = True
+    # Also fit the mixed models of analysis.mixed where the type has one (seconds per fit).
+    mixed_models: bool = False
     # The study type's own options (Study.options), for analyses that follow them (a
     # screening threshold); empty when a table is analysed without its study.
     type_options: dict = field(default_factory=dict)

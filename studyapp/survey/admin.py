@@ -61,10 +61,12 @@ class StudyAdmin(admin.ModelAdmin):
         "participant_link",
         "preview_link",
         "results_link",
+        "plan_link",
     ]
     list_filter = ["study_type", "status"]
     search_fields = ["slug", "title"]
-    readonly_fields = ["participant_link", "preview_link", "results_link", "progress", "created_at"]
+    readonly_fields = ["participant_link", "preview_link", "results_link", "plan_link", "progress",
+                       "created_at"]
     actions = ["open_studies", "close_studies"]
     inlines = [ScoringStandardInline]
     fieldsets = [
@@ -88,8 +90,8 @@ class StudyAdmin(admin.ModelAdmin):
         ),
         ("Texts", {"fields": ["instructions", "consent_text"], "classes": ["collapse"]}),
         ("Crowd platform", {"fields": ["crowd", "completion_url", "max_participants"]}),
-        ("Progress", {"fields": ["participant_link", "preview_link", "results_link", "progress",
-                                 "created_at"]}),
+        ("Progress", {"fields": ["participant_link", "preview_link", "results_link", "plan_link",
+                                 "progress", "created_at"]}),
     ]
 
     def get_queryset(self, request):
@@ -121,9 +123,14 @@ class StudyAdmin(admin.ModelAdmin):
     def get_urls(self):
         from django.urls import path
 
-        from studyapp.survey import results
+        from studyapp.survey import plan_page, results
 
         own = [
+            path("<int:pk>/plan/", self.admin_site.admin_view(
+                lambda request, pk: plan_page.plan_view(self.admin_site, request, pk)),
+                name="survey_study_plan"),
+            path("<int:pk>/plan/power.png", self.admin_site.admin_view(plan_page.plan_figure_view),
+                 name="survey_study_plan_figure"),
             path("<int:pk>/results/", self.admin_site.admin_view(
                 lambda request, pk: results.results_view(self.admin_site, request, pk)),
                 name="survey_study_results"),
@@ -140,6 +147,12 @@ class StudyAdmin(admin.ModelAdmin):
         if not obj.pk:
             return "-"
         return format_html('<a href="{}">Results</a>', reverse("admin:survey_study_results", args=[obj.pk]))
+
+    @admin.display(description="Plan")
+    def plan_link(self, obj):
+        if not obj.pk:
+            return "-"
+        return format_html('<a href="{}">Plan</a>', reverse("admin:survey_study_plan", args=[obj.pk]))
 
     @admin.display(description="Preview")
     def preview_link(self, obj):

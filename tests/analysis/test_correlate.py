@@ -43,7 +43,8 @@ def test_closer_to_real_is_better_for_diversity():
     # distances to the real value 10: 0, 1.5, 3, 8 -> the human order
     result = correlate(people, metrics, real={"diversity": 10.0})
     assert result.table.loc[0, "kendall"] == pytest.approx(1.0)
-    assert not result.too_few and result.notes == []
+    assert not result.too_few
+    assert [n for n in result.notes if "no ordering can reach" not in n] == []
     with pytest.raises(AnalysisError, match="real clips' value"):
         goodness([1.0], "real")
 
@@ -87,3 +88,35 @@ def test_participant_resamples_rerun_the_analysis():
     draws = human_draws(table, score_of, n=5, seed=0)
     assert draws.shape == (5, 3) and set(draws.columns) == {"real", "a", "b"}
     assert np.isfinite(draws.to_numpy()).all()
+
+
+def test_exact_permutation_p_values_over_methods():
+    import itertools
+
+    from scipy import stats as scipy_stats
+
+    from analysis.correlate import permutation_p, smallest_p
+
+    x, y = [1, 2, 3, 4, 5, 6], [2, 1, 4, 3, 6, 5]
+    rho, tau = permutation_p(x, y)
+    # Every one of the 720 orders of y, counted by hand with scipy's statistics.
+    orders = list(itertools.permutations(y))
+    by_hand = np.mean([abs(scipy_stats.spearmanr(x, o).statistic)
+                       >= abs(scipy_stats.spearmanr(x, y).statistic) - 1e-12 for o in orders])
+    assert rho == pytest.approx(by_hand)
+    assert tau == pytest.approx(scipy_stats.kendalltau(x, y, method="exact").pvalue)
+    # Four methods in the same order: the best any ordering can do is 2 of 24.
+    assert permutation_p([1, 2, 3, 4], [1, 2, 3, 4]) == pytest.approx((2 / 24, 2 / 24))
+    assert smallest_p(4) == pytest.approx(2 / 24)
+
+
+def test_four_methods_say_plainly_that_nothing_can_be_concluded():
+    result = correlate(human([4, 3, 2, 1]), pd.DataFrame({"accuracy": [0.9, 0.8, 0.5, 0.1]},
+                                                         index=SOURCES[:4]))
+    row = result.table.set_index("metric").loc["accuracy"]
+    assert row["spearman"] == pytest.approx(1.0) and row["spearman_p"] == pytest.approx(2 / 24)
+    assert any("no ordering can reach p < 0.05" in note for note in result.notes)
+    five = correlate(human([5, 4, 3, 2, 1]), pd.DataFrame({"accuracy": [0.9, 0.8, 0.5, 0.4, 0.1]},
+                                                          index=SOURCES))
+    assert five.table["kendall_p"].iloc[0] == pytest.approx(2 / 120)
+    assert not any("no ordering can reach" in note for note in five.notes)

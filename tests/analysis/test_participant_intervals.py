@@ -64,7 +64,7 @@ def test_the_study_analysis_gives_participant_intervals():
         row = sources.loc[source]
         assert row["ci_low"] <= 0.5 <= row["ci_high"]
         assert row["ci_high"] - row["ci_low"] > 1.5 * (high - low)
-    assert "bootstrap resamples of participants" in result.methods()
+    assert "treat participants and clips as random" in result.methods()
     assert not any("fewer than" in note for note in result.notes)
 
 

@@ -1,5 +1,6 @@
-"""Mean ratings, intervals over participants and Mann-Whitney tests against numbers worked out by hand."""
+"""Mean ratings, intervals over participants and clips and difference tests against numbers worked out by hand."""
 
+import numpy as np
 import pytest
 from scipy import stats as scipy_stats
 
@@ -18,29 +19,33 @@ def ratings_table(study_type="rating_standards", ratings=RATINGS):
 
 @pytest.mark.parametrize("study_type", ["rating_standards", "rating_reference"])
 def test_mean_ratings_with_intervals_over_participants(study_type):
-    sources = analyse(ratings_table(study_type), config()).analysis.sources
+    result = analyse(ratings_table(study_type), config())
+    sources = result.analysis.sources
     assert list(sources.index) == ["real", "a2m", "gru"]
     assert sources["score"].tolist() == pytest.approx([14 / 3, 3.0, 4 / 3])
-    # real is rated 5, 4, 5 by P1, P2, P3. A resample of three participants is all P2
-    # (mean 4) with chance 1/27, all P1 or P3 (mean 5) with 8/27, both above 2.5 %: the
-    # percentile interval is [4, 5], never beyond what the participants gave.
-    interval = sources.loc["real", ["ci_low", "ci_high"]].tolist()
-    assert interval == pytest.approx([4.0, 5.0])
+    # One clip per source: the clips' variance is unknown, the interval is the t interval
+    # (2 degrees of freedom) of the bootstrap variance over participants, cut to the scale.
+    real = [5, 4, 5]
+    se = np.sqrt(np.var(real) / 3)  # a bootstrap mean's variance: the plain variance / n
+    low, high = sources.loc["real", ["ci_low", "ci_high"]].tolist()
+    assert high == 5.0
+    assert 14 / 3 - low == pytest.approx(scipy_stats.t.ppf(0.975, 2) * se, rel=0.25)
     assert sources["n_judgements"].tolist() == [3, 3, 3]
+    assert any("have a single clip" in note for note in result.notes)
 
 
-def test_sources_compared_with_mann_whitney_and_holm():
+def test_sources_compared_by_differences_with_holm():
     result = analyse(ratings_table(), config())
-    tests = {t.name: t.frame for t in result.tables}["pairwise_tests"].set_index(["a", "b"])
-    real, a2m, gru = [5, 4, 5], [3, 4, 2], [1, 2, 1]
-    p = [scipy_stats.mannwhitneyu(x, y, alternative="two-sided").pvalue
-         for x, y in ((a2m, gru), (a2m, real), (gru, real))]
-    assert tests["p"].tolist() == pytest.approx(p)
-    assert tests["p_holm"].tolist() == pytest.approx(holm(p))
-    # a2m beats gru in 8 of 9 pairs, ties with it in 1: superiority (8 + 0.5) / 9
-    assert tests.loc[("a2m", "gru"), "superiority"] == pytest.approx(8.5 / 9)
-    kruskal = scipy_stats.kruskal(real, a2m, gru)
-    assert result.analysis.tests["kruskal_wallis"]["statistic"] == pytest.approx(kruskal.statistic)
+    tests = {t.name: t.frame for t in result.tables}["differences"].set_index(["a", "b"])
+    assert "pairwise_tests" not in {t.name for t in result.tables}
+    row = tests.loc[("a2m", "gru")]
+    assert row["difference"] == pytest.approx(3.0 - 4 / 3)
+    # Per participant a2m - gru is 2, 2, 1: the bootstrap variance of its mean is
+    # (2/9) / 3, and the test is a t test on 2 degrees of freedom.
+    assert row["se"] == pytest.approx(np.sqrt(2 / 27), rel=0.25)
+    assert row["df"] == pytest.approx(2.0)
+    assert row["p"] == pytest.approx(2 * scipy_stats.t.sf(row["difference"] / row["se"], 2))
+    assert tests["p_holm"].tolist() == pytest.approx(holm(tests["p"]).tolist())
 
 
 def test_rating_distribution_and_ordinal_agreement():

@@ -439,3 +439,22 @@ def test_the_readmes_crowd_examples_are_valid_settings():
         name = platform.id_params[0]
         assert platform.read_ids({name: "12345"})[1] == f"{name}:12345"
         assert platform.completion_url(person) == platform.template.format(code="C1", id="12345")
+
+
+def test_create_takes_places_and_minutes_from_a_plan(fake, study, tmp_path):
+    table = tmp_path / "plan.csv"
+    table.write_text("participants,clips,power,width,minutes,reward,cost\n"
+                     "20,2,0.41,1.2,7.2,1.44,38.4\n40,8,0.83,0.7,7.2,1.44,76.8\n"
+                     "80,8,0.97,0.5,7.2,1.44,153.6\n")
+    out = prolific("create", "--study", study.slug, "--base-url", BASE, "--dry-run",
+                   "--plan", str(table))
+    payload = json_in(out)
+    assert payload["total_available_places"] == 40 and payload["estimated_completion_time"] == 8
+    assert "From the plan: 40 participants and 8 clips per source and condition (83% power)" in out
+    kept = json_in(prolific("create", "--study", study.slug, "--base-url", BASE, "--dry-run",
+                            "--plan", str(table), "--places", "25"))
+    assert kept["total_available_places"] == 25
+    with pytest.raises(CommandError, match="has no column"):
+        bad = tmp_path / "bad.csv"
+        bad.write_text("a,b\n1,2\n")
+        prolific("create", "--study", study.slug, "--base-url", BASE, "--dry-run", "--plan", str(bad))

@@ -39,8 +39,16 @@ class Command(BaseCommand):
                             help="Also exclude participants who answered more than N repeated "
                                  "trials differently (default: counted, not applied).")
         parser.add_argument("--bootstrap", type=int, default=1000, metavar="N",
-                            help="Bootstrap resamples of participants for every interval "
-                                 "(default 1000; 0 = none).")
+                            help="Bootstrap resamples of participants, and as many of clips, "
+                                 "for every interval and test (default 1000; 0 = none).")
+        parser.add_argument("--fixed-clips", action="store_true",
+                            help="Take the clips shown as the whole population of interest: "
+                                 "intervals over participants only, which hold for these clips "
+                                 "and say nothing about other clips of the same sources.")
+        parser.add_argument("--mixed-models", action="store_true",
+                            help="Also fit mixed models with crossed random intercepts for "
+                                 "participants and clips (ratings, MUSHRA, fake or real; "
+                                 "seconds per fit) beside the bootstrap.")
         parser.add_argument("--seed", type=int, default=0, help="Seed of the bootstrap.")
         parser.add_argument("--no-audit", action="store_true",
                             help="Skip the blindness audit of the study's clips (the deep "
@@ -83,6 +91,7 @@ class Command(BaseCommand):
                 max_failed_catch=options["max_failed_catch"],
                 max_failed_repeats=options["max_failed_repeats"], completed_only=options["completed_only"],
                 bootstrap=options["bootstrap"], seed=options["seed"], real_source=options["real_source"],
+                random_clips=not options["fixed_clips"], mixed_models=options["mixed_models"],
                 type_options=type_options,
             )
             results = analyse_all(table, config, participants=participants)

@@ -180,8 +180,9 @@ class Command(BaseCommand):
         for row in outcome.table.itertuples():
             self.stdout.write(
                 f"  {row.metric:<14} ({row.direction}): Spearman {number(row.spearman, 2)} "
-                f"{interval(row.spearman_low, row.spearman_high, 2)}, Kendall "
-                f"{number(row.kendall, 2)} {interval(row.kendall_low, row.kendall_high, 2)}")
+                f"{interval(row.spearman_low, row.spearman_high, 2)} (permutation p "
+                f"{number(row.spearman_p, 3)}), Kendall {number(row.kendall, 2)} "
+                f"{interval(row.kendall_low, row.kendall_high, 2)} (p {number(row.kendall_p, 3)})")
         for note in outcome.notes:
             self.stderr.write(self.style.WARNING(f"Note: {note}."))
         figures = sum(1 for path in written if path.suffix == ".png")

@@ -1,6 +1,10 @@
 import json
+import math
 
+import pandas as pd
 from django.core.management.base import BaseCommand, CommandError
+
+from analysis import plan
 
 from studyapp.survey import site
 from studyapp.survey.export import get_study
@@ -51,6 +55,12 @@ class Command(BaseCommand):
         create.add_argument("--screen-out-reward-cents", type=int, help="Pay people screened "
                             "out this much (Prolific's fixed screen-out payment) instead of "
                             "asking them to return.")
+        create.add_argument("--plan", metavar="PLAN.CSV",
+                            help="Take places and minutes from a plan's recommendation "
+                                 "(`plan --out DIR` or the admin's Plan page writes plan.csv); "
+                                 "--places and --minutes still win.")
+        create.add_argument("--plan-target", type=float, default=0.8,
+                            help="Power the plan's recommendation must reach (default 0.8).")
         create.add_argument("--dry-run", action="store_true",
                             help="Print the JSON it would send; send and store nothing.")
         create.add_argument("--force", action="store_true",
@@ -105,6 +115,30 @@ class Command(BaseCommand):
         except ProlificError as error:
             raise CommandError(str(error)) from None
 
+    def _from_plan(self, path, target, places, minutes):
+        """Return places and minutes from the plan's recommended design (given ones kept)."""
+        try:
+            frame = pd.read_csv(path)
+        except (OSError, ValueError) as error:
+            raise CommandError(f"--plan {path}: cannot read it as a plan table ({error}); "
+                               f"write one with `manage.py plan --out DIR`") from None
+        missing = {"participants", "clips", "power"} - set(frame.columns)
+        if missing:
+            raise CommandError(f"--plan {path} has no column(s) {', '.join(sorted(missing))}; "
+                               f"write one with `manage.py plan --out DIR`")
+        best = plan.recommend(frame, target)
+        if not best["reached"]:
+            self.stderr.write(f"Warning: no design of the plan reaches {target:.0%} power; "
+                              f"taking the most powerful ({best['power']:.0%}).")
+        self.stdout.write(f"From the plan: {int(best['participants'])} participants and "
+                          f"{int(best['clips'])} clips per source and condition "
+                          f"({best['power']:.0%} power); build that many clips.")
+        if places is None:
+            places = int(best["participants"])
+        if minutes is None and "minutes" in best:
+            minutes = int(math.ceil(best["minutes"]))
+        return places, minutes
+
     # Subcommands
 
     def do_create(self, study, options):
@@ -117,9 +151,13 @@ class Command(BaseCommand):
             raise CommandError(f"study {study.slug} already has Prolific study "
                                f"{crowd['prolific_study_id']}; --force creates another")
         base = (options["base_url"] or site.base_url()).rstrip("/")
+        places, minutes = options["places"], options["minutes"]
+        if options.get("plan"):
+            places, minutes = self._from_plan(options["plan"], options["plan_target"], places,
+                                              minutes)
         codes, made = draft.fill_codes(study)
         choices = draft.DraftOptions(
-            base_url=base, places=options["places"], minutes=options["minutes"],
+            base_url=base, places=places, minutes=minutes,
             reward_cents=options["reward_cents"], hourly_cents=options["hourly_cents"],
             description=options["description"],
             devices=tuple(d.strip() for d in options["devices"].split(",") if d.strip()),

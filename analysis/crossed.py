@@ -1,0 +1,472 @@
+"""Inference with participants and clips both random: the crossed bootstrap.
+
+A study shows a few clips of each source and condition, and a reader wants a verdict
+about the source (the method), not about those clips. Participants and clips are then
+two crossed random samples, and an interval that resamples participants only holds the
+clips fixed: with few clips whose quality varies it excludes zero between two sources of
+equal quality most of the time.
+
+Any statistic of a response table is computed from unit weights (a unit is a row, or a
+trial with all its clips). Three one-way bootstraps give three variances of it:
+
+- ``V_p``: participants drawn with replacement (a unit's weight is how often its
+  participant was drawn);
+- ``V_c``: clips drawn with replacement within their stratum (source and condition), a
+  unit weighted by the product of its clips' counts;
+- ``V_obs``: units drawn with replacement within their cell (the units that showed the
+  same clips): the noise of single answers, which ``V_p`` and ``V_c`` both contain.
+
+The interval is ``estimate -/+ t(df) sqrt(V)`` with
+``V = V_p + max(V_c m / (m - 1) - k V_obs, 0)`` (``m`` clips per stratum: resampling
+``m`` clips shrinks their variance by ``(m - 1) / m``; a unit's ``k`` clips each carry
+its answers' noise into ``V_c``) and ``df`` from Satterthwaite's
+formula over ``P - 1`` participant and ``C - S`` clip degrees of freedom. A percentile
+interval from drawing both at once under-covers with 2 clips per stratum (see
+``docs/STATISTICS.md``); the t interval reaches its level there. A test of a difference
+is the t test of the same standard error; families of them are Holm-corrected.
+
+The variance of an estimate is split into what participants, clips and single answers
+(residual) contribute; when the clips' part is the larger, the report says that the
+difference may be about these clips rather than the sources.
+"""
+
+from __future__ import annotations
+
+import itertools
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy import sparse
+from scipy import stats as scipy_stats
+
+from analysis import worth
+from analysis.stats import holm
+
+# Largest (replicates x units) weight array held at once.
+CHUNK_ELEMENTS = 4_000_000
+# Above this share of an estimate's variance from clips, the report warns in words.
+CLIP_DOMINANCE = 0.5
+
+
+@dataclass
+class Design:
+    """Who and what each unit of a table involves.
+
+    ``participants`` ``(N,)`` codes ``0..P-1``; ``clips`` ``(N, k)`` clip codes
+    ``0..C-1`` (``-1`` pads units with fewer clips); ``strata`` ``(C,)`` the stratum
+    (source and condition) of each clip; ``cells`` ``(N,)`` the code of the set of
+    clips a unit showed.
+    """
+
+    participants: np.ndarray
+    clips: np.ndarray
+    strata: np.ndarray
+    cells: np.ndarray
+
+    @property
+    def n_units(self) -> int:
+        return len(self.participants)
+
+    @property
+    def n_participants(self) -> int:
+        return int(self.participants.max()) + 1 if len(self.participants) else 0
+
+    @property
+    def n_clips(self) -> int:
+        return len(self.strata)
+
+    @property
+    def n_strata(self) -> int:
+        return len(np.unique(self.strata))
+
+    @property
+    def clips_per_stratum(self) -> np.ndarray:
+        """Return the number of clips in each stratum that has any."""
+        sizes = np.bincount(self.strata)
+        return sizes[sizes > 0]
+
+    @property
+    def clips_per_unit(self) -> float:
+        """Return the mean number of clips a unit involves."""
+        return float(np.mean(np.sum(self.clips >= 0, axis=1))) if self.n_units else 1.0
+
+    @property
+    def m(self) -> float:
+        """Return the harmonic mean of the clips per stratum over strata with two or more
+        (``nan`` when none has two: the clips' variance cannot be estimated)."""
+        sizes = self.clips_per_stratum
+        sizes = sizes[sizes >= 2]
+        return float(len(sizes) / np.sum(1.0 / sizes)) if len(sizes) else float("nan")
+
+
+def design(rows: pd.DataFrame, unit: str | None = None, clip: str = "stimulus",
+           strata=("source", "action"), participant: str = "pcode") -> Design:
+    """Return the :class:`Design` of ``rows``.
+
+    With ``unit`` (e.g. ``"trial_key"``) the units are the groups of rows with one value
+    of it, in order of first appearance (pairwise and ranking trials: a unit's weight
+    involves all its clips); without, every row is a unit. A clip is one value of
+    ``clip`` (a source's motion, whatever its renderings and repeats); its stratum is
+    its value of the ``strata`` columns that ``rows`` has.
+    """
+    clip_codes, _ = pd.factorize(rows[clip])
+    columns = [c for c in strata if c in rows.columns]
+    stratum_of_row = (rows.groupby(columns, observed=True, sort=False, dropna=False).ngroup()
+                      .to_numpy() if columns else np.zeros(len(rows), dtype=np.int64))
+    n_clips = int(clip_codes.max()) + 1 if len(clip_codes) else 0
+    strata_codes = np.zeros(n_clips, dtype=np.int64)
+    strata_codes[clip_codes] = stratum_of_row
+    people = rows[participant].to_numpy()
+    if unit is None:
+        unit_clips = clip_codes[:, None].astype(np.int64)
+        unit_people = people
+    else:
+        unit_codes, _ = pd.factorize(rows[unit])
+        n_units = int(unit_codes.max()) + 1 if len(unit_codes) else 0
+        slot = pd.Series(unit_codes).groupby(unit_codes).cumcount().to_numpy()
+        unit_clips = np.full((n_units, int(slot.max()) + 1 if len(slot) else 1), -1, dtype=np.int64)
+        unit_clips[unit_codes, slot] = clip_codes
+        unit_people = np.zeros(n_units, dtype=people.dtype)
+        unit_people[unit_codes] = people
+    unit_people = pd.factorize(unit_people)[0]
+    ordered = np.sort(unit_clips, axis=1)
+    cells = np.unique(ordered, axis=0, return_inverse=True)[1].ravel()
+    return Design(unit_people.astype(np.int64), unit_clips, strata_codes, cells.astype(np.int64))
+
+
+def draws_within(groups: np.ndarray, repeats: int, rng) -> np.ndarray:
+    """Return ``(repeats, n)`` counts: each group of ``groups`` ``(n,)`` redrawn with
+    replacement to its own size (multinomial counts within groups)."""
+    groups = np.asarray(groups, dtype=np.int64)
+    n = len(groups)
+    order = np.argsort(groups, kind="stable")
+    sizes = np.bincount(groups)
+    starts = np.r_[0, np.cumsum(sizes)[:-1]]
+    sorted_groups = groups[order]
+    first, size = starts[sorted_groups], sizes[sorted_groups]
+    # One draw per member and replicate, all at once: replicate r's draws land in r * n + unit.
+    picked = first + (rng.random((repeats, n), dtype=np.float32) * size).astype(np.int64)
+    np.minimum(picked, first + size - 1, out=picked)  # float32 rounding may reach the size
+    flat = (np.arange(repeats, dtype=np.int64)[:, None] * n + order[picked]).ravel()
+    # Counts are small whole numbers: float32 holds them exactly, at half the traffic.
+    return np.bincount(flat, minlength=repeats * n).reshape(repeats, n).astype(np.float32)
+
+
+def unit_weights(design: Design, scheme: str, repeats: int, rng) -> np.ndarray:
+    """Return ``(repeats, N)`` unit weights of one resampling ``scheme``: ``participants``,
+    ``clips``, ``observations`` or ``both`` (participants and clips at once)."""
+    if scheme == "observations":
+        return draws_within(design.cells, repeats, rng)
+    weights = None
+    if scheme in ("participants", "both"):
+        drawn = draws_within(np.zeros(design.n_participants, dtype=np.int64), repeats, rng)
+        weights = drawn[:, design.participants]
+    if scheme in ("clips", "both"):
+        drawn = draws_within(design.strata, repeats, rng)
+        drawn = np.concatenate([drawn, np.ones((repeats, 1), dtype=np.float32)], axis=1)  # -1 pads
+        for column in design.clips.T:
+            weights = drawn[:, column] if weights is None else weights * drawn[:, column]
+    return np.ones((repeats, design.n_units), dtype=np.float32) if weights is None else weights
+
+
+def _replicates(design, statistic, scheme, repeats, rng):
+    per_chunk = max(1, CHUNK_ELEMENTS // max(design.n_units, 1))
+    parts = []
+    for first in range(0, repeats, per_chunk):
+        size = min(per_chunk, repeats - first)
+        parts.append(np.asarray(statistic(unit_weights(design, scheme, size, rng)), dtype=float))
+    return np.concatenate(parts, axis=0)
+
+
+@dataclass
+class Crossed:
+    """Replicates of a statistic ``(K,)`` under each resampling scheme."""
+
+    estimate: np.ndarray
+    participants: np.ndarray
+    clips: np.ndarray
+    observations: np.ndarray
+    design: Design
+    both: np.ndarray | None = None
+
+    def contrast(self, matrix) -> "Crossed":
+        """Return the replicates of ``matrix @ statistic`` (``matrix`` ``(L, K)``)."""
+        matrix = np.asarray(matrix, dtype=float)
+
+        def apply(samples):
+            if samples is None:
+                return None
+            with np.errstate(invalid="ignore"):
+                return samples @ matrix.T
+
+        return Crossed(matrix @ self.estimate, apply(self.participants), apply(self.clips),
+                       apply(self.observations), self.design, apply(self.both))
+
+    def variances(self) -> dict:
+        """Return ``V_p``, ``V_c``, ``V_obs``, the clip part, the combined ``V`` and ``df``,
+        each ``(K,)``."""
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # a value NaN in every replicate
+            v_p = np.nanvar(self.participants, axis=0, ddof=1)
+            v_c = np.nanvar(self.clips, axis=0, ddof=1)
+            v_obs = np.nanvar(self.observations, axis=0, ddof=1)
+        m, k = self.design.m, self.design.clips_per_unit
+        if np.isfinite(m):
+            # m clips drawn from m shrink their variance by (m - 1) / m; each of a unit's k
+            # clips carries its answers' noise once more.
+            clip_part = np.maximum(v_c * m / (m - 1) - k * v_obs, 0.0)
+        else:
+            clip_part = np.zeros_like(v_p)
+        total = v_p + clip_part
+        df_p = max(self.design.n_participants - 1, 1)
+        df_c = max(self.design.n_clips - self.design.n_strata, 1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            df = total ** 2 / (v_p ** 2 / df_p + clip_part ** 2 / df_c)
+        df = np.where(np.isfinite(df), df, df_p)
+        return {"participants": v_p, "clips": v_c, "observations": v_obs,
+                "clip_part": clip_part, "total": total, "df": df}
+
+    def summary(self, confidence: float = 0.95, null: float = 0.0, bounds=None) -> pd.DataFrame:
+        """Return per value ``estimate``, ``se``, ``df``, ``ci_low``, ``ci_high`` (t
+        interval of the combined variance, cut to ``bounds`` such as ``(0, 1)`` for a
+        share), ``p`` (t test against ``null``) and the shares of its variance from
+        ``participants``, ``clips`` and ``residual``."""
+        parts = self.variances()
+        se = np.sqrt(parts["total"])
+        quantile = scipy_stats.t.ppf(0.5 + confidence / 2, parts["df"])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            t = (self.estimate - null) / se
+            p = 2 * scipy_stats.t.sf(np.abs(t), parts["df"])
+            residual = np.minimum(parts["observations"], parts["participants"])
+            shares = np.stack([parts["participants"] - residual, parts["clip_part"], residual])
+            shares = shares / parts["total"]
+        low, high = self.estimate - quantile * se, self.estimate + quantile * se
+        if bounds is not None:
+            low, high = np.clip(low, *bounds), np.clip(high, *bounds)
+        return pd.DataFrame({
+            "estimate": self.estimate, "se": se, "df": parts["df"], "ci_low": low, "ci_high": high,
+            "p": np.where(se > 0, p, np.nan),
+            "share_participants": shares[0], "share_clips": shares[1], "share_residual": shares[2],
+        })
+
+    def percentile(self, scheme: str = "participants", confidence: float = 0.95):
+        """Return the percentile interval ``(low, high)`` of one scheme's replicates."""
+        tail = 100 * (1 - confidence) / 2
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            return tuple(np.nanpercentile(getattr(self, scheme), [tail, 100 - tail], axis=0))
+
+
+def bootstrap(design: Design, statistic, config, both: bool = False) -> Crossed:
+    """Return the :class:`Crossed` replicates of ``statistic``.
+
+    ``statistic(weights)`` takes ``(B, N)`` unit weights and returns ``(B, K)``; the
+    estimate is its value at weights of one. ``config`` gives ``bootstrap`` (replicates
+    per scheme), ``seed`` and ``random_clips``: when false the clips are taken as the
+    whole population of interest (no clip resampling: intervals over participants only,
+    which hold for these clips). ``both`` also draws participants and clips at once (the
+    pure two-way bootstrap, for comparison).
+    """
+    repeats, seed = config.bootstrap, config.seed
+    estimate = np.asarray(statistic(np.ones((1, design.n_units))), dtype=float)[0]
+    rng = np.random.default_rng(seed)
+    if repeats <= 0 or design.n_participants < 2:
+        empty = np.full((0, len(estimate)), np.nan)
+        return Crossed(estimate, empty, empty, empty, design, empty if both else None)
+    participants = _replicates(design, statistic, "participants", repeats, rng)
+    if getattr(config, "random_clips", True):
+        clips = _replicates(design, statistic, "clips", repeats, rng)
+        observations = _replicates(design, statistic, "observations", repeats, rng)
+    else:
+        clips = observations = np.zeros_like(participants)
+    extra = _replicates(design, statistic, "both", repeats, rng) if both else None
+    return Crossed(estimate, participants, clips, observations, design, extra)
+
+
+def ratio(values, groups, n_groups: int, base=None):
+    """Return a statistic: per group, the weighted mean of ``values`` over units (``base``
+    weights, e.g. ``1 / n`` to count each participant once, times the replicate's)."""
+    values = np.asarray(values, dtype=float)
+    groups = np.asarray(groups, dtype=np.int64)
+    base = np.ones(len(values)) if base is None else np.asarray(base, dtype=float)
+    keep = groups >= 0
+    indicator = sparse.csr_matrix((base[keep], (np.flatnonzero(keep), groups[keep])),
+                                  shape=(len(values), n_groups))
+    weighted = indicator.multiply(values[:, None]).tocsr()
+
+    def statistic(weights):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.asarray(weights @ weighted) / np.asarray(weights @ indicator)
+
+    return statistic
+
+
+def pair_matrix(names) -> tuple[np.ndarray, list[tuple]]:
+    """Return the ``(pairs, K)`` contrast matrix of every difference ``a - b`` and the pairs."""
+    pairs = list(itertools.combinations(range(len(names)), 2))
+    matrix = np.zeros((len(pairs), len(names)))
+    for row, (a, b) in enumerate(pairs):
+        matrix[row, a], matrix[row, b] = 1.0, -1.0
+    return matrix, [(names[a], names[b]) for a, b in pairs]
+
+
+def differences(result: Crossed, names, confidence: float = 0.95) -> pd.DataFrame:
+    """Return the table of every difference ``a - b`` between ``names`` (the values of
+    ``result``): estimate, crossed interval, t test with Holm's correction, variance
+    shares."""
+    matrix, pairs = pair_matrix(names)
+    table = result.contrast(matrix).summary(confidence)
+    table.insert(0, "b", [b for _, b in pairs])
+    table.insert(0, "a", [a for a, _ in pairs])
+    table = table.rename(columns={"estimate": "difference"})
+    table["p_holm"] = holm(table["p"])
+    return table
+
+
+def scores(result: Crossed, names, confidence: float = 0.95) -> pd.DataFrame:
+    """Return ``score``, ``ci_low``, ``ci_high`` and the variance shares per name."""
+    table = result.summary(confidence)
+    table.index = pd.Index(list(names), name="source")
+    return table.rename(columns={"estimate": "score"})[
+        ["score", "ci_low", "ci_high", "se", "df", "share_participants", "share_clips",
+         "share_residual"]]
+
+
+def clips_per_source(rows: pd.DataFrame, clip: str = "stimulus", condition: str = "action") -> pd.DataFrame:
+    """Return per source the number of clips and the fewest and most per condition."""
+    by = ["source", condition] if condition in rows.columns else ["source"]
+    per = rows.groupby(by, observed=True)[clip].nunique()
+    frame = pd.DataFrame({
+        "n_clips": rows.groupby("source", observed=True)[clip].nunique(),
+        "fewest_per_condition": per.groupby(level="source").min(),
+        "most_per_condition": per.groupby(level="source").max(),
+    })
+    frame.index.name = "source"
+    return frame
+
+
+def clip_warnings(table: pd.DataFrame, clips: pd.DataFrame) -> list[str]:
+    """Return a sentence per difference of ``table`` (from :func:`differences`) whose
+    variance comes mostly from the clips."""
+    notes = []
+    for row in table.itertuples():
+        if np.isfinite(row.share_clips) and row.share_clips > CLIP_DOMINANCE:
+            n = int(clips["n_clips"].reindex([row.a, row.b]).fillna(0).sum())
+            notes.append(
+                f"{row.share_clips:.0%} of the uncertainty of {row.a} - {row.b} comes from the "
+                f"choice of clips: this difference may be about these {n} clips, not the method: "
+                f"add clips, not participants")
+    return notes
+
+
+# Fewer clip degrees of freedom (clips less strata) than this: the clips' variance is
+# rough, and docs/STATISTICS.md measured intervals below their level there.
+FEW_CLIP_DF = 4
+
+
+def one_clip_note(design: Design) -> str | None:
+    """Return a note when some stratum has a single clip (its variance is unknown), or
+    when the clips give fewer than :data:`FEW_CLIP_DF` degrees of freedom."""
+    sizes = design.clips_per_stratum
+    if np.all(sizes >= 2):
+        df = design.n_clips - design.n_strata
+        if df >= FEW_CLIP_DF:
+            return None
+        return (f"the clips' variance rests on {df} degree(s) of freedom ({design.n_clips} clips "
+                f"in {design.n_strata} source-and-condition groups): the intervals are rough and "
+                f"may hold less often than stated; add clips (at least 4 per source and "
+                f"condition) for firmer verdicts")
+    return (f"{int(np.sum(sizes < 2))} of {len(sizes)} source-and-condition groups have a single "
+            f"clip: how much clips vary cannot be estimated there, so the intervals hold for "
+            f"these clips only; show at least 2 (better 8) clips per source and condition")
+
+
+def methods_text(design: Design, config) -> str:
+    """Return how intervals and tests were obtained, for the methods paragraph."""
+    repeats, confidence = config.bootstrap, config.confidence
+    if repeats <= 0:
+        return "no intervals or tests were computed (the bootstrap was switched off)"
+    sizes = design.clips_per_stratum
+    fewest, most = int(sizes.min()), int(sizes.max())
+    per = f"{fewest}" if fewest == most else f"{fewest} to {most}"
+    if not getattr(config, "random_clips", True):
+        return (f"{confidence:.0%} intervals and tests hold for these {design.n_clips} clips "
+                f"({per} per source and condition) as the whole population of interest: "
+                f"{repeats} bootstrap resamples of the {design.n_participants} participants "
+                f"(with all their answers) give a t interval, and each difference's t test uses "
+                f"the same standard error, Holm-corrected across pairs; they say nothing about "
+                f"other clips of the same sources")
+    return (f"{confidence:.0%} intervals and tests treat participants and clips as random: "
+            f"{repeats} bootstrap resamples of the {design.n_participants} participants "
+            f"(with all their answers) and, separately, {repeats} of the {design.n_clips} clips "
+            f"(drawn within their source and condition, {per} clips each) give the two "
+            f"variances, less the single answers' noise they both contain (answers resampled "
+            f"among those to the same clips); the interval is a t interval of their sum with "
+            f"Satterthwaite's degrees of freedom, and each difference's t test uses the same "
+            f"standard error, Holm-corrected across pairs")
+
+
+def worth_statistic(orders, n_items: int, prior: float | None = None):
+    """Return a statistic: the Plackett-Luce (Bradley-Terry for pairs) log-worths, centred,
+    of ``orders`` ``(N, m)`` (one ordering per unit, best first, ``-1`` padded), refitted
+    under each replicate's unit weights."""
+    orders = np.asarray(orders, dtype=np.int64)
+    data = worth.rankings(orders, np.arange(len(orders)), n_items, len(orders))
+    options = {} if prior is None else {"prior": prior}
+
+    def statistic(weights):
+        if len(orders) < 2:  # nothing to redraw: the one fit, as often as asked
+            return np.tile(worth.bootstrap(data, 0, **options)["theta"], (len(weights), 1))
+        return worth.bootstrap(data, len(weights), resampled=weights, **options)["samples"]
+
+    return statistic
+
+
+@dataclass
+class Report:
+    """What a type's analysis shows of a crossed bootstrap of per-source values."""
+
+    scores: pd.DataFrame
+    differences: pd.DataFrame
+    clips: pd.DataFrame
+    notes: list
+    method: str
+
+
+def report(result: Crossed, names, rows: pd.DataFrame, config) -> Report:
+    """Return the scores, differences (Holm), clip counts, warnings and methods sentence of
+    ``result``, a crossed bootstrap of one value per source of ``names``."""
+    differences_table = differences(result, names, config.confidence)
+    clips = clips_per_source(rows)
+    notes = []
+    if getattr(config, "random_clips", True):
+        notes = clip_warnings(differences_table, clips)
+        single = one_clip_note(result.design)
+        if single:
+            notes.append(single)
+    return Report(scores(result, names, config.confidence), differences_table, clips, notes,
+                  methods_text(result.design, config))
+
+
+DIFFERENCE_COLUMNS = ["a", "b", "difference", "ci_low", "ci_high", "se", "df", "p", "p_holm",
+                      "share_participants", "share_clips", "share_residual"]
+
+
+def group_means(rows: pd.DataFrame, value: str, config, by=("source",), base=None):
+    """Return the crossed bootstrap of the mean of column ``value`` per group of ``by``
+    (every row a unit; ``base`` row weights, e.g. to count each participant once) and
+    the groups (sorted)."""
+    by = list(by)
+    groups = rows.groupby(by, observed=True, sort=True).size().index
+    keys = pd.MultiIndex.from_frame(rows[by]) if len(by) > 1 else pd.Index(rows[by[0]])
+    statistic = ratio(rows[value].to_numpy(dtype=float), groups.get_indexer(keys), len(groups), base)
+    return bootstrap(design(rows), statistic, config), groups
+
+
+def intervals(result: Crossed, groups, config, bounds=None) -> pd.DataFrame:
+    """Return ``score``, ``ci_low``, ``ci_high`` of ``result`` indexed by ``groups``."""
+    table = result.summary(config.confidence, bounds=bounds)
+    return pd.DataFrame({"score": table["estimate"].to_numpy(), "ci_low": table["ci_low"].to_numpy(),
+                         "ci_high": table["ci_high"].to_numpy()}, index=groups)

@@ -1,0 +1,126 @@
+"""The crossed bootstrap: participants and clips both random."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from analysis import crossed, simulate
+from analysis.pairwise import comparisons
+from tests.analysis.conftest import config
+
+
+def _rows(table):
+    rows = table.assign(pcode=pd.factorize(table["participant"])[0],
+                        trial_key=pd.factorize(table["trial_id"])[0])
+    return rows.sort_values(["trial_key", "position"], kind="stable").reset_index(drop=True)
+
+
+def test_draws_within_keep_each_group_its_size():
+    groups = np.array([0, 0, 1, 1, 1, 2])
+    counts = crossed.draws_within(groups, 50, np.random.default_rng(0))
+    assert counts.shape == (50, 6)
+    for g in range(3):
+        assert np.all(counts[:, groups == g].sum(axis=1) == np.sum(groups == g))
+    assert np.all(counts[:, 5] == 1)  # a group of one is always itself
+
+
+def test_design_of_pairwise_trials():
+    rows = _rows(simulate.simulate("pairwise", {"a": 0.0, "b": 0.0}, participants=6, trials=4,
+                                   actions=("x", "y"), clips_per_source=3, seed=1))
+    d = crossed.design(rows, unit="trial_key")
+    assert d.n_units == 24 and d.clips.shape == (24, 2) and d.n_participants == 6
+    assert d.clips_per_unit == 2.0
+    assert np.all(d.clips_per_stratum <= 3) and d.n_strata == 4
+
+
+def test_ratio_statistic_is_the_weighted_mean_per_group():
+    values, groups = np.array([1.0, 3.0, 5.0, 7.0]), np.array([0, 0, 1, 1])
+    statistic = crossed.ratio(values, groups, 2, base=np.array([1.0, 1.0, 1.0, 3.0]))
+    assert statistic(np.ones((1, 4)))[0] == pytest.approx([2.0, (5 + 21) / 4])
+    assert statistic(np.array([[2.0, 0.0, 1.0, 0.0]]))[0] == pytest.approx([1.0, 5.0])
+
+
+def test_crossed_intervals_hold_where_participant_intervals_fail():
+    # The issue's case: equal sources, clip SD 1.5, 2 clips per source and action.
+    covered = covered_by_participants = 0
+    for seed in range(8):
+        rows = _rows(simulate.simulate("pairwise", {"a": 0.0, "b": 0.0}, participants=60,
+                                       trials=10, actions=("x", "y"), clips_per_source=2,
+                                       clip_sd=1.5, tie_rate=0.0, seed=seed))
+        trials = comparisons(rows, ["a", "b"])
+        result = crossed.bootstrap(crossed.design(rows, unit="trial_key"),
+                                   crossed.worth_statistic(np.stack([trials.winner, trials.loser], 1), 2),
+                                   config(bootstrap=200, seed=seed))
+        table = crossed.differences(result, ["a", "b"])
+        covered += table["ci_low"][0] <= 0 <= table["ci_high"][0]
+        low, high = result.contrast([[1.0, -1.0]]).percentile("participants")
+        covered_by_participants += low[0] <= 0 <= high[0]
+    assert covered >= 7
+    assert covered_by_participants <= 4
+    clips = crossed.clips_per_source(rows)
+    assert clips.loc["a", "n_clips"] == 4 and clips.loc["a", "most_per_condition"] == 2
+    assert table["share_clips"][0] > 0.5
+    warning = crossed.clip_warnings(table, clips)
+    assert warning and "about these 8 clips, not the method: add clips, not participants" in warning[0]
+
+
+def test_differences_are_holm_corrected_t_tests():
+    rng = np.random.default_rng(3)
+    estimate = np.array([0.0, 1.0, 3.0])
+    samples = estimate + rng.normal(0, 1, (400, 3))
+    d = crossed.Design(np.arange(40) % 20, (np.arange(40) % 8)[:, None], np.arange(8) % 4,
+                       np.arange(40) % 8)
+    result = crossed.Crossed(estimate, samples, samples, np.zeros_like(samples), d)
+    table = crossed.differences(result, ["x", "y", "z"])
+    parts = result.contrast(crossed.pair_matrix(["x", "y", "z"])[0]).variances()
+    assert table["se"].to_numpy() == pytest.approx(np.sqrt(parts["participants"]
+                                                           + 2 * parts["clips"]))
+    assert list(table["p_holm"]) == pytest.approx(list(crossed.holm(table["p"])))
+    assert table["difference"].tolist() == pytest.approx([-1.0, -3.0, -2.0])
+
+
+def test_single_clip_groups_are_named():
+    d = crossed.Design(np.arange(4), np.array([[0], [1], [2], [2]]), np.array([0, 1, 1]),
+                       np.array([0, 1, 2, 2]))
+    assert "1 of 2 source-and-condition groups have a single clip" in crossed.one_clip_note(d)
+
+
+def test_fixed_clips_give_intervals_over_participants_only():
+    from analysis.study import analyse
+
+    table = simulate.simulate("rating_standards", {"a": 0.0, "b": 0.0}, participants=40, trials=6,
+                              actions=("x", "y"), clips_per_source=2, clip_sd=1.5, seed=2)
+    random = analyse(table, config())
+    fixed = analyse(table, config(random_clips=False))
+    width = lambda result: (result.analysis.sources["ci_high"] - result.analysis.sources["ci_low"]).mean()
+    assert width(fixed) < width(random) / 2
+    assert "hold for these 8 clips" in fixed.methods()
+    assert "treat participants and clips as random" in random.methods()
+    assert any("add clips, not participants" in note for note in random.notes)
+    assert not any("add clips, not participants" in note for note in fixed.notes)
+    assert "treat participants and clips as random" not in fixed.methods()
+
+
+@pytest.mark.parametrize("study_type", ["rating_standards", "pairwise"])
+def test_the_coverage_benchmark_in_small(study_type):
+    from benchmarks import bench_coverage
+
+    args = bench_coverage.parse(["--studies", "10", "--bootstrap", "40", "--actions", "1",
+                                 "--participants", "30", "--trials", "6"])
+    result = bench_coverage.cell(study_type, 0.0, 1.5, 2, 0.0, args)
+    # Equal sources, clips that vary: the intervals over participants alone call most
+    # studies significant; over participants and clips, few.
+    assert result["crossed"]["rejected"] <= 0.2
+    assert result["participants"]["rejected"] >= 0.5
+    assert result["crossed"]["coverage"] >= 0.8
+    assert result["crossed"]["width"] > result["participants"]["width"]
+
+
+def test_few_clip_degrees_of_freedom_are_named():
+    d = crossed.Design(np.arange(8) % 4, (np.arange(8) % 4)[:, None], np.array([0, 0, 1, 1]),
+                       np.arange(8) % 4)
+    assert "rests on 2 degree(s) of freedom (4 clips in 2 source-and-condition groups)" in \
+        crossed.one_clip_note(d)
+    many = crossed.Design(np.arange(16) % 4, (np.arange(16) % 8)[:, None], np.arange(8) % 2,
+                          np.arange(16) % 8)
+    assert crossed.one_clip_note(many) is None
