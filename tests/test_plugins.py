@@ -30,9 +30,13 @@ EXAMPLES = {
     "studyapp/survey/models.py": {"ranking"},  # Study.study_type's default, as migrated
     "tests/analysis/test_bad_input.py": {"fake_or_real", "pairwise", "ranking", "rating_standards"},
     "tests/analysis/test_correlate.py": {"ranking"},
+    "tests/analysis/test_crossed.py": {"pairwise", "rating_standards"},
     "tests/analysis/test_exclusions.py": {"fake_or_real", "ranking"},
+    # the mixed models are fitted where a type's answers suit one (scores, yes/no)
+    "tests/analysis/test_mixed.py": {"fake_or_real", "mushra", "rating_standards"},
     "tests/analysis/test_pairwise_graded.py": {"pairwise"},
     "tests/analysis/test_participant_intervals.py": {"fake_or_real", "rating_standards"},
+    "tests/analysis/test_plan.py": {"rating_standards"},
     "tests/studyapp/conftest.py": {"ranking"},
     "tests/studyapp/test_analyze_command.py": {"fake_or_real", "ranking"},
     "tests/studyapp/test_analyze_escaping.py": {"ranking"},
@@ -57,6 +61,8 @@ EXAMPLES = {
     "tests/studyapp/test_flow.py": {"ranking"},
     "tests/studyapp/test_instructed_checks.py": {"pairwise"},
     "tests/studyapp/test_migrations.py": {"pairwise", "rating_reference"},
+    "tests/studyapp/test_plan_command.py": {"pairwise", "rating_standards"},
+    "tests/studyapp/test_plan_page.py": {"pairwise"},
     "tests/studyapp/test_prolific_command.py": {"ranking"},
     "tests/studyapp/test_prolific_end_to_end.py": {"ranking"},
     "tests/studyapp/test_prompts.py": {"fake_or_real", "pairwise", "ranking", "rating_reference"},
