@@ -428,9 +428,10 @@ def _check_prompt_study(raw, sources, study_type, options, type_options) -> None
         if role == "practice":
             raise ConfigError(f"study.practice: a study of {key} has no clips to spare for a "
                               f"practice trial; set study.practice: false")
+        fit = [k for k in list_study_types() if all(
+            r in PROMPT_ROLES for r in get_study_type(k).stimulus_roles({"practice": False}))]
         raise ConfigError(f"study.type: {study_type} studies need {role} clips per action, which "
-                          f"a study of {key} does not make; use pairwise, ranking or "
-                          f"fake_or_real, or actions")
+                          f"a study of {key} does not make; use {', '.join(fit)}, or actions")
 
 
 def _names(raw: dict, name: str) -> list[str] | None:
