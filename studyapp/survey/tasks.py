@@ -76,6 +76,14 @@ def register_stimuli(study: str, clips: list[dict]) -> list[int]:
     return [s.pk for s in register_clips(Study.objects.get(slug=study), made)]
 
 
+@register_job("render_clip")
+def render_clip(folder: str, key: str, style: str, size, framing: dict) -> dict:
+    """Render one clip of a fanned-out build (queue ``render``, see ``survey.render_fanout``)."""
+    from studyapp.survey.render_fanout import render_one
+
+    return render_one(folder, key, style, size, framing)
+
+
 @register_job("call_command")
 def call_command(name: str, args: list | None = None, options: dict | None = None) -> str:
     """Run a management command (``render``, ``analyze``, ...) and return its output."""
