@@ -41,7 +41,13 @@ import uuid
 from dataclasses import asdict
 from pathlib import Path
 
+from studyapp.survey.broker import broker_url
+
 log = logging.getLogger(__name__)
+# How a clip's job reaches the render workers: ``queue("render_clip", params)``. The app's
+# ``ready`` sets it to Celery's, as it sets ``tasks.queue``; the job itself is
+# ``tasks.render_clip``, which calls :func:`render_one`.
+queue = None
 
 FANOUT = ".fanout"  # beside the renders: motions to draw and the records of those drawn
 LEASE_PREFIX = "study:render:lease:"
@@ -82,8 +88,6 @@ def stall_seconds() -> float:
 
 def _redis():
     import redis
-
-    from studyapp.survey.tasks import broker_url
 
     url = broker_url()
     if not url.startswith(("redis://", "rediss://", "unix://")):
@@ -167,14 +171,16 @@ def fan_out(clips, folder, style: str, size, framing, on_clip=None, say=None, po
     once per clip as its record appears; ``say(message)`` tells what the build waits for.
     """
     from generation.formats import npz
-    from studyapp.survey import tasks
 
     say = say or log.info
-    if not tasks.broker_url():
+    if not broker_url():
         raise FanOutError("--workers celery sends clips to Celery render workers: set "
                           "STUDY_CELERY_BROKER=redis://host:6379/0 here and on the workers, and "
                           "start them with `celery -A studyapp worker -Q render` "
                           "(docs/PRODUCTION.md), or build without --workers celery")
+    if queue is None:
+        raise FanOutError("STUDY_CELERY_BROKER is set but no queue is: run inside the Django "
+                          "app (its ready() sets render_fanout.queue)")
     client = _redis()
     folder = Path(folder)
     jobs = folder / FANOUT
@@ -205,7 +211,7 @@ def fan_out(clips, folder, style: str, size, framing, on_clip=None, say=None, po
 
     def send(keys):
         for key in keys:
-            tasks.run_job("render_clip", key=key, **job)
+            queue("render_clip", {"key": key, **job})
 
     send(list(pending))
     if pending:

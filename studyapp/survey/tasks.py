@@ -8,10 +8,10 @@ Jobs must be safe to run again after a crash: ``register_stimuli`` is, because
 """
 
 import logging
-import os
 import threading
 
 from generation.registry import Registry
+from studyapp.survey.broker import broker_url
 
 log = logging.getLogger(__name__)
 # How a job reaches a worker when a broker is set: ``queue(kind, params)`` returns its
@@ -26,12 +26,6 @@ def register_job(kind: str):
     """Register a function as the job ``kind`` (keyword parameters, JSON-serialisable)."""
 
     return JOBS.register(kind)
-
-
-def broker_url() -> str:
-    from django.conf import settings
-
-    return getattr(settings, "STUDY_CELERY_BROKER", "") or os.environ.get("STUDY_CELERY_BROKER", "")
 
 
 def execute(kind: str, params: dict):
