@@ -31,6 +31,7 @@ error) and reported as a local build reports it.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import os
@@ -97,6 +98,12 @@ def _redis():
     return redis.Redis.from_url(url)
 
 
+def lease_name(folder, key: str) -> str:
+    """Return the Redis key of the lease on clip ``key`` of the renders folder ``folder``."""
+    where = hashlib.sha256(str(Path(folder).resolve()).encode()).hexdigest()[:12]
+    return f"{LEASE_PREFIX}{where}:{key}"
+
+
 def _write_atomic(path: Path, text: str) -> None:
     tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}")
     tmp.write_text(text)
@@ -135,12 +142,13 @@ def render_one(folder: str, key: str, style: str, size, framing: dict) -> dict:
                           f"was cleaned); nothing to draw")
     client = _redis()
     lease = lease_seconds()
-    client.set(LEASE_PREFIX + key, me, ex=max(1, round(lease)))
+    held = lease_name(folder, key)
+    client.set(held, me, ex=max(1, round(lease)))
     stop = threading.Event()
 
     def renew():
         while not stop.wait(lease / 3):
-            client.set(LEASE_PREFIX + key, me, ex=max(1, round(lease)))
+            client.set(held, me, ex=max(1, round(lease)))
 
     beat = threading.Thread(target=renew, name=f"lease-{key[:8]}", daemon=True)
     beat.start()
@@ -157,8 +165,8 @@ def render_one(folder: str, key: str, style: str, size, framing: dict) -> dict:
     finally:
         stop.set()
         beat.join()
-        if client.get(LEASE_PREFIX + key) == me.encode():
-            client.delete(LEASE_PREFIX + key)
+        if client.get(held) == me.encode():
+            client.delete(held)
 
 
 # --- the build's side --------------------------------------------------------------
@@ -223,7 +231,7 @@ def fan_out(clips, folder, style: str, size, framing, on_clip=None, say=None, po
         keys = list(pending)
         with client.pipeline(transaction=False) as pipe:
             for key in keys:
-                pipe.exists(LEASE_PREFIX + key)
+                pipe.exists(lease_name(folder, key))
             leased = pipe.execute()
         for key, held in zip(keys, leased):
             record = _read(jobs / f"{key}.json")
