@@ -22,6 +22,9 @@ built from the same sources share their motions and clips:
   (:mod:`studyapp.survey.stimulus_sources`), and measured (``metrics/``, ``classifiers/``);
 - ``renders/<video_hash>.mp4|png`` and ``renders/index.json``: each clip's render,
   keyed by its motion hash, the style, the size and the framing.
+  They are drawn by processes of this machine (:func:`render_workers`), or with
+  ``workers="celery"`` by Celery render workers on machines that mount the cache folder
+  (:mod:`studyapp.survey.render_fanout`); registration stays here either way.
 
 The framing is fitted to real clips only (``clips_per_source + 3`` per action, drawn
 with the config's seed), never to generated ones: changing a method then re-renders only
