@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 
 import pytest
+import yaml
 
 from generation import ops
 from generation.datasets import get_dataset
@@ -73,7 +74,8 @@ def test_two_celery_workers_one_killed_every_clip_registered_once(tmp_path, medi
                                                                   settings, monkeypatch):
     import redis
 
-    from studyapp.survey.models import Study
+    from studyapp.survey.models import BuildJob, Study
+    from studyapp.survey.tasks import execute
 
     broker = f"redis://127.0.0.1:6379/{7 + os.getpid() % 8}"
     store = redis.Redis.from_url(broker)
@@ -109,6 +111,15 @@ def test_two_celery_workers_one_killed_every_clip_registered_once(tmp_path, medi
         result = build_stimuli(parse(raw, tmp_path), tmp_path / "build", workers="celery",
                                progress=lambda done, total, message: steps.append(message),
                                log=said.append)
+        # A build started from the admin, with STUDY_RENDER_WORKERS=celery, on the worker left.
+        settings.VAR_DIR = tmp_path / "var"
+        monkeypatch.setenv("STUDY_RENDER_WORKERS", "celery")
+        config = tmp_path / "job.yaml"
+        config.write_text(yaml.safe_dump({**raw, "slug": "by-job", "render": {"style": "mesh",
+                                                                              "size": 32}}))
+        job = BuildJob.objects.create(config_path=str(config))
+        execute("build_stimuli", {"job": job.pk})
+        job.refresh_from_db()
     finally:
         building.clear()
         killer.join(5)
@@ -134,7 +145,12 @@ def test_two_celery_workers_one_killed_every_clip_registered_once(tmp_path, medi
     assert len(list(renders.glob(".rendering-*"))) <= 2
     assert not list((renders / ".fanout").glob("*.json"))  # records cleaned once indexed
 
+    assert job.status == BuildJob.Status.DONE and job.done == job.total > 12
+    assert job.study.stimuli.count() == len(result.entries)
+    assert not set(job.study.stimuli.values_list("video_hash", flat=True)) & set(hashes)
+
     # The same build locally: the same files, and a rerun draws nothing.
+    monkeypatch.delenv("STUDY_RENDER_WORKERS")
     local = build_stimuli(parse({**raw, "slug": "local"}, tmp_path), tmp_path / "local")
     assert sorted(e["video_hash"] for e in local.entries) == sorted(hashes)
     again = build_stimuli(parse(raw, tmp_path), tmp_path / "build", workers="celery")
