@@ -68,6 +68,7 @@ def start_worker(name, env):
         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
 
+@pytest.mark.slow  # 20-35 s: two workers start, one is killed, a lease lapses
 @pytest.mark.skipif(not redis_up(), reason="no Redis on 127.0.0.1:6379")
 @pytest.mark.django_db(transaction=True)
 def test_two_celery_workers_one_killed_every_clip_registered_once(tmp_path, media_root,
