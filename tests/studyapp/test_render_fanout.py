@@ -6,6 +6,7 @@ import subprocess
 import sys
 import threading
 import time
+from dataclasses import asdict
 from pathlib import Path
 
 import pytest
@@ -46,6 +47,35 @@ def test_workers_option_and_a_missing_broker_say_what_to_set(settings, monkeypat
     monkeypatch.delenv("STUDY_CELERY_BROKER", raising=False)
     with pytest.raises(FanOutError, match="STUDY_CELERY_BROKER=redis://.*-Q render"):
         fan_out([], "/nonexistent", "stick", 32, None)
+
+
+@pytest.mark.skipif(not redis_up(), reason="no Redis on 127.0.0.1:6379")
+def test_a_build_run_again_takes_what_the_workers_drew_and_a_redelivery_draws_nothing(
+        tmp_path, settings):
+    import redis
+
+    from generation.formats import npz
+    from studyapp.survey.render_fanout import FANOUT, lease_name, render_one
+
+    broker = f"redis://127.0.0.1:6379/{7 + os.getpid() % 8}"
+    settings.STUDY_CELERY_BROKER = broker
+    [motion] = sample_real(get_dataset("demo"), ["walk"], 1, 12, 0)
+    style = get_style("stick")
+    framing = Framing.from_motions([ops.canonical(motion, style.dims)], pad=style.pad)
+    folder = tmp_path / "renders"
+    (folder / FANOUT).mkdir(parents=True)
+    npz.save(folder / FANOUT / "k1.npz", [motion])
+    # What a worker did for a build killed since: the clip drawn, its record written.
+    record = render_one(str(folder), "k1", "stick", 32, asdict(framing))
+    assert (folder / f"{record['video_hash']}.mp4").is_file()
+    assert not redis.Redis.from_url(broker).exists(lease_name(folder, "k1"))  # lease dropped
+    drawn = {p: p.stat().st_mtime_ns for p in folder.glob("*.mp4")}
+    assert render_one(str(folder), "k1", "stick", 32, asdict(framing)) == record
+    seen = []
+    records, failures = fan_out([("k1", motion)], folder, "stick", 32, framing,
+                                on_clip=seen.append)
+    assert (records, failures, seen) == ({"k1": record}, {}, ["k1"])
+    assert {p: p.stat().st_mtime_ns for p in folder.glob("*.mp4")} == drawn
 
 
 def use_broker(broker):
