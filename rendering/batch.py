@@ -5,7 +5,9 @@ from __future__ import annotations
 import json
 import multiprocessing
 import os
+import socket
 import threading
+import uuid
 from collections import deque
 from contextlib import ExitStack
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -248,6 +250,46 @@ def _start_worker(style: str, framing: Framing, width: int, height: int) -> None
 def _work(index: int, motion: Motion, fps, out_dir: Path, formats):
     # Rendering processes share the cores: each encodes in its drawing thread (VideoWriter).
     return _attempt(_WORKER["drawer"], index, motion, fps, out_dir, formats, background=False)
+
+
+_KEPT: dict = {}  # this process's drawer for one clip at a time (render_clip)
+
+
+def render_clip(motion: Motion, out_dir: str | Path, style: str, framing: Framing, size=480,
+                fps: float | None = None) -> RenderedClip:
+    """Render one clip of a set to ``out_dir/<hash>.mp4`` and ``<hash>.png``, as
+    :func:`render_set` does (the same bytes), for a process that is handed clips one by
+    one (a render worker of a fanned-out build).
+
+    The drawer is kept between calls with the same style, framing and size. The files are
+    written under names of their own (host, process, a random part) and then renamed to
+    their hash, so processes on many machines may write into one shared folder and two
+    drawing one clip leave one pair of files.
+    """
+    style_class = get_style(style)
+    width, height = _dimensions(size)
+    if fps is not None and not fps > 0:
+        raise ValueError(f"fps must be positive; got {fps!r}")
+    drawn = ops.canonical(motion, style_class.dims, fps)
+    check(drawn, style_class)
+    key = (style, json.dumps(framing.as_dict(), sort_keys=True, default=list), width, height)
+    if _KEPT.get("key") != key:
+        if _KEPT.get("drawer") is not None:
+            _KEPT.pop("drawer").close()
+        _KEPT.update(key=key, drawer=style_class(framing, width, height))
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    stem = out_dir / f".rendering-{socket.gethostname()}-{os.getpid()}-{uuid.uuid4().hex[:12]}"
+    videos, poster = [stem.with_suffix(".mp4")], stem.with_suffix(".png")
+    try:
+        clip = _render_file(_KEPT["drawer"], 0, drawn, fps, videos, poster, background=False)
+        video, still = out_dir / f"{clip.video_hash}.mp4", out_dir / f"{clip.video_hash}.png"
+        os.replace(poster, still)  # the poster first: a present mp4 means both are there
+        os.replace(videos[0], video)
+    finally:
+        for path in videos + [poster]:
+            path.unlink(missing_ok=True)
+    return replace(clip, video=video, poster=still, motion_hash=motion.content_hash())
 
 
 def render_set(

@@ -29,6 +29,11 @@ def run_task(self, kind: str, params: dict):
     return execute(kind, params)
 
 
+# Jobs with a queue of their own: a build's clips go to render workers
+# (``celery -A studyapp worker -Q render``), which may run on other machines.
+QUEUES = {"render_clip": os.environ.get("STUDY_RENDER_QUEUE", "render")}
+
+
 def enqueue(kind: str, params: dict):
     """Queue job ``kind`` for a worker; return its ``AsyncResult``."""
-    return run_task.delay(kind, params)
+    return run_task.apply_async((kind, params), queue=QUEUES.get(kind))

@@ -12,9 +12,10 @@ class SurveyConfig(AppConfig):
         from studyapp.survey.ratelimit import count_failed_login
 
         user_login_failed.connect(count_failed_login, dispatch_uid="survey-login-limit")
-        from studyapp.survey import tasks
+        from studyapp.survey import render_fanout, tasks
 
         tasks.queue = _celery_queue
+        render_fanout.queue = _celery_queue
 
 
 def _celery_queue(kind: str, params: dict):

@@ -22,6 +22,9 @@ built from the same sources share their motions and clips:
   (:mod:`studyapp.survey.stimulus_sources`), and measured (``metrics/``, ``classifiers/``);
 - ``renders/<video_hash>.mp4|png`` and ``renders/index.json``: each clip's render,
   keyed by its motion hash, the style, the size and the framing.
+  They are drawn by processes of this machine (:func:`render_workers`), or with
+  ``workers="celery"`` by Celery render workers on machines that mount the cache folder
+  (:mod:`studyapp.survey.render_fanout`); registration stays here either way.
 
 The framing is fitted to real clips only (``clips_per_source + 3`` per action, drawn
 with the config's seed), never to generated ones: changing a method then re-renders only
@@ -62,6 +65,8 @@ from rendering import VERSION as RENDERING_VERSION
 from rendering import Framing, get_style, render_set
 from studyapp.survey.catch_clips import CATCH_PER_BASE, catch_clips, prompt_catch_clips
 from studyapp.survey.models import ScoringStandard, Stimulus, Study
+from studyapp.survey.render_fanout import FanOutError, fan_out
+from studyapp.survey.render_fanout import clean as clean_fanout
 from studyapp.survey.stimuli import Clip, file_hash, register_clips
 from studyapp.survey.stimulus_config import ConfigError, StudyConfig, normalise_prompt, prompt_key
 from studyapp.survey.stimulus_sources import MethodSources
@@ -99,8 +104,10 @@ def digest(value) -> str:
 class Build:
     """One build of a config into ``folder`` (manifest) with caches in ``cache``."""
 
-    def __init__(self, config: StudyConfig, folder, progress=None, log=None, cache=None):
+    def __init__(self, config: StudyConfig, folder, progress=None, log=None, cache=None,
+                 workers=None):
         self.config = config
+        self.workers = workers  # "celery", a number of processes, or None (STUDY_RENDER_WORKERS)
         self.folder = Path(folder)
         self.cache = Path(cache) if cache is not None else self.folder
         self.progress = progress  # callable(done, total, message), e.g. a background job's
@@ -519,12 +526,15 @@ class Build:
         missing = [i for i, key in enumerate(keys) if key not in index
                    or not (folder / f"{index[key]['video_hash']}.mp4").is_file()]
         self.step("renders cached", len(items) - len(missing))
-        if missing:
+        workers = render_workers(len(missing), self.workers) if missing else 1
+        if workers == "celery":
+            self.render_by_workers(items, keys, missing, folder, framing, index, index_file)
+        elif missing:
             incoming = folder / f".incoming-{c.slug}"
             shutil.rmtree(incoming, ignore_errors=True)
             report = render_set(
                 [items[i][0] for i in missing], incoming, style=c.style, size=c.size,
-                framing=framing, progress=False, workers=render_workers(len(missing)),
+                framing=framing, progress=False, workers=workers,
                 on_clip=lambda i: self.step(f"rendered {items[missing[i]][0].source}"))
             if report.failures:
                 raise BuildError(f"clips failed to render in the {c.style!r} style: "
@@ -559,6 +569,32 @@ class Build:
                                                   "score", "motion_hash", "video_hash")
                             if entry.get(k) is not None})
         return clips, entries, len(missing)
+
+    def render_by_workers(self, items, keys, missing, folder, framing, index, index_file):
+        """Render the ``missing`` clips by Celery render workers (survey.render_fanout)
+        into the shared renders ``folder``; add them to ``index`` and write it."""
+        c = self.config
+        at = defaultdict(list)  # key -> the items it draws (two items may share a motion)
+        for i in missing:
+            at[keys[i]].append(i)
+
+        def finished(key):
+            for i in at[key]:
+                self.step(f"rendered {items[i][0].source}")
+
+        try:
+            records, failures = fan_out([(key, items[i[0]][0]) for key, i in at.items()],
+                                        folder, c.style, c.size, framing, on_clip=finished,
+                                        say=self.log)
+        except FanOutError as exc:
+            raise BuildError(str(exc)) from None
+        if failures:
+            raise BuildError(f"clips failed to render in the {c.style!r} style: "
+                             f"{[(at[k][0], message) for k, message in failures.items()]}")
+        for key, record in records.items():
+            index[key] = {"video_hash": record["video_hash"], "duration": record["duration"]}
+        _write_if_changed(index_file, json.dumps(index, sort_keys=True, indent=1))
+        clean_fanout(folder, list(records))
 
     def payloads(self, motions, framing, folder) -> list:
         """Write the in-browser player's payloads (render.player: webgl), or Nones."""
@@ -771,16 +807,23 @@ def default_folders(config: StudyConfig, out=None, cache=None) -> tuple[Path, Pa
 PARALLEL_FROM = 12
 
 
-def render_workers(n_clips: int) -> int:
-    """Return how many processes render ``n_clips``: ``STUDY_RENDER_WORKERS`` if set,
-    else one per CPU core (at most 4) once there are ``PARALLEL_FROM`` clips."""
-    given = os.environ.get("STUDY_RENDER_WORKERS", "").strip()
+def render_workers(n_clips: int, given=None) -> int | str:
+    """Return how many processes of this machine render ``n_clips``, or ``"celery"`` to
+    send them to Celery render workers: ``given`` (the command's ``--workers``), else
+    ``STUDY_RENDER_WORKERS`` if set, else one per CPU core (at most 4) once there are
+    ``PARALLEL_FROM`` clips."""
+    name = "--workers" if given not in (None, "") else "STUDY_RENDER_WORKERS"
+    given = str(given if given not in (None, "") else
+                os.environ.get("STUDY_RENDER_WORKERS", "")).strip()
+    if given.lower() == "celery":
+        return "celery"
     if given:
         try:
             return max(1, int(given))
         except ValueError:
-            raise BuildError(f"STUDY_RENDER_WORKERS={given!r} is not a whole number; "
-                             f"set it to how many processes render clips, e.g. 2") from None
+            raise BuildError(f"{name}={given!r} is not a whole number or 'celery'; set it to "
+                             f"how many processes of this machine render clips, e.g. 2, or "
+                             f"to celery for Celery render workers") from None
     if n_clips < PARALLEL_FROM:
         return 1
     return max(1, min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
@@ -788,7 +831,8 @@ def render_workers(n_clips: int) -> int:
 
 
 def build_stimuli(config: StudyConfig, folder, progress=None, log=None,
-                  dry_run: bool = False, cache=None) -> BuildResult:
+                  dry_run: bool = False, cache=None, workers=None) -> BuildResult:
     """Build ``config`` into ``folder`` (caches in ``cache``, default ``folder``); see the
-    module docstring."""
-    return Build(config, folder, progress, log, cache).run(dry_run)
+    module docstring. ``workers`` renders in that many processes here, or by Celery render
+    workers with ``"celery"`` (default: ``STUDY_RENDER_WORKERS``, else one per core)."""
+    return Build(config, folder, progress, log, cache, workers).run(dry_run)

@@ -8,10 +8,10 @@ Jobs must be safe to run again after a crash: ``register_stimuli`` is, because
 """
 
 import logging
-import os
 import threading
 
 from generation.registry import Registry
+from studyapp.survey.broker import broker_url
 
 log = logging.getLogger(__name__)
 # How a job reaches a worker when a broker is set: ``queue(kind, params)`` returns its
@@ -26,12 +26,6 @@ def register_job(kind: str):
     """Register a function as the job ``kind`` (keyword parameters, JSON-serialisable)."""
 
     return JOBS.register(kind)
-
-
-def broker_url() -> str:
-    from django.conf import settings
-
-    return getattr(settings, "STUDY_CELERY_BROKER", "") or os.environ.get("STUDY_CELERY_BROKER", "")
 
 
 def execute(kind: str, params: dict):
@@ -74,6 +68,14 @@ def register_stimuli(study: str, clips: list[dict]) -> list[int]:
 
     made = [Clip(**clip) for clip in clips]
     return [s.pk for s in register_clips(Study.objects.get(slug=study), made)]
+
+
+@register_job("render_clip")
+def render_clip(folder: str, key: str, style: str, size, framing: dict) -> dict:
+    """Render one clip of a fanned-out build (queue ``render``, see ``survey.render_fanout``)."""
+    from studyapp.survey.render_fanout import render_one
+
+    return render_one(folder, key, style, size, framing)
 
 
 @register_job("call_command")

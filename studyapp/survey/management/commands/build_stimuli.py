@@ -25,6 +25,13 @@ class Command(BaseCommand):
         parser.add_argument("--cache", help="Cache of motions, checkpoints and renders "
                             "(default: <var>/stimuli/cache, shared by every study; the build "
                             "folder with --out).")
+        parser.add_argument(
+            "--workers", metavar="N|celery",
+            help="Render in N processes of this machine, or send the clips to Celery render "
+                 "workers on any number of machines with 'celery' (STUDY_CELERY_BROKER; "
+                 "`celery -A studyapp worker -Q render` where the cache folder is mounted at "
+                 "the same path; docs/PRODUCTION.md). Default: STUDY_RENDER_WORKERS, else "
+                 "one process per core.")
         parser.add_argument("--dry-run", action="store_true", help="Check and plan; build nothing.")
 
     def handle(self, *args, **options):
@@ -34,7 +41,8 @@ class Command(BaseCommand):
                 self.stderr.write(f"Warning: {warning}")
             folder, cache = default_folders(config, options["out"], options["cache"])
             result = build_stimuli(config, folder, log=self.stdout.write,
-                                   dry_run=options["dry_run"], cache=cache)
+                                   dry_run=options["dry_run"], cache=cache,
+                                   workers=options["workers"])
         except (ConfigError, BuildError) as exc:
             raise CommandError(str(exc)) from exc
         for warning in result.warnings:
