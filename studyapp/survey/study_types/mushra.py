@@ -56,7 +56,7 @@ class Mushra(StudyType):
     default_clips_per_trial = 4
     min_items = 1
     one_per_source = True
-    minutes = 12
+    answer_seconds = 6.0
     default_criterion = Criterion("quality")
     options = {
         "screen_threshold": Option(int, 90, "Post-screening: a hidden-reference score below "
