@@ -215,15 +215,17 @@ class StudyType:
     def stimulus_roles(self, settings: dict) -> dict[str, int]:
         """Return how many clips of each extra role a build makes per action.
 
-        ``settings`` are the study's settings (``catch_trials``, ``practice``, options).
-        Catch clips are an obviously broken version of a real clip; practice clips are
-        kept for the practice trial only (never judged later).
+        ``settings`` are the study's settings (``catch_trials``, ``practice``,
+        ``clips_per_trial``, options). Catch clips are an obviously broken version of a
+        real clip; practice clips are kept for the practice trial only (never judged
+        later), as many as a trial judges, so the practice looks like the real trials.
         """
         roles = {}
         if settings.get("catch_trials"):
             roles[Stimulus.Role.CATCH] = 1
         if settings.get("practice"):
-            roles[Stimulus.Role.PRACTICE] = max(self.min_items, 1)
+            shown = settings.get("clips_per_trial") or self.default_clips_per_trial
+            roles[Stimulus.Role.PRACTICE] = max(self.min_items, shown, 1)
         return roles
 
     def after_register(self, study, clips, stimuli) -> None:
@@ -248,6 +250,8 @@ class StudyType:
         pool = assignment.Pool.of(study)
         main = self.plan_main(study, pool, rng)
         practice = self.plan_practice(study, pool, rng) if study.practice else None
+        if practice and main:  # no more clips than the trials show (fewer sources than k)
+            practice.stimuli = practice.stimuli[:max(len(plan.stimuli) for plan in main)]
         catch = [
             plan
             for stimulus in assignment.pick_catch(pool.catches, study.catch_trials, rng)
