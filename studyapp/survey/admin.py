@@ -96,6 +96,12 @@ class StudyAdmin(admin.ModelAdmin):
     def get_queryset(self, request):
         return Study.objects.with_counts()
 
+    def get_inlines(self, request, obj):
+        """Scoring standards only for a study whose type shows scoring-standard examples."""
+        if obj is not None and Stimulus.Role.EXAMPLE not in obj.kind.stimulus_roles({}):
+            return []
+        return super().get_inlines(request, obj)
+
     def save_model(self, request, obj, form, change):
         """Save the study, then say what its crowd platform's rules advise against (the
         refusals, e.g. a missing completion code, are the form's errors)."""
