@@ -65,11 +65,13 @@ class StudyAdmin(admin.ModelAdmin):
     ]
     list_filter = ["study_type", "status"]
     search_fields = ["slug", "title"]
-    readonly_fields = ["participant_link", "preview_link", "results_link", "plan_link", "progress",
-                       "created_at"]
+    readonly_fields = ["participant_link", "preview_link", "results_link", "plan_link",
+                       "duration", "progress", "created_at"]
     actions = ["open_studies", "close_studies"]
     inlines = [ScoringStandardInline]
     fieldsets = [
+        ("Progress", {"fields": ["participant_link", "preview_link", "results_link", "plan_link",
+                                 "duration", "progress", "created_at"]}),
         (None, {"fields": ["slug", "title", "study_type", "status", "dataset", "data_note"]}),
         (
             "Trials",
@@ -90,12 +92,16 @@ class StudyAdmin(admin.ModelAdmin):
         ),
         ("Texts", {"fields": ["instructions", "consent_text"], "classes": ["collapse"]}),
         ("Crowd platform", {"fields": ["crowd", "completion_url", "max_participants"]}),
-        ("Progress", {"fields": ["participant_link", "preview_link", "results_link", "plan_link",
-                                 "progress", "created_at"]}),
     ]
 
     def get_queryset(self, request):
         return Study.objects.with_counts()
+
+    def get_inlines(self, request, obj):
+        """Scoring standards only for a study whose type shows scoring-standard examples."""
+        if obj is not None and Stimulus.Role.EXAMPLE not in obj.kind.stimulus_roles({}):
+            return []
+        return super().get_inlines(request, obj)
 
     def save_model(self, request, obj, form, change):
         """Save the study, then say what its crowd platform's rules advise against (the
@@ -161,6 +167,16 @@ class StudyAdmin(admin.ModelAdmin):
         url = reverse("survey:preview", args=[obj.slug])
         return format_html('<a href="{}" target="_blank" rel="noopener">Preview</a>', url)
 
+    @admin.display(description="Session length")
+    def duration(self, obj):
+        """The estimate from the study's trials and clips beside the measured median; the
+        one the consent, the time limit and the Prolific draft use is named."""
+        if not obj.pk:
+            return "-"
+        found = obj.duration()
+        used = "measured" if found.measured is not None else "estimated"
+        return f"{found.minutes} minutes ({used}): {found.describe()}."
+
     @admin.display(description="Live progress")
     def progress(self, obj):
         if not obj.pk:
@@ -175,12 +191,12 @@ class StudyAdmin(admin.ModelAdmin):
         )
         rows = format_html_join(
             "",
-            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
-            ((s.action, s.source, s.get_role_display(), s.n_judgements) for s in stimuli),
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            ((s.pk, s.action, s.source, s.get_role_display(), s.n_judgements) for s in stimuli),
         )
         return format_html(
             "<p>{} started, {} completed, {} excluded (failed the attention checks), "
-            "{} judgements.</p><table><thead><tr><th>Action</th><th>Source</th>"
+            "{} judgements.</p><table><thead><tr><th>Clip</th><th>Action</th><th>Source</th>"
             "<th>Role</th><th>Judgements</th></tr></thead><tbody>{}</tbody></table>",
             counts.n_started,
             counts.n_completed,

@@ -163,13 +163,16 @@ class Platform:
         """Raise ValueError naming ``crowd.codes.<outcome>`` for an outcome of ``outcomes``
         (those the study can end with) that needs a code this platform lacks."""
 
-    def time_limit(self, estimate: int) -> timedelta | None:
+    def time_limit(self, estimate) -> timedelta | None:
         """Return the study's time limit: ``time_limit_minutes``, else the platform's
-        default for a study estimated at ``estimate`` minutes; None for no limit."""
+        default for a study estimated at ``estimate`` minutes (an int, or a callable
+        returning it, called only when a default is needed); None for no limit."""
         if "time_limit_minutes" in self.settings:
             minutes = self.settings["time_limit_minutes"]
+        elif type(self).default_time_limit is Platform.default_time_limit:
+            minutes = None  # no default limit: the estimate is not needed
         else:
-            minutes = self.default_time_limit(estimate)
+            minutes = self.default_time_limit(estimate() if callable(estimate) else estimate)
         return timedelta(minutes=minutes) if minutes else None
 
     def default_time_limit(self, estimate: int) -> int | None:

@@ -25,6 +25,7 @@ from django.urls import reverse
 from django.utils import timezone
 
 from studyapp.survey.crowd import outcomes_of, platform_of
+from studyapp.survey.duration import Duration, fixed_seconds, study_duration
 from studyapp.survey.study_type_registry import STUDY_TYPES
 
 
@@ -68,7 +69,6 @@ class StudyManager(models.Manager):
         fields["options"] = kind.check_options(fields.get("options") or {})
         study = self.model(study_type=study_type, slug=slug, title=title, **fields)
         study.instructions = study.instructions or kind.default_instructions(study)
-        study.consent_text = study.consent_text or kind.default_consent
         study.full_clean()
         study.save()
         return study
@@ -221,7 +221,7 @@ class Study(models.Model):
             platform = self.platform
         except ValueError:
             return []
-        return platform.warnings(self.kind.minutes, self.n_checks(), self.max_failed_catch)
+        return platform.warnings(self.minutes(), self.n_checks(), self.max_failed_catch)
 
     def n_checks(self) -> int:
         """Return the attention checks of a session: catch and instructed trials."""
@@ -236,7 +236,23 @@ class Study(models.Model):
         return self.instructions or self.kind.default_instructions(self)
 
     def shown_consent(self) -> str:
-        return self.consent_text or self.kind.default_consent
+        """Return the consent text, or the type's default saying how long the study takes."""
+        return self.consent_text or self.kind.default_consent(self.minutes())
+
+    def duration(self) -> Duration:
+        """Return how long a session takes: estimated from the study's trials and clips,
+        and measured (the median of completed participants' sessions) once there are
+        enough of them (:mod:`studyapp.survey.duration`)."""
+        if self.pk is None:
+            return Duration(fixed_seconds(self.ask_demographics))
+        rows = (Participant.objects.filter(study=self, outcome=Participant.Outcome.COMPLETED)
+                .exclude(consented_at=None).exclude(completed_at=None)
+                .values_list("consented_at", "completed_at"))
+        return study_duration(self, [(done - start).total_seconds() for start, done in rows])
+
+    def minutes(self) -> int:
+        """Return the whole minutes a session takes, measured once it can be."""
+        return self.duration().minutes
 
     def option(self, name: str):
         """Return the study type's option ``name`` (its default when not set)."""
@@ -244,7 +260,7 @@ class Study(models.Model):
 
     def time_limit(self) -> timedelta | None:
         """Return how long after consent a participant may finish (None: no limit)."""
-        return self.platform.time_limit(self.kind.minutes)
+        return self.platform.time_limit(self.minutes)
 
     def idle_limit(self) -> timedelta | None:
         """Return how long a participant may go without answering a trial (None: ever)."""

@@ -4,6 +4,7 @@ The analysis runs outside the request (``tasks.run_job("call_command", ...)``, i
 ``analyze`` command); the page shows the latest ``report.html`` it wrote.
 """
 
+import json
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -21,6 +22,46 @@ from studyapp.survey.models import Study
 def report_folder(study: Study) -> Path:
     """Return where the study's latest analysis is written."""
     return Path(settings.VAR_DIR) / "reports" / study.slug
+
+
+POINTER = "latest.json"  # in report_folder: where the latest analysis went (``analyze --out``)
+
+
+def note_report(study: Study, out: Path) -> None:
+    """Note that ``analyze --out`` wrote the study's latest analysis to ``out``, so the
+    Results page shows it wherever it went."""
+    folder = report_folder(study)
+    out = Path(out).resolve()
+    if out == folder.resolve():
+        (folder / POINTER).unlink(missing_ok=True)
+        return
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / POINTER).write_text(json.dumps({"study": _identity(study), "folder": str(out)}))
+
+
+def _identity(study: Study) -> str:
+    """Return what tells this study from another of its slug (made before or elsewhere)."""
+    return f"{study.pk}:{study.created_at.isoformat() if study.created_at else ''}"
+
+
+def latest_folder(study: Study) -> Path:
+    """Return the folder of the study's latest analysis: the Results page's own, or the
+    ``--out`` of the last ``analyze`` run from the command line when that is newer."""
+    own = report_folder(study)
+    pointer = own / POINTER
+    if not pointer.is_file():
+        return own
+    try:
+        noted = json.loads(pointer.read_text())
+        other = Path(noted["folder"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return own
+    if noted.get("study") != _identity(study) or not (other / "report.html").is_file():
+        return own
+    if (own / "report.html").is_file() and (
+            (own / "report.html").stat().st_mtime > (other / "report.html").stat().st_mtime):
+        return own
+    return other
 
 
 def start_analysis(study: Study) -> None:
@@ -43,7 +84,7 @@ def results_view(admin_site, request, pk):
         start_analysis(study)
         messages.info(request, "The analysis is running; reload this page in a few seconds.")
         return redirect(request.path)
-    report = report_folder(study) / "report.html"
+    report = latest_folder(study) / "report.html"
     written = (
         datetime.fromtimestamp(report.stat().st_mtime, tz=timezone.utc) if report.is_file() else None
     )
@@ -67,7 +108,7 @@ def report_view(request, pk, criterion=None):
     if not request.user.has_perm("survey.view_study"):
         raise PermissionDenied("viewing results needs the permission to view studies")
     study = get_object_or_404(Study, pk=pk)
-    folder = report_folder(study)
+    folder = latest_folder(study)
     if criterion is not None:
         if criterion not in [c.key for c in study.kind.criteria(study)]:
             raise Http404("the study asks no such question")

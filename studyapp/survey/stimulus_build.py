@@ -232,7 +232,9 @@ class Build:
     def roles(self) -> dict[str, int]:
         """Return the extra clips per action the study's type asks for."""
         c = self.config
-        return self.kind.stimulus_roles({**c.study_options, **c.type_options})
+        given = {name: value for name, value in c.study_options.items() if value is not None}
+        return self.kind.stimulus_roles({**self.kind.defaults(len(c.sources)), **given,
+                                         **c.type_options})
 
     def step(self, message: str, n: int = 1) -> None:
         self.bar.set_description_str(message[:40])

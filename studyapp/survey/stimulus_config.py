@@ -21,6 +21,7 @@ import yaml
 
 from generation.datasets.humanml3d import normalise as normalise_prompt  # as captions match
 from rendering import get_style, list_styles
+from studyapp.survey import duration
 from studyapp.survey.crowd import make_platform, outcomes_of
 from studyapp.survey.models import Study
 from studyapp.survey.study_types import get_study_type, list_study_types
@@ -202,7 +203,8 @@ def parse(raw: dict, folder: Path) -> StudyConfig:
         drawn = [name for name in list_styles() if get_style(name).player_figure]
         raise ConfigError(f"render.player: webgl cannot draw {style!r} clips; use a style it "
                           f"draws ({', '.join(drawn)}), or player video for {style} clips")
-    study_type, options, type_options, warnings = _study(raw.get("study") or {})
+    study_type, options, type_options, warnings = _study(raw.get("study") or {},
+                                                         *_session_size(raw))
     sources = parse_sources(raw.get("sources"), seed, train)
     fps = raw.get("fps")
     if fps is not None and (isinstance(fps, bool) or not isinstance(fps, (int, float)) or fps <= 0):
@@ -244,11 +246,24 @@ def parse(raw: dict, folder: Path) -> StudyConfig:
     )
 
 
-def _study(raw) -> tuple[str, dict, dict, list[str]]:
+def _session_size(raw: dict) -> tuple[int | None, float | None]:
+    """Return the conditions a config names (actions or prompts; None: the data decides)
+    and its clips' seconds (frames / fps; None when the dataset decides either)."""
+    named = [raw.get(key) for key in ("actions", "prompts")]
+    conditions = next((len(v) for v in named if isinstance(v, list) and v), None)
+    frames, fps = raw.get("frames"), raw.get("fps")
+    numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0
+                  for v in (frames, fps))
+    return conditions, (frames / fps if numbers else None)
+
+
+def _study(raw, conditions=None, clip_seconds=None) -> tuple[str, dict, dict, list[str]]:
     """Return the study type, its common fields and its own options, checked, and the
     crowd platform's warnings.
 
-    A Prolific study estimated over 5 minutes whose config names neither
+    The study's length is estimated from the config (:func:`.duration.config_minutes`:
+    ``conditions`` trials, clips of ``clip_seconds``; assumed where the data decides). A
+    Prolific study estimated over 5 minutes whose config names neither
     ``catch_trials`` nor ``instructed_checks`` gets two instructed checks (Prolific's
     policy); every outcome it can end with must have its code (:mod:`.crowd`).
     """
@@ -285,20 +300,32 @@ def _study(raw) -> tuple[str, dict, dict, list[str]]:
     if problem:
         raise ConfigError(f"study.{problem}")
     given = "catch_trials" in options or "instructed_checks" in options
-    if not given and platform.default_checks(kind.minutes):
-        options["instructed_checks"] = platform.default_checks(kind.minutes)
+    minutes = _config_minutes(study_type, options, own, conditions, clip_seconds)
+    if not given and platform.default_checks(minutes):
+        options["instructed_checks"] = platform.default_checks(minutes)
+        minutes = _config_minutes(study_type, options, own, conditions, clip_seconds)
     checks = (options.get("catch_trials") or 0) + (options.get("instructed_checks") or 0)
     try:
         platform.check_codes(outcomes_of(checks, bool(platform.screening)), checks)
     except ValueError as exc:
         default = "" if given or not checks else (
             f" (study.instructed_checks defaults to {checks} for this platform in a study "
-            f"of {kind.minutes} minutes)")
+            f"estimated at {minutes} minutes)")
         raise ConfigError(f"study.{exc}{default}") from None
     max_failed = options.get("max_failed_catch")
     if max_failed is None:
         max_failed = Study._meta.get_field("max_failed_catch").default
-    return study_type, options, own, platform.warnings(kind.minutes, checks, max_failed)
+    return study_type, options, own, platform.warnings(minutes, checks, max_failed)
+
+
+def _config_minutes(study_type, options, own, conditions, clip_seconds) -> int:
+    """Return the minutes of a study of these settings, estimated before its build."""
+    fields = {name: value for name, value in options.items()
+              if name in duration.SETTINGS and value is not None}
+    study = Study(study_type=study_type, options=own, **fields)
+    if not options.get("clips_per_trial"):
+        study.clips_per_trial = get_study_type(study_type).default_clips_per_trial
+    return duration.config_minutes(study, conditions, clip_seconds)
 
 
 def prompt_key(prompt: str) -> str:

@@ -119,8 +119,8 @@ def clips(tmp_path_factory) -> list:
 @pytest.fixture(scope="session")
 def extra_clips(tmp_path_factory) -> list:
     """Return, per action, clips of every extra role a study type may ask for: a
-    reference, five scoring-standard examples, a catch clip and a low anchor; and three
-    practice clips of the first action."""
+    reference, five scoring-standard examples, a catch clip and a low anchor; and five
+    practice clips of the first action (as many as a MUSHRA trial of 3 sources shows)."""
     from studyapp.survey.stimuli import Clip
 
     root = tmp_path_factory.mktemp("extra-clips")
@@ -129,7 +129,7 @@ def extra_clips(tmp_path_factory) -> list:
     roles = [("reference", "real", "reference", None)]
     roles += [(f"score{k}", EXAMPLE_SOURCE, "example", k) for k in range(1, 6)]
     roles += [("catch", CATCH_SOURCE, "catch", None), ("anchor", "anchor", "anchor", None)]
-    practice = [(f"practice{k}", "practice_clip", "practice", None) for k in range(3)]
+    practice = [(f"practice{k}", "practice_clip", "practice", None) for k in range(5)]
     for action in ACTIONS:
         for name, source, role, score in roles + (practice if action == ACTIONS[0] else []):
             colour = tuple(int(c) for c in rng.integers(30, 225, size=3))

@@ -13,9 +13,9 @@ from django.utils import timezone
 
 from studyapp.survey.crowd import make_platform
 from studyapp.survey.platforms.prolific import prolific_minimum_time, prolific_time_limit
-from studyapp.survey.models import FailedLogin, Participant, Study, Trial
+from studyapp.survey.models import FailedLogin, Participant, Stimulus, Study, Trial
 from studyapp.survey.stimulus_config import ConfigError, parse
-from tests.studyapp.conftest import make_study
+from tests.studyapp.conftest import make_stimuli, make_study
 
 pytestmark = pytest.mark.django_db
 
@@ -230,17 +230,26 @@ def test_one_failed_check_is_forgiven_two_fail(media_root, clips, extra_clips, m
 
 def test_a_prolific_study_over_five_minutes_is_warned_about_too_few_checks(tmp_path,
                                                                           admin_client):
+    # Before its build a config that leaves the trials to the data is estimated at 10
+    # trials of 3-second clips (studyapp.survey.duration): 8 minutes for ranking 6 clips.
     config = small_config(tmp_path, catch_trials=1, instructed_checks=0, crowd=PROLIFIC)
-    assert config.warnings == ["study: 1 attention check(s) in a study estimated at 10 minutes; "
+    assert config.warnings == ["study: 1 attention check(s) in a study estimated at 8 minutes; "
                                "Prolific asks for at least 2 in a study over 5 minutes (set "
                                "study.instructed_checks or catch_trials)"]
     lenient = small_config(tmp_path, max_failed_catch=0, crowd=PROLIFIC)
     assert "Prolific allows a rejection only after 2" in lenient.warnings[0]
     assert small_config(tmp_path, crowd=PROLIFIC).warnings == []
     assert small_config(tmp_path, catch_trials=1).warnings == []  # no platform: no policy
+    assert small_config(tmp_path, catch_trials=1, instructed_checks=0, crowd=PROLIFIC,
+                        trials_per_participant=2).warnings == []  # 2 minutes: no policy
     study = Study.objects.create_study("ranking", "few", "Movement study", catch_trials=1,
                                        crowd=PROLIFIC)
-    assert study.crowd_warnings() == config.warnings
+    assert study.crowd_warnings() == []  # no clips yet: about a minute
+    study.trials_per_participant = 20
+    make_stimuli(study, actions=[f"action{k}" for k in range(20)])
+    Stimulus.objects.filter(study=study).update(duration=3.0)
+    assert study.minutes() > 5 and study.crowd_warnings() == [
+        config.warnings[0].replace("8 minutes", f"{study.minutes()} minutes")]
 
 
 # 4. Places: held only by people who are really there
@@ -294,7 +303,8 @@ def test_idle_places_are_released_when_counted_without_a_daemon(on_prolific):
 
 
 def test_a_prolific_study_has_a_time_limit_by_default(on_prolific):
-    assert on_prolific.time_limit() == timedelta(minutes=30)  # 3 x 10 minutes
+    minutes = on_prolific.minutes()  # estimated from its trials and clips
+    assert on_prolific.time_limit() == timedelta(minutes=prolific_time_limit(minutes))
     assert prolific_time_limit(10) == 30 and prolific_time_limit(1) == prolific_minimum_time(1) == 5
     on_prolific.crowd = {**PROLIFIC, "time_limit_minutes": None}
     assert on_prolific.time_limit() is None

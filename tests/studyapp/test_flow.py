@@ -44,7 +44,8 @@ def test_create_study_fills_in_texts():
     study = Study.objects.create_study("ranking", "plain", "Plain", clips_per_trial=6)
     assert study.study_type == "ranking"
     assert "rank 6" in study.instructions
-    assert study.consent_text
+    # The consent is the type's default, saying the study's own minutes when shown.
+    assert not study.consent_text and "It takes about 1 minute." in study.shown_consent()
 
 
 @pytest.mark.parametrize("name", list_study_types())

@@ -79,8 +79,10 @@ def test_create_dry_run_prints_the_documented_json_and_sends_nothing(fake, study
         f"&SESSION_ID={{{{%SESSION_ID%}}}}")
     assert payload["prolific_id_option"] == "url_parameters"
     assert payload["total_available_places"] == 20
-    assert payload["estimated_completion_time"] == study.kind.minutes == 10
-    assert payload["reward"] == 150  # 10 minutes at 900 cents an hour
+    minutes = study.minutes()  # estimated from its trials and clips
+    assert payload["estimated_completion_time"] == minutes
+    assert payload["reward"] == -(-minutes * 900 // 60)  # at 900 cents an hour
+    assert f"Duration: estimated " in out
     assert payload["name"] == "Movement study" and payload["description"] == study.shown_consent()
     kinds = {c["code_type"]: c["actions"] for c in payload["completion_codes"]}
     assert kinds == {

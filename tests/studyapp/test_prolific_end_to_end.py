@@ -15,6 +15,7 @@ from django.core.management import call_command
 
 from studyapp.survey import bots
 from studyapp.survey.models import Participant
+from studyapp.survey.platforms.prolific import prolific_time_limit
 from tests.studyapp.conftest import SOURCES, make_study
 from tests.studyapp.prolific_fake import COMPLETE_URL, FakeProlific
 
@@ -51,7 +52,9 @@ def test_prolific_study_from_creation_to_review(transactional_db, media_root, cl
         study.refresh_from_db()
         remote = fake.studies[study.crowd["prolific_study_id"]]
         assert remote["external_study_url"].startswith(f"{live_server.url}/s/{study.slug}/?")
-        assert remote["maximum_allowed_time"] == study.crowd["time_limit_minutes"] == 30
+        # Prolific's default for the study's estimated minutes: at least its minimum.
+        limit = prolific_time_limit(study.minutes())
+        assert remote["maximum_allowed_time"] == study.crowd["time_limit_minutes"] == limit
 
         came_back, seed = {}, 0
         for policy, n in RUNS.items():

@@ -136,7 +136,7 @@ def draft_payload(study, codes: dict, options: DraftOptions) -> dict:
     if not places or places < 1:
         raise ValueError(f"study {study.slug} has no max_participants: say how many people "
                          f"Prolific should recruit with --places N")
-    minutes = options.minutes if options.minutes is not None else study.kind.minutes
+    minutes = options.minutes if options.minutes is not None else study.minutes()
     if minutes < 1:
         raise ValueError(f"--minutes {minutes}: the estimated time must be at least 1 minute")
     reward = options.reward_cents

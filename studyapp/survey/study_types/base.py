@@ -43,7 +43,7 @@ registry = STUDY_TYPES
 DEFAULT_CONSENT = """\
 This study is part of academic research on how people perceive human movement. \
 You will watch short, silent animations of a figure moving and answer questions about them. \
-It takes about {minutes} minutes.
+It takes about {minutes}.
 
 Taking part is voluntary and you may stop at any time by closing the page. \
 We store your answers, the time you took, how the clips were played and the platform id \
@@ -119,7 +119,10 @@ class StudyType:
     label = ""
     template = ""  # beside this module; "<key>.html" by default
     scripts: tuple[str, ...] = ("survey/choices.js",)
-    minutes = 5
+    # Seconds to give one answer (per judged clip, or per trial for a type with a
+    # ``trial_answer``) after the clips played: the estimate of a session's length
+    # (:mod:`studyapp.survey.duration`) adds it to the clips' playing time.
+    answer_seconds = 4.0
     default_clips_per_trial = 6
     min_items = 2
     max_items: int | None = None
@@ -145,9 +148,16 @@ class StudyType:
         """Return the default instructions of a study whose trials show text prompts."""
         return for_prompts(self.default_instructions(study))
 
-    @property
-    def default_consent(self) -> str:
-        return DEFAULT_CONSENT.format(minutes=self.minutes)
+    def default_consent(self, minutes: int) -> str:
+        """Return the consent text of a study taking about ``minutes``."""
+        return DEFAULT_CONSENT.format(minutes="1 minute" if minutes == 1 else f"{minutes} minutes")
+
+    def answer_time(self, study, n_judged: int) -> float:
+        """Return the seconds of answering one trial of ``n_judged`` clips once its clips
+        have played: ``answer_seconds`` per clip (per trial with a ``trial_answer``) and
+        criterion."""
+        answers = 1 if self.trial_answer else n_judged
+        return self.answer_seconds * answers * len(self.criteria(study))
 
     def check_options(self, options: dict) -> dict:
         """Return ``options`` checked against this type's; raise ValueError naming the bad one."""
@@ -205,15 +215,17 @@ class StudyType:
     def stimulus_roles(self, settings: dict) -> dict[str, int]:
         """Return how many clips of each extra role a build makes per action.
 
-        ``settings`` are the study's settings (``catch_trials``, ``practice``, options).
-        Catch clips are an obviously broken version of a real clip; practice clips are
-        kept for the practice trial only (never judged later).
+        ``settings`` are the study's settings (``catch_trials``, ``practice``,
+        ``clips_per_trial``, options). Catch clips are an obviously broken version of a
+        real clip; practice clips are kept for the practice trial only (never judged
+        later), as many as a trial judges, so the practice looks like the real trials.
         """
         roles = {}
         if settings.get("catch_trials"):
             roles[Stimulus.Role.CATCH] = 1
         if settings.get("practice"):
-            roles[Stimulus.Role.PRACTICE] = max(self.min_items, 1)
+            shown = settings.get("clips_per_trial") or self.default_clips_per_trial
+            roles[Stimulus.Role.PRACTICE] = max(self.min_items, shown, 1)
         return roles
 
     def after_register(self, study, clips, stimuli) -> None:
@@ -238,6 +250,8 @@ class StudyType:
         pool = assignment.Pool.of(study)
         main = self.plan_main(study, pool, rng)
         practice = self.plan_practice(study, pool, rng) if study.practice else None
+        if practice and main:  # no more clips than the trials show (fewer sources than k)
+            practice.stimuli = practice.stimuli[:max(len(plan.stimuli) for plan in main)]
         catch = [
             plan
             for stimulus in assignment.pick_catch(pool.catches, study.catch_trials, rng)

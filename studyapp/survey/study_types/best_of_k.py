@@ -42,7 +42,7 @@ class BestOfK(StudyType):
     label = "Best of K"
     default_clips_per_trial = DEFAULT_K
     min_items = 2
-    minutes = 8
+    answer_seconds = 6.0
     default_criterion = Criterion("preference")
     options = {"k": Option(int, None, "Clips per trial, of which the best is chosen (default: "
                                       "clips_per_trial, 4).")}

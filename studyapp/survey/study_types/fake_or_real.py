@@ -41,7 +41,7 @@ class FakeOrReal(StudyType):
     label = "Fake or real"
     default_clips_per_trial = 1
     min_items = 1
-    minutes = 8
+    answer_seconds = 3.0
     interface_words = ("real", "generated")
     default_criterion = Criterion("real")
     item_prefix = "judged"

@@ -56,7 +56,7 @@ class Mushra(StudyType):
     default_clips_per_trial = 4
     min_items = 1
     one_per_source = True
-    minutes = 12
+    answer_seconds = 6.0
     default_criterion = Criterion("quality")
     options = {
         "screen_threshold": Option(int, 90, "Post-screening: a hidden-reference score below "
@@ -87,7 +87,10 @@ class Mushra(StudyType):
     # --- stimuli and planning --------------------------------------------------------
 
     def stimulus_roles(self, settings):
-        return super().stimulus_roles(settings) | {role: 1 for role in HIDDEN}
+        roles = super().stimulus_roles(settings) | {role: 1 for role in HIDDEN}
+        if Stimulus.Role.PRACTICE in roles:  # as many as a trial shows, hidden ones included
+            roles[Stimulus.Role.PRACTICE] += len(HIDDEN)
+        return roles
 
     def plan_main(self, study, pool, rng):
         """Return main trials: one clip per source, least judged first, with the action's
@@ -109,6 +112,16 @@ class Mushra(StudyType):
                 pool.positions[(stimulus.source, position)] += 1
             plans.append(TrialPlan(action, seats))
         return plans
+
+    def plan_practice(self, study, pool, rng):
+        """The practice shows as many clips as a trial (the hidden two included), all of
+        them practice clips (jittered real clips of a range of qualities)."""
+        plan = super().plan_practice(study, pool, rng)
+        if plan is not None:
+            n = self.items_per_trial(study) + len(HIDDEN)
+            spare = [s for s in pool.practice if s.action == plan.action and s not in plan.stimuli]
+            plan.stimuli += rng.sample(spare, min(len(spare), n - len(plan.stimuli)))
+        return plan
 
     def plan_catch(self, study, pool, stimulus, rng):
         plan = super().plan_catch(study, pool, stimulus, rng)

@@ -49,7 +49,7 @@ class Pairwise(StudyType):
     default_clips_per_trial = 2
     min_items = 2
     max_items = 2
-    minutes = 8
+    answer_seconds = 6.0
     default_criterion = Criterion("preference")
     options = {"allow_ties": Option(bool, False, 'Also offer "both equally good" and '
                                                  '"both equally bad".')}

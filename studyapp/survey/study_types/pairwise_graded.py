@@ -80,7 +80,7 @@ class PairwiseGraded(StudyType):
     default_clips_per_trial = 2
     min_items = 2
     max_items = 2
-    minutes = 8
+    answer_seconds = 7.0
     default_criterion = Criterion("preference")
     options = {"both_bad": Option(bool, True, 'Also offer "Both bad" beside the 7-point scale.')}
     trial_answer = "choice"

@@ -36,7 +36,7 @@ class Ranking(StudyType):
     default_clips_per_trial = 6
     one_per_source = True
     scripts = ("survey/ranking.js",)
-    minutes = 10
+    answer_seconds = 3.0
     default_criterion = Criterion("preference")
     item_prefix = "rank"
     export_columns = ("rank",)

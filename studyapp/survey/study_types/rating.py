@@ -30,7 +30,7 @@ class RatingStudy(StudyType):
     min_items = 1
     one_per_source = True
     template = "rating.html"
-    minutes = 10
+    answer_seconds = 4.0
     default_criterion = Criterion("realism")
     item_prefix = "rating"
     export_columns = ("rating",)

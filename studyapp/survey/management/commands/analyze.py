@@ -10,6 +10,7 @@ from analysis.tables import AnalysisError, read_responses, write_responses
 from studyapp.survey import export
 from studyapp.survey.audit import AuditUnavailable, audit_study, view_fetcher
 from studyapp.survey.export import get_study, responses_frame
+from studyapp.survey.results import note_report
 
 
 class Command(BaseCommand):
@@ -116,6 +117,8 @@ class Command(BaseCommand):
                 reports.append((result, written, folder))
             if len(results) > 1:
                 _write_index(out, name, results)
+            if not responses:
+                note_report(record, out)  # the admin's Results page shows the latest
         except (AnalysisError, OSError, ValueError) as error:
             raise CommandError(f"Cannot analyse {name}: {error}") from None
         for result, written, folder in reports:

@@ -38,7 +38,8 @@ class Command(BaseCommand):
         create.add_argument("--places", type=int, help="Participants to recruit (default: "
                             "the study's max_participants).")
         create.add_argument("--minutes", type=int, help="Estimated completion time (default: "
-                            "the study type's estimate, as the consent text says).")
+                            "the study's own: estimated from its trials and clips, the median of its completed "
+                            "sessions once 5 have completed; as the consent text says).")
         create.add_argument("--reward-cents", type=int, help="Reward per participant in "
                             "cents of the account's currency (default: --minutes at "
                             "--hourly-cents an hour).")
@@ -171,6 +172,8 @@ class Command(BaseCommand):
             self.stderr.write(f"Warning: participants reach the study at {base}, which is not "
                               f"https; pass --base-url https://... (or set STUDY_BASE_URL) "
                               f"for a public study.")
+        if options["minutes"] is None:
+            self.stdout.write(f"Duration: {study.duration().describe()}.")
         if options["reward_cents"] is None:
             minutes = payload["estimated_completion_time"]
             self.stdout.write(f"Reward {payload['reward']} cents: {minutes} minutes at "
