@@ -254,12 +254,12 @@ def _aggregated_replicates(design, statistic: Linear, scheme, repeats, rng):
         probabilities[np.repeat(np.arange(len(cells)), per_cell), slot] = size_of_kind[order]
         totals = probabilities.sum(axis=1)
         probabilities /= np.maximum(totals, 1)[:, None]
+        if not len(cells):  # every set of clips gave one answer: nothing varies, one fit
+            return np.tile(np.asarray(statistic.finish(fixed[None]), dtype=float), (repeats, 1))
         varied_rows = row_of_kind[order]
         flat = np.repeat(np.arange(len(cells)), per_cell) * widest + slot
 
         def sums(size):
-            if not len(cells):
-                return np.tile(fixed, (size, 1))
             drawn = rng.multinomial(totals.astype(np.int64), probabilities, size=(size, len(cells)))
             drawn = drawn.reshape(size, -1)[:, flat].astype(float)
             return fixed + np.asarray(varied_rows.T @ drawn.T).T
