@@ -81,7 +81,7 @@ def cell(study_type, effect, clip_sd, clips, target, args) -> dict:
         if label not in getattr(args, "methods", ("crossed", "participants")):
             continue
         rows = [study(study_type, effect, clip_sd, clips, args, seed, random_clips=random_clips)
-                for seed in range(args.studies)]
+                for seed in range(args.first_seed, args.first_seed + args.studies)]
         covered = [r["low"] <= target <= r["high"] for r in rows]
         rejected = [r["p"] < 0.05 for r in rows]
         out[label] = {"coverage": float(np.mean(covered)), "rejected": float(np.mean(rejected)),
@@ -134,6 +134,8 @@ def parse(argv=None):
                         help="a's strength above b's at unequal strengths (logit scale)")
     parser.add_argument("--bootstrap", type=int, default=200, help="resamples per scheme")
     parser.add_argument("--truth-repeats", type=int, default=2)
+    parser.add_argument("--first-seed", type=int, default=0,
+                        help="seed of the first study (runs of different seeds can be pooled)")
     parser.add_argument("--methods", type=lambda s: tuple(s.split(",")),
                         default=("crossed", "participants"),
                         help="crossed (clips random), participants (clips fixed), or both")
