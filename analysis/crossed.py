@@ -202,7 +202,14 @@ def _row_keys(matrix: sparse.csr_matrix) -> np.ndarray:
     negligible probability)."""
     probe = np.random.default_rng(12345).random((matrix.shape[1], 2)) + 0.5
     projected = np.round(np.asarray(matrix @ probe), 9)
-    return pd.factorize(pd.MultiIndex.from_arrays([projected[:, 0], projected[:, 1]]))[0]
+    return _joint_codes(pd.factorize(projected[:, 0])[0], pd.factorize(projected[:, 1])[0])
+
+
+def _joint_codes(first, second) -> np.ndarray:
+    """Return codes ``0..`` of the pairs of non-negative integer codes ``first``, ``second``."""
+    first, second = np.asarray(first, dtype=np.int64), np.asarray(second, dtype=np.int64)
+    base = int(second.max()) + 1 if len(second) else 1
+    return pd.factorize(first * base + second)[0]
 
 
 def _aggregated_replicates(design, statistic: Linear, scheme, repeats, rng):
@@ -227,16 +234,17 @@ def _aggregated_replicates(design, statistic: Linear, scheme, repeats, rng):
 
         def sums(size):
             drawn = draws_within(design.strata, size, rng)
-            drawn = np.concatenate([drawn, np.ones((size, 1), dtype=np.float32)], axis=1)
-            weights = drawn[:, members[:, 0]]
+            # Clips by replicates, so that a set's weights are contiguous rows to multiply.
+            drawn = np.concatenate([drawn.T, np.ones((1, size), dtype=np.float32)], axis=0)
+            weights = drawn[members[:, 0]]
             for column in members[:, 1:].T:
-                weights = weights * drawn[:, column]
-            return np.asarray(grouped.T @ weights.T).T
+                weights *= drawn[column]
+            return np.asarray(grouped.T @ weights).T
         groups = len(cells)
     else:
         # Units of one set of clips with the same row give the same sums: only how many of
         # the set's units give each distinct row is random (a multinomial of the set's size).
-        kinds = pd.factorize(pd.MultiIndex.from_arrays([design.cells, _row_keys(matrix)]))[0]
+        kinds = _joint_codes(design.cells, _row_keys(matrix))
         n_kinds = int(kinds.max()) + 1 if len(kinds) else 0
         size_of_kind = np.bincount(kinds, minlength=n_kinds).astype(float)
         cell_of_kind = np.zeros(n_kinds, dtype=np.int64)
