@@ -126,7 +126,7 @@ def test_few_clip_degrees_of_freedom_are_named():
     assert crossed.one_clip_note(many) is None
 
 
-@pytest.mark.parametrize("study_type, unit", [("ranking", "trial_key"), ("rating_standards", None)])
+@pytest.mark.parametrize("study_type, unit", [("pairwise", "trial_key"), ("rating_standards", None)])
 def test_sums_drawn_from_sufficient_statistics_match_unit_weights(study_type, unit):
     """A linear statistic's replicates drawn from per-participant, per-set-of-clips and
     per-distinct-answer sums have the mean and variance of those from unit weights."""
@@ -138,9 +138,8 @@ def test_sums_drawn_from_sufficient_statistics_match_unit_weights(study_type, un
         answer = rows["rating"].to_numpy(dtype=float)
         statistic = crossed.ratio(answer, pd.factorize(rows["source"], sort=True)[0], 3)
     else:
-        from analysis.ranking import _orders
-
-        statistic = crossed.worth_statistic(_orders(rows, ["a", "b", "c"])[0], 3)
+        trials = comparisons(rows, ["a", "b", "c"])
+        statistic = crossed.worth_statistic(np.stack([trials.winner, trials.loser], 1), 3)
     assert isinstance(statistic, crossed.Linear)
     for scheme in ("participants", "clips", "observations"):
         fast = crossed._replicates(d, statistic, scheme, 3000, np.random.default_rng(0))
