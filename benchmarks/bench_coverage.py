@@ -2,13 +2,16 @@
 
     .venv/bin/python benchmarks/bench_coverage.py [--studies 200] [--types ranking,...]
                                                   [--json out.json] [--markdown out.md]
+                                                  [--methods crossed,participants] [--first-seed 0]
 
 Every cell simulates ``--studies`` studies (``analysis.simulate``: two sources ``a`` and
 ``b``, ``--participants`` x ``--trials`` main trials, ``--actions`` conditions) and
 analyses each through ``analysis.study.analyse`` twice: with clips random (the default,
 :mod:`analysis.crossed`) and with clips fixed (intervals over participants only, as
-before). Cells: every study type x clip SD {0, 0.5, 1.5} (logit scale) x clips per source
-and condition {2, 8} x equal strengths (a = b) or unequal (a - b = ``--effect``).
+before; ``--methods`` picks one). Runs with different ``--first-seed`` draw different
+studies and can be pooled. Cells: every study type x clip SD {0, 0.5, 1.5} (logit
+scale) x clips per source and condition {2, 8} x equal strengths (a = b) or unequal
+(a - b = ``--effect``).
 
 Measured per cell and method, on the difference a - b of the type's headline statistic:
 
