@@ -92,9 +92,10 @@ def top1_worth(shown, chosen, rows: pd.DataFrame, config) -> crossed.Crossed:
     by its participant's and all its clips' draws, every replicate refitted at once."""
     choices = Choices(shown, chosen, np.arange(len(shown)), shown.shape[1], len(shown))
 
-    def statistic(weights):
-        return fit_top1(choices.sets, choices.one_hot, weights @ choices.counts)
+    def finish(counts):
+        return fit_top1(choices.sets, choices.one_hot, counts)
 
+    statistic = crossed.Linear(choices.counts, finish)
     return crossed.bootstrap(crossed.design(rows, unit="trial_key"), statistic, config)
 
 

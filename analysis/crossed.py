@@ -19,8 +19,8 @@ trial with all its clips). Three one-way bootstraps give three variances of it:
 The interval is ``estimate -/+ t(df) sqrt(V)`` with
 ``V = V_p + max(V_c m / (m - 1) - k V_obs, 0)`` (``m`` clips per stratum: resampling
 ``m`` clips shrinks their variance by ``(m - 1) / m``; a unit's ``k`` clips each carry
-its answers' noise into ``V_c``) and ``df`` from Satterthwaite's
-formula over ``P - 1`` participant and ``C - S`` clip degrees of freedom. A percentile
+its answers' noise into ``V_c``) and ``df`` the fewer of ``P - 1`` participant and
+``C - S`` clip degrees of freedom (``P - 1`` when the clips' part is 0). A percentile
 interval from drawing both at once under-covers with 2 clips per stratum (see
 ``docs/STATISTICS.md``); the t interval reaches its level there. A test of a difference
 is the t test of the same standard error; families of them are Holm-corrected.
@@ -171,7 +171,118 @@ def unit_weights(design: Design, scheme: str, repeats: int, rng) -> np.ndarray:
     return np.ones((repeats, design.n_units), dtype=np.float32) if weights is None else weights
 
 
+class Linear:
+    """A statistic that sees unit weights only through their sums ``weights @ matrix``.
+
+    ``matrix`` sparse ``(N, F)`` (a unit's counts or sums of what the statistic needs);
+    ``finish`` maps ``(B, F)`` weighted sums to ``(B, K)`` values. Calling it with
+    ``(B, N)`` weights gives the statistic; :func:`bootstrap` instead draws the sums from
+    per-participant, per-set-of-clips and per-distinct-answer sufficient statistics, so
+    no ``(B, N)`` weight array is built.
+    """
+
+    def __init__(self, matrix, finish):
+        self.matrix = sparse.csr_matrix(matrix, dtype=float)
+        self.finish = finish
+
+    def __call__(self, weights):
+        return self.finish(np.asarray(weights @ self.matrix, dtype=float))
+
+
+def _indicator(codes, n_groups: int) -> sparse.csr_matrix:
+    """Return the sparse ``(n_groups, N)`` indicator of ``codes`` ``(N,)``."""
+    codes = np.asarray(codes, dtype=np.int64)
+    return sparse.csr_matrix((np.ones(len(codes)), (codes, np.arange(len(codes)))),
+                             shape=(n_groups, len(codes)))
+
+
+def _row_keys(matrix: sparse.csr_matrix) -> np.ndarray:
+    """Return a code per row of ``matrix`` naming equal rows alike (two fixed random
+    projections of each row, rounded: distinct rows of counts and sums collide with
+    negligible probability)."""
+    probe = np.random.default_rng(12345).random((matrix.shape[1], 2)) + 0.5
+    projected = np.round(np.asarray(matrix @ probe), 9)
+    return _joint_codes(pd.factorize(projected[:, 0])[0], pd.factorize(projected[:, 1])[0])
+
+
+def _joint_codes(first, second) -> np.ndarray:
+    """Return codes ``0..`` of the pairs of non-negative integer codes ``first``, ``second``."""
+    first, second = np.asarray(first, dtype=np.int64), np.asarray(second, dtype=np.int64)
+    base = int(second.max()) + 1 if len(second) else 1
+    return pd.factorize(first * base + second)[0]
+
+
+def _aggregated_replicates(design, statistic: Linear, scheme, repeats, rng):
+    """Return ``(repeats, K)`` replicates of a :class:`Linear` statistic, each drawn as
+    sums over groups whose units always share a weight: participants (participants'
+    scheme), sets of clips (clips' scheme, a set's weight the product of its clips'
+    counts), and distinct answers within a set of clips (single answers' scheme: a
+    multinomial draw of how many of the set's units give each distinct answer)."""
+    matrix = statistic.matrix
+    width = matrix.shape[1]
+    if scheme == "participants":
+        grouped = _indicator(design.participants, design.n_participants) @ matrix
+
+        def sums(size):
+            drawn = draws_within(np.zeros(design.n_participants, dtype=np.int64), size, rng)
+            return np.asarray(grouped.T @ drawn.T).T
+        groups = design.n_participants
+    elif scheme == "clips":
+        cells, first = np.unique(design.cells, return_index=True)
+        members = design.clips[first]
+        grouped = _indicator(np.searchsorted(cells, design.cells), len(cells)) @ matrix
+
+        def sums(size):
+            drawn = draws_within(design.strata, size, rng)
+            # Clips by replicates, so that a set's weights are contiguous rows to multiply.
+            drawn = np.concatenate([drawn.T, np.ones((1, size), dtype=np.float32)], axis=0)
+            weights = drawn[members[:, 0]]
+            for column in members[:, 1:].T:
+                weights *= drawn[column]
+            return np.asarray(grouped.T @ weights).T
+        groups = len(cells)
+    else:
+        # Units of one set of clips with the same row give the same sums: only how many of
+        # the set's units give each distinct row is random (a multinomial of the set's size).
+        kinds = _joint_codes(design.cells, _row_keys(matrix))
+        n_kinds = int(kinds.max()) + 1 if len(kinds) else 0
+        size_of_kind = np.bincount(kinds, minlength=n_kinds).astype(float)
+        cell_of_kind = np.zeros(n_kinds, dtype=np.int64)
+        cell_of_kind[kinds] = design.cells
+        row_of_kind = sparse.diags(1.0 / np.maximum(size_of_kind, 1)) @ (_indicator(kinds, n_kinds) @ matrix)
+        kinds_in_cell = np.bincount(cell_of_kind)
+        varied = kinds_in_cell[cell_of_kind] > 1
+        fixed = np.asarray(size_of_kind[~varied] @ row_of_kind[np.flatnonzero(~varied)]).ravel()
+        order = np.flatnonzero(varied)
+        order = order[np.argsort(cell_of_kind[order], kind="stable")]
+        cells, start, per_cell = np.unique(cell_of_kind[order], return_index=True, return_counts=True)
+        slot = np.arange(len(order)) - np.repeat(start, per_cell)
+        widest = int(per_cell.max()) if len(per_cell) else 1
+        probabilities = np.zeros((len(cells), widest))
+        probabilities[np.repeat(np.arange(len(cells)), per_cell), slot] = size_of_kind[order]
+        totals = probabilities.sum(axis=1)
+        probabilities /= np.maximum(totals, 1)[:, None]
+        if not len(cells):  # every set of clips gave one answer: nothing varies, one fit
+            return np.tile(np.asarray(statistic.finish(fixed[None]), dtype=float), (repeats, 1))
+        varied_rows = row_of_kind[order]
+        flat = np.repeat(np.arange(len(cells)), per_cell) * widest + slot
+
+        def sums(size):
+            drawn = rng.multinomial(totals.astype(np.int64), probabilities, size=(size, len(cells)))
+            drawn = drawn.reshape(size, -1)[:, flat].astype(float)
+            return fixed + np.asarray(varied_rows.T @ drawn.T).T
+        groups = len(cells) * widest
+    per_chunk = max(1, CHUNK_ELEMENTS // max(groups, width, 1))
+    parts = []
+    for first_replicate in range(0, repeats, per_chunk):
+        size = min(per_chunk, repeats - first_replicate)
+        parts.append(np.asarray(statistic.finish(sums(size)), dtype=float))
+    return np.concatenate(parts, axis=0)
+
+
 def _replicates(design, statistic, scheme, repeats, rng):
+    if isinstance(statistic, Linear) and scheme != "both":
+        return _aggregated_replicates(design, statistic, scheme, repeats, rng)
     per_chunk = max(1, CHUNK_ELEMENTS // max(design.n_units, 1))
     parts = []
     for first in range(0, repeats, per_chunk):
@@ -222,9 +333,12 @@ class Crossed:
         total = v_p + clip_part
         df_p = max(self.design.n_participants - 1, 1)
         df_c = max(self.design.n_clips - self.design.n_strata, 1)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            df = total ** 2 / (v_p ** 2 / df_p + clip_part ** 2 / df_c)
-        df = np.where(np.isfinite(df), df, df_p)
+        # A sum of two variance estimates with df_p and df_c degrees of freedom: the fewer
+        # of the two (Hsu's bound, as for Welch's test) keeps the interval's level whatever
+        # the true share of each. Satterthwaite's formula on the estimated shares does not:
+        # when the clips' part happens to come out small it gives both a small variance
+        # and many degrees of freedom (measured with 2 clips per source: coverage 0.88).
+        df = np.where(clip_part > 0, float(min(df_p, df_c)), float(df_p))
         return {"participants": v_p, "clips": v_c, "observations": v_obs,
                 "clip_part": clip_part, "total": total, "df": df}
 
@@ -296,11 +410,11 @@ def ratio(values, groups, n_groups: int, base=None):
                                   shape=(len(values), n_groups))
     weighted = indicator.multiply(values[:, None]).tocsr()
 
-    def statistic(weights):
+    def finish(sums):
         with np.errstate(invalid="ignore", divide="ignore"):
-            return np.asarray(weights @ weighted) / np.asarray(weights @ indicator)
+            return sums[:, :n_groups] / sums[:, n_groups:]
 
-    return statistic
+    return Linear(sparse.hstack([weighted, indicator]), finish)
 
 
 def pair_matrix(names) -> tuple[np.ndarray, list[tuple]]:
@@ -404,8 +518,8 @@ def methods_text(design: Design, config) -> str:
             f"(drawn within their source and condition, {per} clips each) give the two "
             f"variances, less the single answers' noise they both contain (answers resampled "
             f"among those to the same clips); the interval is a t interval of their sum with "
-            f"Satterthwaite's degrees of freedom, and each difference's t test uses the same "
-            f"standard error, Holm-corrected across pairs")
+            f"the fewer of the participants' and the clips' degrees of freedom, and each "
+            f"difference's t test uses the same standard error, Holm-corrected across pairs")
 
 
 def worth_statistic(orders, n_items: int, prior: float | None = None):
@@ -413,15 +527,18 @@ def worth_statistic(orders, n_items: int, prior: float | None = None):
     of ``orders`` ``(N, m)`` (one ordering per unit, best first, ``-1`` padded), refitted
     under each replicate's unit weights."""
     orders = np.asarray(orders, dtype=np.int64)
-    data = worth.rankings(orders, np.arange(len(orders)), n_items, len(orders))
     options = {} if prior is None else {"prior": prior}
+    if len(orders) < 2:  # nothing to redraw: the one fit, as often as asked
+        data = worth.rankings(orders, np.arange(len(orders)), n_items, len(orders))
+        theta = worth.bootstrap(data, 0, **options)["theta"]
+        return lambda weights: np.tile(theta, (len(weights), 1))
+    choices, per_unit = worth.choice_counts(orders, n_items)
+    start = worth.refit(choices, np.asarray(per_unit.sum(axis=0)), **options)
 
-    def statistic(weights):
-        if len(orders) < 2:  # nothing to redraw: the one fit, as often as asked
-            return np.tile(worth.bootstrap(data, 0, **options)["theta"], (len(weights), 1))
-        return worth.bootstrap(data, len(weights), resampled=weights, **options)["samples"]
+    def finish(counts):
+        return worth.refit(choices, counts, start=start, **options)
 
-    return statistic
+    return Linear(per_unit, finish)
 
 
 @dataclass

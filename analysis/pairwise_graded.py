@@ -392,19 +392,18 @@ def fit_crossed(model, cells: Cells, design, config) -> crossed.Crossed:
     theta, converged = fisher_scoring(model, full, model.start[None])
     per = max(1, CHUNK_ELEMENTS // ((n_cells + 1) * N_GRADES * model.n_params ** 2))
 
-    def statistic(weights):
+    def finish(sums):
         out = []
-        for first in range(0, len(weights), per):
-            chunk = weights[first:first + per]
-            counts = (chunk @ cells.by_participant).reshape(len(chunk), n_cells, N_GRADES)
-            phi, _ = fisher_scoring(model, model.counts(counts), np.tile(theta, (len(chunk), 1)))
+        for first in range(0, len(sums), per):
+            counts = np.asarray(sums[first:first + per]).reshape(-1, n_cells, N_GRADES)
+            phi, _ = fisher_scoring(model, model.counts(counts), np.tile(theta, (len(counts), 1)))
             phi[:, :k] -= phi[:, :k].mean(axis=1, keepdims=True)
             if isinstance(model, OrdinalModel):
                 phi = np.concatenate([phi, symmetric_cuts(phi, k)[0]], axis=1)
             out.append(phi)
         return np.concatenate(out, axis=0)
 
-    result = crossed.bootstrap(design, statistic, config)
+    result = crossed.bootstrap(design, crossed.Linear(cells.by_participant, finish), config)
     result.converged = converged
     return result
 

@@ -267,11 +267,13 @@ def share_intervals(shares: pd.DataFrame, config, rows: pd.DataFrame) -> pd.Data
     of_source = sparse.csr_matrix((np.ones(n_rows), (np.arange(n_rows), source)),
                                   shape=(n_rows, n_sources))
 
-    def statistic(weights):
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return (np.asarray(weights @ at_rank)
-                    / np.repeat(np.asarray(weights @ of_source), n_ranks, axis=1))
+    width = n_sources * n_ranks
 
+    def finish(sums):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return sums[:, :width] / np.repeat(sums[:, width:], n_ranks, axis=1)
+
+    statistic = crossed.Linear(sparse.hstack([at_rank, of_source]), finish)
     result = crossed.bootstrap(crossed.design(rows), statistic, config)
     summary = result.summary(config.confidence, bounds=(0, 1))
     low = summary["ci_low"].to_numpy().reshape(n_sources, n_ranks)

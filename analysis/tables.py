@@ -26,6 +26,7 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 RESPONSE_COLUMNS = (
@@ -124,10 +125,16 @@ def neutralise_formulas(table: pd.DataFrame) -> pd.DataFrame:
     out = table.copy()
     for name in out.columns:
         column = out[name]
-        if column.dtype == object or pd.api.types.is_string_dtype(column):
-            text = column.map(lambda v: isinstance(v, str) and v.startswith(FORMULA_STARTS))
+        if (column.dtype == object or pd.api.types.is_string_dtype(column)
+                or isinstance(column.dtype, pd.CategoricalDtype)):
+            # A plain boolean array: mapping a categorical column gives a categorical
+            # of booleans, which has no ``any``.
+            text = np.fromiter((isinstance(v, str) and v.startswith(FORMULA_STARTS)
+                                for v in column.to_numpy(dtype=object)), dtype=bool, count=len(column))
             if text.any():
-                out[name] = column.where(~text, "'" + column.astype(str))
+                values = column.to_numpy(dtype=object).copy()
+                values[text] = ["'" + v for v in values[text]]
+                out[name] = pd.Series(values, index=column.index, name=name)
     return out
 
 

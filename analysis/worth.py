@@ -75,6 +75,23 @@ def fit(orders, weights, n_items: int, prior: float = PRIOR, iterations: int = 1
     return theta[0] - theta[0].mean()
 
 
+def choice_counts(orders, n_items: int):
+    """Return the distinct choices of ``orders`` ``(N, m)`` and the sparse ``(N, E)`` counts
+    of each choice per ordering (a weighted sum of their rows is what :func:`refit` takes)."""
+    choices = _Choices(np.asarray(orders, dtype=np.int64), n_items)
+    return choices, choices.incidence
+
+
+def refit(choices, counts, prior: float = PRIOR, start=None, iterations: int = 100,
+          tolerance: float = 1e-8) -> np.ndarray:
+    """Return centred log-worths ``(B, K)`` for choice counts ``(B, E)`` of ``choices``
+    (from :func:`choice_counts`), all fitted at once from ``start`` ``(K,)``."""
+    counts = np.atleast_2d(np.asarray(counts, dtype=float))
+    theta = np.zeros((len(counts), choices.n_items)) if start is None else np.tile(start, (len(counts), 1))
+    theta = _newton(choices, counts, theta, prior, iterations, tolerance)
+    return theta - theta.mean(axis=1, keepdims=True)
+
+
 def log_likelihood(orders, weights, theta) -> float:
     """Return the Plackett-Luce log-likelihood of ``theta`` ``(K,)`` (no prior)."""
     theta = np.asarray(theta, dtype=float)

@@ -2,13 +2,16 @@
 
     .venv/bin/python benchmarks/bench_coverage.py [--studies 200] [--types ranking,...]
                                                   [--json out.json] [--markdown out.md]
+                                                  [--methods crossed,participants] [--first-seed 0]
 
 Every cell simulates ``--studies`` studies (``analysis.simulate``: two sources ``a`` and
 ``b``, ``--participants`` x ``--trials`` main trials, ``--actions`` conditions) and
 analyses each through ``analysis.study.analyse`` twice: with clips random (the default,
 :mod:`analysis.crossed`) and with clips fixed (intervals over participants only, as
-before). Cells: every study type x clip SD {0, 0.5, 1.5} (logit scale) x clips per source
-and condition {2, 8} x equal strengths (a = b) or unequal (a - b = ``--effect``).
+before; ``--methods`` picks one). Runs with different ``--first-seed`` draw different
+studies and can be pooled. Cells: every study type x clip SD {0, 0.5, 1.5} (logit
+scale) x clips per source and condition {2, 8} x equal strengths (a = b) or unequal
+(a - b = ``--effect``).
 
 Measured per cell and method, on the difference a - b of the type's headline statistic:
 
@@ -78,8 +81,10 @@ def cell(study_type, effect, clip_sd, clips, target, args) -> dict:
     out = {"study_type": study_type, "clip_sd": clip_sd, "clips": clips, "effect": effect,
            "truth": target, "studies": args.studies}
     for label, random_clips in (("crossed", True), ("participants", False)):
+        if label not in getattr(args, "methods", ("crossed", "participants")):
+            continue
         rows = [study(study_type, effect, clip_sd, clips, args, seed, random_clips=random_clips)
-                for seed in range(args.studies)]
+                for seed in range(args.first_seed, args.first_seed + args.studies)]
         covered = [r["low"] <= target <= r["high"] for r in rows]
         rejected = [r["p"] < 0.05 for r in rows]
         out[label] = {"coverage": float(np.mean(covered)), "rejected": float(np.mean(rejected)),
@@ -97,12 +102,10 @@ def run(args) -> list[dict]:
                     started = time.perf_counter()
                     results.append(cell(study_type, effect, clip_sd, clips, target, args))
                     r = results[-1]
+                    measured = " | ".join(f"{label} cover {r[label]['coverage']:.3f} reject "
+                                          f"{r[label]['rejected']:.3f}" for label in args.methods)
                     print(f"{study_type:17s} sd {clip_sd:3.1f} m {clips} effect {effect:3.1f}: "
-                          f"crossed cover {r['crossed']['coverage']:.3f} reject "
-                          f"{r['crossed']['rejected']:.3f} | participants cover "
-                          f"{r['participants']['coverage']:.3f} reject "
-                          f"{r['participants']['rejected']:.3f} "
-                          f"({time.perf_counter() - started:.0f} s)", flush=True)
+                          f"{measured} ({time.perf_counter() - started:.0f} s)", flush=True)
                     if args.json:
                         Path(args.json).write_text(json.dumps(results, indent=1))
     return results
@@ -113,8 +116,9 @@ def markdown(results) -> str:
     lines = ["| type | clip SD | clips | a - b | crossed coverage | crossed p < .05 | crossed width "
              "| participants-only coverage | participants-only p < .05 | participants-only width |",
              "|---|---|---|---|---|---|---|---|---|---|"]
+    missing = {"coverage": float("nan"), "rejected": float("nan"), "width": float("nan")}
     for r in results:
-        c, p = r["crossed"], r["participants"]
+        c, p = r.get("crossed", missing), r.get("participants", missing)
         effect = "0" if r["effect"] == 0 else f"{r['effect']:g} (true {r['truth']:.3g})"
         lines.append(f"| `{r['study_type']}` | {r['clip_sd']:g} | {r['clips']} | {effect} | "
                      f"{c['coverage']:.3f} | {c['rejected']:.3f} | {c['width']:.3g} | "
@@ -133,6 +137,11 @@ def parse(argv=None):
                         help="a's strength above b's at unequal strengths (logit scale)")
     parser.add_argument("--bootstrap", type=int, default=200, help="resamples per scheme")
     parser.add_argument("--truth-repeats", type=int, default=2)
+    parser.add_argument("--first-seed", type=int, default=0,
+                        help="seed of the first study (runs of different seeds can be pooled)")
+    parser.add_argument("--methods", type=lambda s: tuple(s.split(",")),
+                        default=("crossed", "participants"),
+                        help="crossed (clips random), participants (clips fixed), or both")
     parser.add_argument("--json", help="write the results here as they come")
     parser.add_argument("--markdown", help="write the table here at the end")
     return parser.parse_args(argv)

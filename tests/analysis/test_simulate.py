@@ -56,3 +56,24 @@ def test_bots_with_known_strengths_are_recovered(study_type, tmp_path):
 def test_unknown_study_type_cannot_be_simulated():
     with pytest.raises(AnalysisError, match="cannot simulate 'survey'"):
         simulate("survey")
+
+
+@pytest.mark.parametrize("study_type", [key for key in simulated_types()
+                                        if get_analysis(key).answer == "rating"])
+def test_simulated_rating_tables_are_written_and_read_back(study_type, tmp_path):
+    """Categorical columns (as simulated rating tables have) are neutralised as text: a
+    cell a spreadsheet would run gets its ``'``, the others come back unchanged."""
+    import pandas as pd
+
+    from analysis.tables import read_responses, write_responses
+
+    table = simulate(study_type, {"a": 0.5, "b": 0.0}, participants=4, trials=3, seed=1)
+    assert any(isinstance(table[c].dtype, pd.CategoricalDtype) for c in table.columns)
+    risky = table.copy()
+    risky["source"] = pd.Categorical(["=cmd|' /C calc'!A0" if s == "a" else s for s in table["source"]])
+    path = write_responses(risky, tmp_path / "responses.csv")
+    text = path.read_text()
+    assert "'=cmd" in text and "\n=cmd" not in text and ",=cmd" not in text
+    back = read_responses(write_responses(table, tmp_path / "plain.csv"))
+    assert len(back) == len(table)
+    assert sorted(back["source"].astype(str).unique()) == ["a", "b"]
