@@ -55,7 +55,7 @@ class Command(BaseCommand):
                             help="Skip the blindness audit of the study's clips (the deep "
                                  "audit of audit_blindness, run in this process).")
         parser.add_argument("--real-source", default="real", metavar="NAME",
-                            help="The source holding real clips (fake_or_real; default 'real').")
+                            help="The source holding real clips (for a fake-or-real study; default 'real').")
         parser.add_argument("--manifest", metavar="FILE",
                             help="The study's build manifest: its method checkpoints (hash, "
                                  "budget, training seed) and their objective metrics become a "

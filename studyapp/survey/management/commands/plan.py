@@ -45,7 +45,7 @@ class Command(BaseCommand):
         parser.add_argument("--conditions", type=int, default=1, help="Actions or prompts.")
         parser.add_argument("--trials", type=int, default=10, help="Main trials per participant.")
         parser.add_argument("--clips-per-trial", type=int, default=2,
-                            help="Clips per trial (fake_or_real, best_of_k).")
+                            help="Clips per trial (for types that show several clips a trial).")
         parser.add_argument("--participants", default="20,40,80", metavar="N,N,...")
         parser.add_argument("--clips", default="2,4,8", metavar="M,M,...",
                             help="Clips per source and condition to try.")
