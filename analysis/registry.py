@@ -13,7 +13,7 @@ from typing import Callable
 import pandas as pd
 
 from analysis.tables import AnalysisError
-from generation.registry import Registry
+from motion.registry import Registry
 
 # Every module of the ``analysis`` package is imported before the first lookup: each
 # study type's analysis module registers itself, so a new type needs no list here.

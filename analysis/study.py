@@ -124,7 +124,7 @@ class StudyResult:
 
     def methods(self) -> str:
         """Return a methods paragraph a paper can adapt."""
-        from analysis.methods import methods_paragraph
+        from analysis.writeup import methods_paragraph
 
         return methods_paragraph(self)
 

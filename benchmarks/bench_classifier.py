@@ -5,8 +5,8 @@ Run (what docs/RESULTS.md reports):
     .venv/bin/python benchmarks/bench_classifier.py --dataset h36m2d --work var/classifiers \\
         [--variants paper,mirror,...] [--iters 5000]
 
-Each variant is a :class:`generation.recognition.ClassifierConfig` (a preset and changes,
-:data:`VARIANTS`) trained by :func:`generation.recognition.train_classifier` on the
+Each variant is a :class:`motion_metrics.recognition.ClassifierConfig` (a preset and changes,
+:data:`VARIANTS`) trained by :func:`motion_metrics.recognition.train_classifier` on the
 benchmark's training subjects (S1, S5, S6, S7, S8 of Human3.6M; S9 held out) with early
 stopping on a validation share of the training takes; ``patience`` is the number of
 validation measurements (every 50 iterations) without improvement before it stops.
@@ -24,8 +24,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from generation.recognition import ClassifierConfig, train_classifier
-from motion_metrics.benchmark import H36M_TEST, H36M_TRAIN
+from motion_metrics.recognition import ClassifierConfig, train_classifier
+from motion_metrics.comparison import H36M_TEST, H36M_TRAIN
 
 # name -> (config fields, patience)
 VARIANTS = {

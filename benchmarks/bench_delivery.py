@@ -31,8 +31,8 @@ CLIPS = 4
 
 def clips(size: int, folder: Path) -> list[dict]:
     """Render the clips; return each one's stored files ``{kind: bytes}``."""
-    from generation import ops
-    from generation.datasets import get_dataset
+    from motion import ops
+    from motion.datasets import get_dataset
     from generation.sampling import sample_real
     from rendering import Framing, render_set
     from rendering.player import payload

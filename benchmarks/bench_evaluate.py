@@ -19,8 +19,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from generation.datasets import get_dataset  # noqa: E402
-from generation.recognition import train_classifier  # noqa: E402
+from motion.datasets import get_dataset  # noqa: E402
+from motion_metrics.recognition import train_classifier  # noqa: E402
 from generation.sampling import sample_real  # noqa: E402
 from motion_metrics.evaluate import METRICS, evaluate  # noqa: E402
 

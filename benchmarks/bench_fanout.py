@@ -36,7 +36,7 @@ TICKS = os.sysconf("SC_CLK_TCK")
 
 
 def clips(count: int, frames: int):
-    from generation.datasets import DatasetError, get_dataset
+    from motion.datasets import DatasetError, get_dataset
 
     try:
         found = get_dataset("h36m").clips(subjects=["S1"], actions=["Walking"], frames=frames)
@@ -142,7 +142,7 @@ def main() -> None:
     import redis
 
     django.setup()
-    from generation import ops
+    from motion import ops
     from rendering import Framing, get_style
     from studyapp.celery import app
 

@@ -22,8 +22,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from generation.datasets import get_dataset  # noqa: E402
-from generation.skeletons import H36M15_2D_FROM_17  # noqa: E402
+from motion.datasets import get_dataset  # noqa: E402
+from motion.skeletons import H36M15_2D_FROM_17  # noqa: E402
 from rendering import Framing, get_style  # noqa: E402
 from rendering.framing import FILL  # noqa: E402
 from rendering.measure import figure_shares  # noqa: E402

@@ -24,7 +24,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from generation.datasets import get_dataset
+from motion.datasets import get_dataset
 from generation.methods import get_method, list_methods
 
 PHASE_FIELDS = ("pretrain_iters", "pose_iterations")  # length of a first training phase

@@ -29,7 +29,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from generation.datasets import get_dataset  # noqa: E402
+from motion.datasets import get_dataset  # noqa: E402
 from rendering import render_set  # noqa: E402
 from rendering.player import write_payloads  # noqa: E402
 

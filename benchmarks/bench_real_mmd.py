@@ -29,12 +29,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from generation.datasets import get_dataset
-from generation.datasets.h36m2d import CAMERA
-from generation.recognition import Split
-from generation.skeletons import H36M15_2D_FROM_17, get_skeleton
+from motion.datasets import get_dataset
+from motion.datasets.h36m2d import CAMERA
+from motion_metrics.recognition import Split
+from motion.skeletons import H36M15_2D_FROM_17, get_skeleton
 from motion_metrics.authors_mmd import Representation, paired_mmd
-from motion_metrics.benchmark import H36M_TEST, H36M_TRAIN, t_interval
+from motion_metrics.comparison import H36M_TEST, H36M_TRAIN, t_interval
 
 SKELETON = get_skeleton("h36m15_2d")
 

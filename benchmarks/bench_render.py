@@ -36,9 +36,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
-from generation.datasets import DatasetError, get_dataset  # noqa: E402
-from generation.motion import Motion  # noqa: E402
-from generation.skeletons import get_skeleton  # noqa: E402
+from motion.datasets import DatasetError, get_dataset  # noqa: E402
+from motion.motion import Motion  # noqa: E402
+from motion.skeletons import get_skeleton  # noqa: E402
 from rendering import Framing, get_style, render_set  # noqa: E402
 from rendering.framing import to_z_up  # noqa: E402
 from rendering.video import VideoWriter  # noqa: E402
@@ -409,7 +409,7 @@ def measure_command(size: int, rounds: int) -> dict:
     """Time every compared command ``rounds`` times, in turn; return medians per command."""
     import shutil
 
-    from generation.formats import npz
+    from motion.formats import npz
 
     motions = command_clips()
     frames = sum(m.frames for m in motions)
@@ -611,7 +611,7 @@ def main() -> None:
     parser.add_argument("--draw-only", action="store_true", help=argparse.SUPPRESS)
     options = parser.parse_args()
     if options.draw_only:
-        from generation.formats import npz
+        from motion.formats import npz
 
         motions = npz.load(options.motions)
         style = get_style("stick")
@@ -622,7 +622,7 @@ def main() -> None:
                     pass
         return
     if options.matplotlib:
-        from generation.formats import npz
+        from motion.formats import npz
 
         motions = npz.load(options.motions)[:options.clips]
         write = matplotlib_lean_video if options.matplotlib == "lean" else matplotlib_video

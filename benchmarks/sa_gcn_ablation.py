@@ -6,7 +6,7 @@ Run (what docs/SA_GCN_COLLAPSE.md reports):
         --seeds 0,1,2,3,4 [--classifier var/benchmark/h36m2d/classifier.pt] [--out table.md]
 
 Every cell trains ``sa_gcn`` on h36m2d (training subjects S1, S5, S6, S7, S8; held-out
-S9, as ``benchmark_methods``) with the ``demo`` preset's sizes and learning rate and the
+S9, as ``compare_methods``) with the ``demo`` preset's sizes and learning rate and the
 cell's switches, once per seed, for ``--iters`` iterations through the benchmark's own
 training loop (:func:`generation.methods.budget.train_within_budget`). Cells cross the
 initialisation (torch's ``default`` or ``he``) with the conditioning (Eq. 1 alone,
@@ -34,12 +34,12 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from generation.datasets import get_dataset
-from generation.formats import npz
-from generation.recognition import ActionClassifier, Split
+from motion.datasets import get_dataset
+from motion.formats import npz
+from motion_metrics.recognition import ActionClassifier, Split
 from generation.methods.budget import train_within_budget
 from generation.methods.schedule import Recipe
-from motion_metrics.benchmark import H36M_TEST, H36M_TRAIN, t_interval
+from motion_metrics.comparison import H36M_TEST, H36M_TRAIN, t_interval
 from motion_metrics.evaluate import evaluate
 
 INITS = ("default", "he")

@@ -1,15 +1,7 @@
-"""Motions of every method of the seed papers, and real data, as plain numpy.
+"""Generative methods of motion and sampling from them (or from real data) alike.
 
-This package never imports Django. Its public pieces:
-
-- :class:`generation.motion.Motion`, the one motion type every layer shares;
-- :mod:`generation.skeletons`, named skeletons as data;
-- :mod:`generation.datasets`, a registry of datasets (``demo``, ``h36m``, ``h36m2d``,
-  ``humanact12``);
-- :mod:`generation.methods`, a registry of generative methods;
-- :mod:`generation.formats.npz`, the interchange file for sets of motions.
+This package never imports Django. It builds on :mod:`motion` (the data model, datasets
+and files) and keeps every tensor inside: :mod:`generation.methods` is the registry of
+methods (``train``, ``sample``, ``save``, ``load``), :mod:`generation.sampling` draws
+motion sets from a method or a dataset the same way.
 """
-
-from generation.motion import Motion, MotionError
-
-__all__ = ["Motion", "MotionError"]

@@ -1,7 +1,7 @@
 """Draw motion sets from a trained method or from real data, alike: what ``manage.py sample`` runs.
 
 Both give ``n`` motions per action, action by action, ready for
-:func:`generation.formats.npz.save`; studies and metrics then treat real data as one
+:func:`motion.formats.npz.save`; studies and metrics then treat real data as one
 more source.
 """
 
@@ -12,7 +12,7 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from generation.motion import Motion
+from motion.motion import Motion
 
 ALL = "all"
 

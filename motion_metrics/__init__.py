@@ -9,10 +9,14 @@ study responses). Modules, from the arrays up:
   protocol), with the Real column, on numpy arrays;
 - :mod:`motion_metrics.evaluate`: motions against a dataset's real clips and an action
   classifier (what ``manage.py evaluate`` runs);
-- :mod:`motion_metrics.benchmark`, :mod:`motion_metrics.benchmark_report`,
+- :mod:`motion_metrics.comparison`, :mod:`motion_metrics.comparison_report`,
   :mod:`motion_metrics.paper_numbers`: every method trained within a budget, evaluated,
-  and written up beside the seeds' published numbers (``manage.py benchmark_methods``).
+  and written up beside the seeds' published numbers (``manage.py compare_methods``).
 
-It builds on :mod:`generation` (datasets, methods, the classifier); :mod:`generation`
-does not import it.
+- :mod:`motion_metrics.recognition`: the GRU action classifier whose features FID and
+  accuracy use (``manage.py train_classifier``).
+
+"Comparison" here is of methods' quality; ``benchmarks/`` at the project's root measures
+speed. It builds on :mod:`motion` (data, datasets) and :mod:`generation` (methods);
+neither imports it.
 """

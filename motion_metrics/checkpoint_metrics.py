@@ -1,6 +1,6 @@
 """The objective metrics of one trained model on its dataset: what a study build records per checkpoint.
 
-``benchmark_methods`` and a study build measure a model the same way: ``n`` motions per
+``compare_methods`` and a study build measure a model the same way: ``n`` motions per
 action sampled with one seed (:func:`sample_for_metrics`), evaluated by
 :func:`motion_metrics.evaluate.evaluate` (the ``bootstrap`` protocol) against the real
 clips the split holds out. A build's numbers for a checkpoint trained as the benchmark

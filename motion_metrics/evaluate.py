@@ -9,7 +9,7 @@ protocol). Results name theirs under ``protocol``.
 
 Real clips are the dataset's clips of the motions' length and frame rate, divided as the
 classifier was trained (held-out subjects or takes; without a classifier, the default
-split of :func:`generation.recognition.make_split`): generated motions are compared with
+split of :func:`motion_metrics.recognition.make_split`): generated motions are compared with
 the held-out ("test") clips, and the Real column compares those with the training clips.
 Before the metrics on joints (MMD, APD), every motion is moved so that its root starts
 above the origin (height kept), as the methods place their samples.
@@ -22,11 +22,11 @@ from typing import Sequence
 
 import numpy as np
 
-from generation.datasets import Dataset, get_dataset
-from generation.motion import Motion
-from generation.registry import Registry
-from generation.recognition import ActionClassifier, ClassifierError, make_split
-from generation.skeletons import get_skeleton
+from motion.datasets import Dataset, get_dataset
+from motion.motion import Motion
+from motion.registry import Registry
+from motion_metrics.recognition import ActionClassifier, ClassifierError, make_split
+from motion.skeletons import get_skeleton
 from motion_metrics import protocol
 from motion_metrics.metrics import BANDWIDTHS, MetricError
 
@@ -76,7 +76,7 @@ def evaluate(dataset: Dataset | str, motions: Sequence[Motion], classifier: Acti
     ``heldout`` (the default, the protocol's draws against the held-out clips) or
     ``paper`` (:func:`motion_metrics.protocol.paper_mmd`: against the training clips,
     standardised, equal counts); the result names it under ``mmd_protocol``. ``split``
-    (a :class:`generation.recognition.Split`) says which real clips are held out when no
+    (a :class:`motion_metrics.recognition.Split`) says which real clips are held out when no
     classifier brings its own. ``real_reference`` ``test`` makes the Real column Action2Motion's
     (two draws of the held-out clips) instead of held-out against training clips.
     """
@@ -133,7 +133,7 @@ def training_mmd(motions: Sequence[Motion], train_clips: Sequence[Motion], metri
 
     The mean over ``repeats`` of the ``paper`` (:func:`motion_metrics.protocol.paper_mmd`)
     or ``authors`` protocol's score against the training clips, with no Real column: the
-    score by which ``benchmark_methods --select best-mmd-seq`` chooses a checkpoint, as
+    score by which ``compare_methods --select best-mmd-seq`` chooses a checkpoint, as
     seeds 003/004 chose theirs. Motions and clips (of the motions' actions) are moved as
     for :func:`evaluate`; both must have the same length.
     """

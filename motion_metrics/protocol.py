@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from generation.registry import Registry
+from motion.registry import Registry
 from motion_metrics import metrics as M
 
 METRICS = (

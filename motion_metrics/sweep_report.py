@@ -1,9 +1,9 @@
-"""A budget sweep of ``benchmark_methods`` as Markdown: does more training help, measured.
+"""A budget sweep of ``compare_methods`` as Markdown: does more training help, measured.
 
-``benchmark_methods --iters 250,500,1000,2000`` runs the benchmark once per budget (a
+``compare_methods --iters 250,500,1000,2000`` runs the benchmark once per budget (a
 method without phases trains once, to the largest budget, keeping each budget's
-checkpoint; :func:`motion_metrics.benchmark.start_from_shorter`). The report is the main
-budget's (:func:`motion_metrics.benchmark_report.render`) followed by the sweep: per
+checkpoint; :func:`motion_metrics.comparison.start_from_shorter`). The report is the main
+budget's (:func:`motion_metrics.comparison_report.render`) followed by the sweep: per
 metric, each method's mean over training seeds with its 95 % t interval at every budget,
 and per method whether the smallest and largest budgets' intervals separate (the only
 case in which the report says that training longer changed the metric). Under the
@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from motion_metrics.benchmark import t_interval
-from motion_metrics.benchmark_report import NAMES, render
+from motion_metrics.comparison import t_interval
+from motion_metrics.comparison_report import NAMES, render
 
 SWEPT = ("mmd_avg", "mmd_seq", "fid", "accuracy", "diversity")
 BETTER = {"mmd_avg": -1, "mmd_seq": -1, "fid": -1, "accuracy": 1}

@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from generation import ops
-from generation.motion import Motion, MotionError
-from generation.skeletons import get_skeleton
+from motion import ops
+from motion.motion import Motion, MotionError
+from motion.skeletons import get_skeleton
 from rendering.framing import Framing
 from rendering.styles import Style, get_style
 from rendering.video import (

@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from generation.skeletons import Skeleton
+from motion.skeletons import Skeleton
 from rendering.tubes import Tube, TubeSet
 
 SIDES = ("left", "right")

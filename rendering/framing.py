@@ -17,8 +17,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from generation.motion import Motion
-from generation.skeletons import Skeleton, get_skeleton
+from motion.motion import Motion
+from motion.skeletons import Skeleton, get_skeleton
 from rendering.camera import Camera
 
 # Rotations taking a skeleton's axes to z-up; all proper, so left stays left.

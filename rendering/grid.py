@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
-from generation import ops
-from generation.motion import Motion
+from motion import ops
+from motion.motion import Motion
 from rendering.batch import RenderError, check
 from rendering.framing import Framing
 from rendering.styles import get_style

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from generation.motion import Motion
+from motion.motion import Motion
 from rendering.backdrop import Backdrop
 from rendering.framing import Framing
 from rendering.styles import get_style

@@ -29,8 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from generation.motion import Motion
-from generation.skeletons import get_skeleton
+from motion.motion import Motion
+from motion.skeletons import get_skeleton
 from rendering.framing import SHADOW_SLANT, Framing
 from rendering.styles.stick import BONE_RADIUS, Figure
 

@@ -12,8 +12,8 @@ import hashlib
 
 import numpy as np
 
-from generation.motion import Motion
-from generation.skeletons import Skeleton
+from motion.motion import Motion
+from motion.skeletons import Skeleton
 
 SHADOW_POINTS = 320  # vertices standing in for the body in its floor shadow
 SHADOW_RADIUS = 0.045  # their radius, per figure height

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from generation.motion import Motion
+from motion.motion import Motion
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED_H36M = (ROOT / ".." / "shared" / "data" / "h36m").resolve()
@@ -16,7 +16,7 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 def make_motion(frames=8, seed=0, skeleton="h36m17", action="walk", source="real", fps=25.0):
     """Return a random-walk motion of a skeleton, for tests that need any motion."""
-    from generation.skeletons import get_skeleton
+    from motion.skeletons import get_skeleton
 
     skel = get_skeleton(skeleton)
     rng = np.random.default_rng(seed)

@@ -1,8 +1,10 @@
 """The core packages stay plain Python, and the layers import downwards only.
 
-``generation`` (datasets, methods, the classifier) is the lowest; ``motion_metrics``
-(objective metrics, evaluation, benchmark) builds on it; ``analysis`` (statistics of study
-responses) stands apart (of the others it uses only ``generation.registry``). None imports
+``motion`` (the data model, skeletons, datasets, file formats) is the lowest;
+``generation`` (methods) builds on it, ``rendering`` (clips) on it alone, and
+``motion_metrics`` (objective metrics, the classifier, method comparisons) on both;
+``analysis`` (statistics of study responses) uses only ``motion.registry`` and, to read
+clip files as a participant's browser receives them, ``rendering``. None imports
 Django. No module of the project imports, through any chain of imports (those inside
 functions included), a module that imports it back.
 """
@@ -15,13 +17,14 @@ import pytest
 
 from tests.conftest import ROOT
 
-CORE = ["generation", "rendering", "analysis", "motion_metrics"]
+CORE = ["motion", "generation", "rendering", "analysis", "motion_metrics"]
 # Packages a core package must not import, beside Django.
 FORBIDDEN = {
-    "generation": ["analysis", "motion_metrics", "studyapp"],
-    "rendering": ["analysis", "motion_metrics", "studyapp"],
-    "analysis": ["motion_metrics", "studyapp"],
-    "motion_metrics": ["analysis", "studyapp"],
+    "motion": ["generation", "rendering", "analysis", "motion_metrics", "studyapp", "torch"],
+    "generation": ["rendering", "analysis", "motion_metrics", "studyapp"],
+    "rendering": ["generation", "analysis", "motion_metrics", "studyapp"],
+    "analysis": ["generation", "motion_metrics", "studyapp"],
+    "motion_metrics": ["rendering", "analysis", "studyapp"],
 }
 
 

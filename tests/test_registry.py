@@ -4,14 +4,14 @@ import importlib
 
 import pytest
 
-from generation.registry import Registry
+from motion.registry import Registry
 
 # Every registry of the project: (module, attribute).
 REGISTRIES = [
-    ("generation.datasets.base", "DATASETS"),
+    ("motion.datasets.base", "DATASETS"),
     ("generation.methods.base", "METHODS"),
-    ("generation.formats.base", "_FORMATS"),
-    ("generation.skeletons", "_REGISTRY"),
+    ("motion.formats.base", "_FORMATS"),
+    ("motion.skeletons", "_REGISTRY"),
     ("rendering.styles.base", "_STYLES"),
     ("analysis.registry", "ANALYSES"),
     ("motion_metrics.evaluate", "PROTOCOLS"),

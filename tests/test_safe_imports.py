@@ -1,4 +1,4 @@
-"""No product module unpickles a file any way but through ``generation.safe_load``.
+"""No product module unpickles a file any way but through ``motion.safe_load``.
 
 The code of every product module (comments and strings left out) is searched for the
 ways Python runs a file's pickle: ``allow_pickle=True`` (or any value but ``False``),
@@ -13,7 +13,7 @@ import tokenize
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PRODUCT = ["generation", "rendering", "motion_metrics", "analysis", "studyapp", "benchmarks",
+PRODUCT = ["motion", "generation", "rendering", "motion_metrics", "analysis", "studyapp", "benchmarks",
            "scripts", "manage.py"]
 FORBIDDEN = [
     (re.compile(r"allow_pickle=(?!False\b)"), "allow_pickle other than False"),
@@ -74,7 +74,7 @@ def product_files() -> list[Path]:
 
 def test_product_code_never_unpickles_a_file_unsafely():
     files = product_files()
-    assert len(files) > 100 and ROOT / "generation" / "safe_load" / "unpickler.py" in files
+    assert len(files) > 100 and ROOT / "motion" / "safe_load" / "unpickler.py" in files
     found = [f"{path.relative_to(ROOT)}: {problem}" for path in files
              for problem in problems_in(path.read_text(encoding="utf-8"))]
     assert found == []

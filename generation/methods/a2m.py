@@ -52,7 +52,7 @@ from generation.methods.common import (
     relative_to_start,
 )
 from generation.methods.kinematics import Kinematics, clip_bone_lengths, rest_directions
-from generation.skeletons import get_skeleton
+from motion.skeletons import get_skeleton
 
 # Inverse kinematics runs in float64 over this many clips at a time.
 _IK_CHUNK = 256

@@ -30,7 +30,7 @@ from generation.methods.common import (
     relative_to_start,
 )
 from generation.methods.kinematics import clip_bone_lengths
-from generation.skeletons import get_skeleton
+from motion.skeletons import get_skeleton
 
 
 @register_method("a2m_xyz")

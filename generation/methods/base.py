@@ -14,9 +14,9 @@ import torch
 from tqdm import tqdm
 
 from generation.methods.common import to_arrays, to_tensors
-from generation.motion import Motion
-from generation.registry import Registry
-from generation.skeletons import get_skeleton
+from motion.motion import Motion
+from motion.registry import Registry
+from motion.skeletons import get_skeleton
 
 METHODS = Registry("method", package="generation.methods")
 register_method = METHODS.register

@@ -1,6 +1,6 @@
 """Train a method for a budget of iterations or seconds, resumably: the project's one training loop.
 
-:func:`train_within_budget` is what ``benchmark_methods`` and study builds train with
+:func:`train_within_budget` is what ``compare_methods`` and study builds train with
 (and ``manage.py train`` through :func:`generation.methods.training.train_on_dataset`):
 a checkpoint and a JSON record of seconds and iterations beside it, reused when the same
 method version, recipe, seed and clips ask again, resumed when interrupted.
@@ -103,7 +103,7 @@ def train_within_budget(method: str, clips, actions: Sequence[str], budget: floa
     in the folder :func:`candidate_path` names; ``extra_signature`` (e.g. how candidates
     are chosen) joins what decides whether earlier work is reused.
 
-    This is the one training loop of the project: ``benchmark_methods``, study builds and
+    This is the one training loop of the project: ``compare_methods``, study builds and
     ``manage.py train`` run it, so the same recipe, seed and clips give the same weights.
     """
     if (budget is None) == (iters is None):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from generation.skeletons import Skeleton, get_skeleton
+from motion.skeletons import Skeleton, get_skeleton
 
 # 2D data are in pixels; losses tuned in metres (A2M's λ) see them rescaled so that the
 # mean bone is this long, about that of a Human3.6M body.

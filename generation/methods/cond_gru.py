@@ -28,7 +28,7 @@ from generation.methods.common import (
     standardise_poses,
     unstandardise_poses,
 )
-from generation.skeletons import get_skeleton
+from motion.skeletons import get_skeleton
 
 
 @dataclass

@@ -26,7 +26,7 @@ import math
 import numpy as np
 import torch
 
-from generation.skeletons import Skeleton, get_skeleton
+from motion.skeletons import Skeleton, get_skeleton
 
 # Below this angle the log and exp maps switch to their Taylor expansions.
 _SMALL = 1e-4

@@ -72,8 +72,8 @@ from generation.methods.odmo_modes import (
     discover_modes, gaussian_draws, log_gaussian, nearest, single_gaussian,
 )
 from generation.methods.odmo_networks import LMPEncoder, MotionGenerator, TrajectoryGenerator
-from generation.motion import Motion
-from generation.skeletons import get_skeleton
+from motion.motion import Motion
+from motion.skeletons import get_skeleton
 
 # Codes of the real clips are computed this many clips at a time.
 _ENCODE_CHUNK = 512

@@ -90,7 +90,7 @@ from generation.methods.seq_gan_common import (
     class_rows,
     random_frames,
 )
-from generation.skeletons import get_skeleton
+from motion.skeletons import get_skeleton
 
 BETAS = (0.5, 0.999)
 # The departures as version 3 had them, always on (what its checkpoints were trained with).

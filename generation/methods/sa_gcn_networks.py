@@ -11,7 +11,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from generation.skeletons import Skeleton
+from motion.skeletons import Skeleton
 
 INITIALISATIONS = ("default", "he")  # torch's own (the paper's and code's), or He et al. 2015
 

@@ -3,12 +3,12 @@
 Some methods train in phases: a first phase (pretraining a pose or frame model, or ODMO's
 decaying teacher forcing) of a fixed number of iterations in the preset, then the rest.
 A budget shorter than the first phase never reaches the second, so every training path
-(``manage.py train``, ``benchmark_methods``, a study build) takes one of two rules
+(``manage.py train``, ``compare_methods``, a study build) takes one of two rules
 (:data:`SCHEDULES`):
 
 - ``benchmark``: the first phase takes its share (:data:`PHASES`) of the budget where
   that is less than the preset's count, so the second phase always gets the rest; this
-  is what ``benchmark_methods --iters N`` trains, so a checkpoint trained so is the one
+  is what ``compare_methods --iters N`` trains, so a checkpoint trained so is the one
   its results measure;
 - ``full``: the preset's phases as they are; a budget that ends inside a first stage (a
   pose or frame model trained before the sequence model) is refused, naming it
@@ -47,7 +47,7 @@ PHASES = {
 }
 SCHEDULES = {
     "benchmark": "a first phase longer than its share of the budget is shortened to that share, "
-                 "as benchmark_methods trains",
+                 "as compare_methods trains",
     "full": "the preset's phase lengths as they are; a budget ending inside a first stage "
             "(pretraining) is refused",
 }
@@ -115,7 +115,7 @@ def check_budget(method: str, preset: str, iters: int, length: int) -> None:
             f"{method} {phase.what} for its first {length:,} iterations ({phase.field} of the "
             f"{preset} preset); {iters:,} iterations end inside that phase. Give more than "
             f"{length:,} iterations, or schedule: benchmark (the phase then takes "
-            f"{phase.share:.0%} of the budget, as benchmark_methods trains it)")
+            f"{phase.share:.0%} of the budget, as compare_methods trains it)")
 
 
 def departures(config) -> dict:

@@ -2,14 +2,14 @@
 
 The config is the preset's under a schedule (:mod:`generation.methods.schedule`): ``full``
 (the preset's phases, refusing a budget that ends inside the first) or ``benchmark`` (the
-first phase takes its share of the budget, as ``benchmark_methods`` trains it).
+first phase takes its share of the budget, as ``compare_methods`` trains it).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from generation.datasets import DatasetError, get_dataset
+from motion.datasets import DatasetError, get_dataset
 from generation.methods.base import Method, MethodError
 from generation.methods import get_method
 from generation.methods.schedule import recipe_for

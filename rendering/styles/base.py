@@ -6,8 +6,8 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from generation.motion import Motion
-from generation.registry import Registry
+from motion.motion import Motion
+from motion.registry import Registry
 from rendering.framing import PAD, Framing
 
 _STYLES = Registry("rendering style", package="rendering.styles")

@@ -14,8 +14,8 @@ from collections.abc import Iterator
 import cv2
 import numpy as np
 
-from generation.motion import Motion
-from generation.skeletons import Skeleton, get_skeleton
+from motion.motion import Motion
+from motion.skeletons import Skeleton, get_skeleton
 from rendering import palette
 from rendering.backdrop import Backdrop
 from rendering.camera import Camera

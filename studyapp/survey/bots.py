@@ -45,7 +45,7 @@ import urllib.request
 from dataclasses import dataclass, field
 from html.parser import HTMLParser
 
-from generation.registry import Registry
+from motion.registry import Registry
 from studyapp.survey.forms import AGE_RANGES, GENDERS
 from studyapp.survey.models import Stimulus, Trial, TrialItem
 

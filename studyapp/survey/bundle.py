@@ -8,7 +8,7 @@
   hash; each method's checkpoints and metrics);
 - ``motions/<source>.npz``: the motions the build sampled of each source (the
   interchange format), and ``bvh/<source>/<motion hash>.bvh`` of every stimulus motion
-  among them (:func:`generation.formats.bvh.save`);
+  among them (:func:`motion.formats.bvh.save`);
 - ``rebuild.yaml``: the config with every method and file source read from
   ``motions/<source>.npz``, so ``build_stimuli rebuild.yaml`` makes the same clips again
   without training (real sources still come from the dataset);
@@ -71,7 +71,7 @@ def cached_motions(cache: list[Path], shown: dict[str, set]) -> dict[str, list]:
     """Return, per source, the motions of the build cache file that holds the motions the
     study showed of it (``shown``: source -> motion hashes); other builds' files of the
     same source (an older config's) are left out."""
-    from generation.formats import npz
+    from motion.formats import npz
 
     out = {}
     for source, hashes in shown.items():
@@ -115,7 +115,7 @@ def write_bundle(study, out: Path, folder: Path, cache: list[Path], config_path=
     from django.core.management import call_command
 
     from analysis.tables import write_responses
-    from generation.formats import bvh, npz
+    from motion.formats import bvh, npz
     from studyapp.survey.export import responses_frame
     from studyapp.survey.study_motions import source_kinds
 

@@ -1,6 +1,6 @@
 """The catch clips of a build: a family per action (or prompt), not one clip for everyone.
 
-Per action, :data:`CATCH_PER_BASE` broken versions (:func:`generation.perturb.catch_family`)
+Per action, :data:`CATCH_PER_BASE` broken versions (:func:`motion.perturb.catch_family`)
 of one base clip of every source. A base is drawn as that source's judged clips are, one
 more per action, so it is never a judged clip (cached as
 ``motions/<source>-catch-<key>.npz``); in a prompts study it is a judged clip of the
@@ -25,9 +25,9 @@ from collections import defaultdict
 import numpy as np
 
 from analysis.clip_features import payload_features
-from generation import ops, perturb
-from generation.formats import npz
-from generation.skeletons import get_skeleton
+from motion import ops, perturb
+from motion.formats import npz
+from motion.skeletons import get_skeleton
 from rendering.player import payload
 from studyapp.survey.models import Stimulus
 

@@ -38,7 +38,7 @@ import re
 import secrets
 from datetime import timedelta
 
-from generation.registry import Registry
+from motion.registry import Registry
 
 # Outcomes a completion code can belong to; ``timed_out`` is the one without.
 OUTCOMES = ("completed", "failed_attention", "no_consent", "screened_out")

@@ -122,7 +122,7 @@ def _read(path: Path):
 def render_one(folder: str, key: str, style: str, size, framing: dict) -> dict:
     """Render the clip ``key`` queued in ``folder`` (a build's renders folder); return its
     record ``{"video_hash", "duration"}``. Done already: return the record, draw nothing."""
-    from generation.formats import npz
+    from motion.formats import npz
     from rendering import Framing, render_clip
 
     folder = Path(folder)
@@ -178,7 +178,7 @@ def fan_out(clips, folder, style: str, size, framing, on_clip=None, say=None, po
     drawn and ``{key: message}`` of those that could not be. ``on_clip(key)`` is called
     once per clip as its record appears; ``say(message)`` tells what the build waits for.
     """
-    from generation.formats import npz
+    from motion.formats import npz
 
     say = say or log.info
     if not broker_url():

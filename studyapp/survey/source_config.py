@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from generation.formats import list_formats
+from motion.formats import list_formats
 
 
 class ConfigError(ValueError):
@@ -148,7 +148,7 @@ def parse_metrics(raw) -> MetricsConfig:
         out.classifier = _text(raw, "classifier", where="metrics.classifier")
     out.classifier_preset = _text(raw, "classifier_preset", out.classifier_preset,
                                   where="metrics.classifier_preset")
-    from generation.recognition import ClassifierConfig
+    from motion_metrics.recognition import ClassifierConfig
 
     if out.classifier_preset not in ClassifierConfig.PRESETS:
         raise ConfigError(f"metrics.classifier_preset: {out.classifier_preset!r} is not a classifier "

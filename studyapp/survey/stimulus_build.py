@@ -3,7 +3,7 @@
 This is the one way stimuli are made: ``build_stimuli CONFIG``, the admin's build jobs
 and the demo (``studies/demo/*.yaml``) all run it. The study's type says which extra
 clips it needs (:meth:`StudyType.stimulus_roles`: catch, practice, reference, examples,
-anchors); the build makes them with :mod:`generation.perturb` (catch clips from a spare
+anchors); the build makes them with :mod:`motion.perturb` (catch clips from a spare
 clip of every source, :mod:`studyapp.survey.catch_clips`; the others from real clips),
 renders everything with one framing, registers the clips and lets the type finish the
 study (:meth:`StudyType.after_register`, e.g. scoring standards).
@@ -18,7 +18,7 @@ built from the same sources share their motions and clips:
   its catch clips are made from (keyed as the source's motions, one more per action).
 - ``checkpoints/<source>-<key>/<method>-seed<k>.pt``: methods without a ``checkpoint``
   are trained here, one checkpoint per training seed, with the stated budget
-  (``iters``, ``preset``, ``schedule``), as ``benchmark_methods`` trains
+  (``iters``, ``preset``, ``schedule``), as ``compare_methods`` trains
   (:mod:`studyapp.survey.stimulus_sources`), and measured (``metrics/``, ``classifiers/``);
 - ``renders/<video_hash>.mp4|png`` and ``renders/index.json``: each clip's render,
   keyed by its motion hash, the style, the size and the framing.
@@ -57,9 +57,9 @@ import numpy as np
 from django.db import transaction
 from tqdm import tqdm
 
-from generation import ops, perturb
-from generation.formats import FormatError, load_motions, npz
-from generation.motion import MotionError
+from motion import ops, perturb
+from motion.formats import FormatError, load_motions, npz
+from motion.motion import MotionError
 from generation.sampling import SamplingError, choose
 from rendering import VERSION as RENDERING_VERSION
 from rendering import Framing, get_style, render_set
@@ -125,7 +125,7 @@ class Build:
     @property
     def dataset(self):
         if self._dataset is None:
-            from generation.datasets import get_dataset
+            from motion.datasets import get_dataset
 
             try:
                 self._dataset = get_dataset(self.config.dataset, self.config.data_root)

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import yaml
 
-from generation.datasets.humanml3d import normalise as normalise_prompt  # as captions match
+from motion.datasets.humanml3d import normalise as normalise_prompt  # as captions match
 from rendering import get_style, list_styles
 from studyapp.survey import duration
 from studyapp.survey.crowd import make_platform, outcomes_of
@@ -390,8 +390,8 @@ def _read_prompt_file(value, folder: Path) -> list:
     if not path.is_file():
         raise ConfigError(f"prompts_from: {value!r} is not there (looked in {path}); fix the path")
     if path.suffix == ".npz":
-        from generation.formats import npz
-        from generation.formats.base import FormatError
+        from motion.formats import npz
+        from motion.formats.base import FormatError
 
         try:
             texts = [m.text or "" for m in npz.load(path)]
@@ -404,7 +404,7 @@ def _read_prompt_file(value, folder: Path) -> list:
                               f"prompts (import_motions ... --texts FILE), or give a text file")
         return texts
     if path.suffix.lower() == ".csv":  # a text (or prompt, caption) column, as --texts reads
-        from generation.formats.base import FormatError, read_prompts
+        from motion.formats.base import FormatError, read_prompts
 
         try:
             found = read_prompts(path)

@@ -2,12 +2,12 @@
 
 A method source without ``checkpoint`` trains one checkpoint per training seed
 (``seeds``, else ``seed``) through the project's one training loop
-(:func:`generation.methods.budget.train_within_budget`, as ``benchmark_methods``), with
+(:func:`generation.methods.budget.train_within_budget`, as ``compare_methods``), with
 the recipe of its preset, schedule and budget (:func:`generation.methods.schedule.recipe_for`),
 on the build's clips of its training subjects, into
 ``<cache>/checkpoints/<source>-<key>/<method>-seed<k>.pt`` beside a record of its
 iterations. With the benchmark schedule, the benchmark's training subjects, preset,
-budget and seed this is the checkpoint ``benchmark_methods`` trains, weight for weight.
+budget and seed this is the checkpoint ``compare_methods`` trains, weight for weight.
 
 The source's clips come from its checkpoints in turn: clip ``i`` of an action from the
 ``(i mod S)``-th training seed, each carrying its training seed and checkpoint sha256
@@ -131,7 +131,7 @@ class MethodSources:
 
     def _train(self, source, seed) -> Trained:
         from generation.methods.budget import train_within_budget
-        from generation.recognition import one_thread
+        from motion_metrics.recognition import one_thread
 
         folder = self.folder(source)
         recipe = self.recipe(source)
@@ -155,7 +155,7 @@ class MethodSources:
     def sample(self, source, actions, n: int, frames: int) -> list:
         """Return ``n`` motions per action, action by action, from the checkpoints in turn."""
         from generation.sampling import sample_method
-        from generation.recognition import one_thread
+        from motion_metrics.recognition import one_thread
 
         trained = self.trained(source)
         count = len(trained)
@@ -183,7 +183,7 @@ class MethodSources:
 
         A classifier's own split wins (the metrics measure against its held-out clips).
         """
-        from generation.recognition import Split, make_split
+        from motion_metrics.recognition import Split, make_split
 
         c, data = self.config, self.build.dataset
         classifier = self._classifier if self._classifier_ready else None
@@ -208,7 +208,7 @@ class MethodSources:
             return self._classifier
         self._classifier_ready = True
         m, c = self.config.metrics, self.config
-        from generation.recognition import ActionClassifier, train_classifier
+        from motion_metrics.recognition import ActionClassifier, train_classifier
 
         if m.classifier:
             self._classifier = ActionClassifier.load(c.path(m.classifier))
@@ -236,7 +236,7 @@ class MethodSources:
         """Return the metrics of each of a method source's checkpoints (cached by inputs)."""
         from generation.methods import load_checkpoint
         from motion_metrics.checkpoint_metrics import measure
-        from generation.recognition import one_thread
+        from motion_metrics.recognition import one_thread
 
         m = self.config.metrics
         out = []
@@ -247,7 +247,7 @@ class MethodSources:
                 if split is None:
                     raise ValueError("every subject of the dataset trains the methods, so none is "
                                      "held out to measure against; leave some out of subjects")
-                # Sampled and resampled with the training seed, as benchmark_methods measures.
+                # Sampled and resampled with the training seed, as compare_methods measures.
                 seed = self.config.seed if checkpoint.seed is None else checkpoint.seed
                 key = digest({"checkpoint": checkpoint.sha256, "n": m.n, "repeats": m.repeats,
                               "mmd_protocol": m.mmd_protocol, "seed": seed,

@@ -58,7 +58,7 @@ def study_motions(study, manifest=None, cache=None) -> StudyMotions:
     shared cache). Raise :class:`MotionsUnavailable` saying which source lacks what and
     how to get it back.
     """
-    from generation.formats import npz
+    from motion.formats import npz
 
     default_manifest, default_cache = default_paths(study.slug)
     manifest = Path(manifest) if manifest else default_manifest

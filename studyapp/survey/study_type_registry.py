@@ -6,6 +6,6 @@ this registry, which finds the types' modules by name on its first lookup, so ne
 imports the other's module in a circle.
 """
 
-from generation.registry import Registry
+from motion.registry import Registry
 
 STUDY_TYPES = Registry("study type", package="studyapp.survey.study_types")

@@ -10,7 +10,7 @@ Jobs must be safe to run again after a crash: ``register_stimuli`` is, because
 import logging
 import threading
 
-from generation.registry import Registry
+from motion.registry import Registry
 from studyapp.survey.broker import broker_url
 
 log = logging.getLogger(__name__)

@@ -154,8 +154,8 @@ def test_deliveries_that_share_bytes_fail_and_their_own_bytes_pass(rendered):
 def demo_payloads():
     """Judged clips of the demo's three sources and, per action, a base clip of each
     source the catch clips are made from: their payloads in one framing."""
-    from generation import ops
-    from generation.datasets import get_dataset
+    from motion import ops
+    from motion.datasets import get_dataset
     from generation.sampling import sample_method, sample_real
     from rendering import Framing
     from tests.conftest import ROOT
@@ -176,7 +176,7 @@ def demo_payloads():
 
 
 def _payload_rows(motions, framing):
-    from generation import ops
+    from motion import ops
     from rendering.player import payload
 
     return [payload_features({"motion": ({}, payload(ops.canonical(m, 3), framing))})
@@ -188,7 +188,7 @@ def test_a_payload_statistics_classifier_tells_shaken_catch_clips_but_not_the_fa
     """The attack: a script reads the player's joints and picks the clip whose bones
     stretch (shaken catch clips: bone lengths varying 41 %, judged at most 21 %). The
     catch family, broken by turning whole bones, is not told from the judged clips."""
-    from generation import perturb
+    from motion import perturb
 
     judged, bases, framing = demo_payloads
     rng = np.random.default_rng(0)

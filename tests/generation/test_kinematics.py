@@ -14,7 +14,7 @@ from generation.methods.kinematics import (
     so3_exp,
     so3_log,
 )
-from generation.skeletons import get_skeleton
+from motion.skeletons import get_skeleton
 
 torch.set_num_threads(1)
 

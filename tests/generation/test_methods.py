@@ -5,8 +5,8 @@ import pytest
 import torch
 from django.core.management import CommandError, call_command
 
-from generation.datasets import get_dataset
-from generation.formats import npz
+from motion.datasets import get_dataset
+from motion.formats import npz
 from generation.methods import (
     CheckpointError,
     MethodError,
@@ -15,8 +15,8 @@ from generation.methods import (
     load_checkpoint,
 )
 from generation.methods.kinematics import Kinematics
-from generation.motion import Motion
-from generation.skeletons import get_skeleton
+from motion.motion import Motion
+from motion.skeletons import get_skeleton
 
 torch.set_num_threads(1)
 

@@ -5,8 +5,8 @@ import pytest
 import torch
 from django.core.management import call_command
 
-from generation.datasets import get_dataset
-from generation.formats import npz
+from motion.datasets import get_dataset
+from motion.formats import npz
 from generation.methods import MethodError, get_method
 from generation.methods.base import CheckpointError
 from generation.methods.sa_gcn import (
@@ -15,7 +15,7 @@ from generation.methods.sa_gcn import (
     skeleton_adjacency,
     temporal_neighbours,
 )
-from generation.skeletons import get_skeleton
+from motion.skeletons import get_skeleton
 from tests.conftest import make_motion
 
 torch.set_num_threads(1)

@@ -6,8 +6,8 @@ import torch
 
 from generation.methods import get_method, list_methods
 from generation.methods.kinematics import Kinematics
-from generation.motion import Motion
-from generation.skeletons import get_skeleton
+from motion.motion import Motion
+from motion.skeletons import get_skeleton
 
 torch.set_num_threads(1)
 

@@ -7,9 +7,9 @@ import pytest
 from django.core.management import call_command
 
 from generation.sampling import sample_real
-from generation.datasets import get_dataset
-from generation.formats import npz
-from generation.skeletons import get_skeleton
+from motion.datasets import get_dataset
+from motion.formats import npz
+from motion.skeletons import get_skeleton
 from motion_metrics import metrics as M
 from motion_metrics.authors_mmd import Representation, authors_mmd, paired_mmd
 from motion_metrics.protocol import MotionSet

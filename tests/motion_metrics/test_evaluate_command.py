@@ -8,10 +8,10 @@ import pytest
 import torch
 from django.core.management import CommandError, call_command
 
-from generation.datasets import get_dataset
-from generation.formats import npz
+from motion.datasets import get_dataset
+from motion.formats import npz
 from generation.methods import get_method
-from generation.recognition import ActionClassifier
+from motion_metrics.recognition import ActionClassifier
 from generation.sampling import sample_real
 from motion_metrics.evaluate import METRICS
 from tests.conftest import make_motion

@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from generation.motion import Motion
-from generation.skeletons import get_skeleton
+from motion.motion import Motion
+from motion.skeletons import get_skeleton
 
 # Joints in a body frame (towards the figure's left, up, forward), metres, standing.
 _BODY = {

@@ -27,7 +27,7 @@ def figure_box(frame: np.ndarray) -> tuple[int, int, int, int] | None:
 
 def to_2d(motion):
     """Return an ``h36m17`` motion seen from its side as an ``h36m15_2d`` one (pixels, y down)."""
-    from generation.skeletons import H36M15_2D_FROM_17
+    from motion.skeletons import H36M15_2D_FROM_17
 
     joints = np.asarray(motion.joints)[:, list(H36M15_2D_FROM_17)]
     pixels = np.stack([joints[..., 0], -joints[..., 2]], axis=-1) * 200.0 + 500.0

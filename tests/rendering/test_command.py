@@ -5,7 +5,7 @@ import json
 import pytest
 from django.core.management import CommandError, call_command
 
-from generation.formats import npz
+from motion.formats import npz
 from tests.rendering.conftest import make_figure
 
 

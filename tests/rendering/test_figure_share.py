@@ -8,7 +8,7 @@ the body counts.
 import numpy as np
 import pytest
 
-from generation.datasets import get_dataset
+from motion.datasets import get_dataset
 from rendering import Framing, get_style
 from rendering.measure import figure_shares
 from tests.rendering.helpers import to_2d

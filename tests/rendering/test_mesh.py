@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from generation.skeletons import Skeleton, get_skeleton
+from motion.skeletons import Skeleton, get_skeleton
 from rendering import Framing, get_style, render_motion, render_set
 from rendering.backdrop import Backdrop
 from rendering.body import Body

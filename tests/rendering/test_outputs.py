@@ -8,7 +8,7 @@ import pytest
 from django.core.management import CommandError, call_command
 from PIL import Image
 
-from generation.formats import npz
+from motion.formats import npz
 from rendering import Framing, get_style, render_grid, render_set
 from rendering.grid import GAP
 from tests.conftest import make_motion

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from generation.motion import Motion
+from motion.motion import Motion
 from rendering import RenderedClip, render_motion, render_set, resample
 from rendering.batch import SIDECAR
 from tests.conftest import make_motion

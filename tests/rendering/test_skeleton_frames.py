@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from generation import ops
-from generation.formats import bvh
-from generation.motion import Motion
-from generation.skeletons import get_skeleton
+from motion import ops
+from motion.formats import bvh
+from motion.motion import Motion
+from motion.skeletons import get_skeleton
 from rendering import get_style, render_set
 from rendering.backdrop import Backdrop
 from rendering.palette import LEFT, RIGHT
@@ -131,7 +131,7 @@ def test_mesh_draws_the_body_surface_the_motion_carries(tmp_path):
 
 
 def test_a_bvh_hierarchy_renders_as_its_own_skeleton(tmp_path):
-    from tests.generation.test_formats import FIXTURE
+    from tests.motion.test_formats import FIXTURE
 
     [motion] = bvh.load(FIXTURE)
     for style in ("stick", "mesh"):

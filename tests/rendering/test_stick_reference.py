@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from generation.datasets import get_dataset
+from motion.datasets import get_dataset
 from rendering import Framing, get_style
 
 DATA = Path(__file__).parent / "data" / "stick_reference"

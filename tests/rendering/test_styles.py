@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from generation.skeletons import get_skeleton, list_skeletons
+from motion.skeletons import get_skeleton, list_skeletons
 from rendering import Framing, Style, get_style, list_styles, register_style
 from tests.conftest import ROOT, make_motion
 

@@ -5,7 +5,7 @@ repetition ``rep`` of prompt ``k``; 20 fps."""
 
 import numpy as np
 
-from tests.generation.body_model_files import rest_joints
+from tests.motion.body_model_files import rest_joints
 
 
 def moving_body(frames: int, seed: int) -> np.ndarray:

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from generation import perturb
+from motion import perturb
 from rendering import Framing, render_set
 from rendering.player import write_payloads
 from tests.rendering.conftest import make_figure

@@ -114,7 +114,7 @@ def test_analyze_reports_the_audit(leaky_clips, media_root, make_bot, tmp_path):
 @pytest.mark.django_db(transaction=True)
 def test_the_demo_passes_the_deep_audit_and_shaken_catch_clips_fail_it(
         media_root, live_server, tmp_path, monkeypatch):
-    from generation import perturb
+    from motion import perturb
     from studyapp.survey.management.commands.demo import DEMO_CONFIGS
     from studyapp.survey.stimulus_build import build_stimuli
     from studyapp.survey.stimulus_config import load_config

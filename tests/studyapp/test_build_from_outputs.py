@@ -58,8 +58,8 @@ def test_a_selection_the_file_lacks_names_what_it_has(tmp_path):
 
 
 def test_samples_of_a_file_that_does_not_number_them_are_refused(tmp_path):
-    from generation.formats import npz
-    from generation.formats.mdm import load as load_mdm
+    from motion.formats import npz
+    from motion.formats.mdm import load as load_mdm
 
     write_mdm_results(tmp_path / "a.npy", PROMPTS, repetitions=1, seed=1)
     motions = [m.with_joints(m.joints, meta={}) for m in load_mdm(tmp_path / "a.npy")]

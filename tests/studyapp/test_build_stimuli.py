@@ -6,15 +6,15 @@ import numpy as np
 import pytest
 import yaml
 
-from generation.datasets import get_dataset
-from generation.formats import npz
+from motion.datasets import get_dataset
+from motion.formats import npz
 from generation.sampling import sample_real
 from studyapp.survey.models import Study
 from studyapp.survey.stimulus_build import BuildError, build_stimuli
 from studyapp.survey.stimulus_config import ConfigError, load_config, parse
 
 ROOT = Path(__file__).resolve().parents[2]
-BVH = ROOT / "tests" / "generation" / "data" / "cmu_walk.bvh"
+BVH = ROOT / "tests" / "motion" / "data" / "cmu_walk.bvh"
 SMALL = ["--set", "dataset=demo"]
 
 

@@ -10,7 +10,7 @@ import pytest
 from django.core.management import call_command
 from django.core.management.base import CommandError
 
-from generation.formats import bvh, npz
+from motion.formats import bvh, npz
 from studyapp.survey.models import Study
 from tests.studyapp.test_build_stimuli import small, write
 

@@ -77,7 +77,7 @@ def test_the_versions_kept_match_the_judged_clips_payload_numbers(built):
     nearest their base would."""
     import numpy as np
 
-    from generation import perturb
+    from motion import perturb
     from studyapp.survey.catch_clips import _numbers, keep_like
 
     config, _, tmp_path = built

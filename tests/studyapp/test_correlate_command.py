@@ -10,7 +10,7 @@ import pytest
 from django.core.management import call_command
 from django.core.management.base import CommandError
 
-from generation.recognition import train_classifier
+from motion_metrics.recognition import train_classifier
 from studyapp.survey.models import Study
 from studyapp.survey.stimulus_build import build_stimuli
 from studyapp.survey.stimulus_config import parse

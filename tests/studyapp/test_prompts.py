@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 import yaml
 
-from generation.formats import npz
-from generation.motion import Motion
+from motion.formats import npz
+from motion.motion import Motion
 from studyapp.survey.stimulus_build import build_stimuli, motions_for_prompts
 from studyapp.survey.stimulus_config import ConfigError, load_config, parse, prompt_key
 from tests.studyapp.mdm_results import moving_body, write_mdm_results

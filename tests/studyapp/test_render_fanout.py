@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from generation import ops
-from generation.datasets import get_dataset
+from motion import ops
+from motion.datasets import get_dataset
 from generation.sampling import sample_real
 from rendering import Framing, get_style, render_clip, render_set
 from studyapp.survey.render_fanout import LEASE_PREFIX, FanOutError, fan_out
@@ -54,7 +54,7 @@ def test_a_build_run_again_takes_what_the_workers_drew_and_a_redelivery_draws_no
         tmp_path, settings):
     import redis
 
-    from generation.formats import npz
+    from motion.formats import npz
     from studyapp.survey.render_fanout import FANOUT, lease_name, render_one
 
     broker = f"redis://127.0.0.1:6379/{7 + os.getpid() % 8}"

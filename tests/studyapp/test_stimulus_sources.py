@@ -8,11 +8,11 @@ import pytest
 import torch
 from django.core.management import call_command
 
-from generation.datasets import get_dataset
+from motion.datasets import get_dataset
 from generation.methods import load_checkpoint
 from generation.methods.budget import train_within_budget
-from generation.recognition import Split, one_thread
-from motion_metrics.benchmark import H36M_TEST, H36M_TRAIN, recipe_for
+from motion_metrics.recognition import Split, one_thread
+from motion_metrics.comparison import H36M_TEST, H36M_TRAIN, recipe_for
 from studyapp.survey.export import responses_frame
 from studyapp.survey.stimulus_build import Build, build_stimuli
 from studyapp.survey.stimulus_config import ConfigError, parse
@@ -131,7 +131,7 @@ def test_the_report_shows_the_checkpoints_beside_the_human_scores(tmp_path, medi
 
 def test_a_build_trains_the_checkpoint_benchmark_methods_trains(tmp_path, h36m_root):
     """The same method, preset, schedule, budget, seed and training subjects give the same
-    weights in a build as in benchmark_methods (one training loop)."""
+    weights in a build as in compare_methods (one training loop)."""
     raw = config(dataset="h36m2d", data_root=str(h36m_root), actions=None, frames=None,
                  subjects=list(H36M_TRAIN), sources=["skeleton_gan"],
                  train={"iters": 4, "preset": "tiny", "schedule": "benchmark", "seeds": [1]})

@@ -1,7 +1,7 @@
 """Tampered motion and body-model files through every way in: nothing in them runs.
 
 Each file's pickle would call ``os.system("touch MARKER")`` under Python's unpickler
-(``tests/generation/test_safe_load.py`` shows it does). Here each goes through
+(``tests/motion/test_safe_load.py`` shows it does). Here each goes through
 ``import_motions`` (every format that reads pickles, and body models), ``build_stimuli``
 with a ``file:`` source, and a build job as staff start it from the admin; each is
 refused with an error naming the file and the refused ``posix.system``, the marker never
@@ -17,10 +17,10 @@ import yaml
 from django.core.management import call_command
 from django.core.management.base import CommandError
 
-from generation.formats import npz
-from tests.generation import untrusted_files as untrusted
-from tests.generation.body_model_files import write_smpl, write_smplh
-from tests.generation.test_formats_smpl import rot6d_motion
+from motion.formats import npz
+from tests.motion import untrusted_files as untrusted
+from tests.motion.body_model_files import write_smpl, write_smplh
+from tests.motion.test_formats_smpl import rot6d_motion
 from tests.studyapp.mdm_results import write_mdm_results
 
 
@@ -42,7 +42,7 @@ def good_motioncritic(path):
 
 
 def good_actor(path, models):
-    from generation.body_models import load_body_model
+    from motion.body_models import load_body_model
 
     _, surface = load_body_model("smpl", "neutral", models).forward(np.zeros((4, 3)),
                                                                     np.zeros((4, 69)))
@@ -91,7 +91,7 @@ def assert_refused(message: str, tampered, marker):
 
 @pytest.mark.parametrize("case", CASES)
 def test_import_motions_refuses_tampered_files_of_every_format(tmp_path, case):
-    from generation.body_models import _cached
+    from motion.body_models import _cached
 
     _cached.cache_clear()  # a model of the same path read by an earlier test
     fmt, make = CASES[case]
@@ -141,7 +141,7 @@ SOURCES = {
 @pytest.mark.django_db
 @pytest.mark.parametrize("case", SOURCES)
 def test_build_stimuli_refuses_a_tampered_file_source(tmp_path, media_root, case):
-    from generation.body_models import _cached
+    from motion.body_models import _cached
 
     _cached.cache_clear()
     marker = tmp_path / "ran"

@@ -3,7 +3,7 @@
 Each trial shows one action's clips, one per source by default, and two more among them,
 shuffled in like the others and never named: a hidden reference (a real clip, role
 ``reference``) and a low anchor (a clearly degraded real clip, role ``anchor``, made by
-:func:`generation.perturb.low_anchor`). Both are judged items and exported as rows with
+:func:`motion.perturb.low_anchor`). Both are judged items and exported as rows with
 their ``stimulus_role``. A slider has no score until it is moved (its number box stays
 empty), and the server requires a score of every clip: an untouched slider cannot be
 sent.

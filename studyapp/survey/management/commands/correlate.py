@@ -121,7 +121,7 @@ class Command(BaseCommand):
     def _classifier(self, path, dataset):
         if not path:
             return None
-        from generation.recognition import ActionClassifier, ClassifierError
+        from motion_metrics.recognition import ActionClassifier, ClassifierError
 
         fix = (f"train one: manage.py train_classifier --dataset {dataset} --frames T --out {path} "
                f"(T: the study's clip length in frames), or leave --classifier out to skip fid, "

@@ -5,7 +5,7 @@ from pathlib import Path
 
 from django.core.management.base import BaseCommand, CommandError
 
-from generation.datasets import DatasetError, get_dataset, list_datasets
+from motion.datasets import DatasetError, get_dataset, list_datasets
 
 
 class Command(BaseCommand):

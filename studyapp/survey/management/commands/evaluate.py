@@ -4,11 +4,11 @@ from pathlib import Path
 
 from django.core.management.base import BaseCommand, CommandError
 
-from generation.datasets import DatasetError, get_dataset
-from generation.formats import npz
+from motion.datasets import DatasetError, get_dataset
+from motion.formats import npz
 from generation.methods import CheckpointError, load_checkpoint
-from generation.motion import MotionError
-from generation.recognition import ActionClassifier, ClassifierError
+from motion.motion import MotionError
+from motion_metrics.recognition import ActionClassifier, ClassifierError
 from generation.sampling import split_names
 from motion_metrics.evaluate import (
     LOWER_IS_BETTER, METRICS, PROTOCOLS, EvaluationError, evaluate, evaluate_model, read_extras,

@@ -2,10 +2,10 @@ from pathlib import Path
 
 from django.core.management.base import BaseCommand, CommandError
 
-from generation.body_models import ENV_VAR
-from generation.formats import FormatError, format_options, list_formats, load_motions, npz
-from generation.formats.bvh import UNITS
-from generation.motion import MotionError
+from motion.body_models import ENV_VAR
+from motion.formats import FormatError, format_options, list_formats, load_motions, npz
+from motion.formats.bvh import UNITS
+from motion.motion import MotionError
 
 # Command-line flags that become format options, and the option each one becomes.
 FORMAT_FLAGS = {

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from django.core.management.base import BaseCommand, CommandError
 
-from generation.formats import npz
+from motion.formats import npz
 from rendering import FORMATS, list_styles, render_grid, render_set
 
 GRID_WARNING = 36  # more cells than this make a grid too small to read

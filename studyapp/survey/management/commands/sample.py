@@ -1,11 +1,11 @@
 import numpy as np
 from django.core.management.base import BaseCommand, CommandError
 
-from generation.datasets import DatasetError, get_dataset
-from generation.formats import npz
+from motion.datasets import DatasetError, get_dataset
+from motion.formats import npz
 from generation.methods import CheckpointError, MethodError, get_method, list_methods
 from generation.sampling import SamplingError, choose, sample_method, sample_real
-from generation.skeletons import get_skeleton
+from motion.skeletons import get_skeleton
 
 REAL = "real"
 

@@ -1,6 +1,6 @@
 from django.core.management.base import BaseCommand, CommandError
 
-from generation.datasets import DatasetError
+from motion.datasets import DatasetError
 from generation.methods import CheckpointError, MethodError, list_methods
 from generation.methods.schedule import SCHEDULES
 from generation.methods.training import train_on_dataset
@@ -27,7 +27,7 @@ class Command(BaseCommand):
                             help="How a first training phase (the GAN baselines' pretraining, "
                                  "ODMO's teacher forcing) meets --iters: full keeps the preset's "
                                  "phase and refuses fewer iterations; benchmark shortens it to its "
-                                 "share of --iters, as benchmark_methods trains.")
+                                 "share of --iters, as compare_methods trains.")
         parser.add_argument("--seed", type=int, default=0, help="Seed of initialisation and batches.")
         parser.add_argument("--frames", type=int, help="Clip length (default: the dataset's).")
         parser.add_argument("--fps", type=float, help="Frame rate (default: the dataset's).")

@@ -1,7 +1,7 @@
 from django.core.management.base import BaseCommand, CommandError
 
-from generation.datasets import DatasetError
-from generation.recognition import (
+from motion.datasets import DatasetError
+from motion_metrics.recognition import (
     EVAL_EVERY,
     PATIENCE,
     VALIDATION_FRACTION,
