@@ -1,7 +1,7 @@
 """Analysis of exported study responses: tables in, statistics and figures out.
 
 This package never imports Django; it works on the response table that
-``studyapp.survey.export`` writes (see :mod:`analysis.tables`):
+``studyapp.results.export`` writes (see :mod:`analysis.tables`):
 
     from analysis.study import AnalysisConfig, analyse
     from analysis.report import write_report

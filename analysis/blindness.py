@@ -35,7 +35,7 @@ between the two, so a chance result of one delivery's draws fails only when the 
 repeats it (about ``ALPHA`` squared), while a real leak, which follows the clip, shows in
 both.
 
-Plain Python and NumPy: the Django side (``studyapp.survey.audit``) fetches the clips.
+Plain Python and NumPy: the Django side (``studyapp.results.audit``) fetches the clips.
 """
 
 from __future__ import annotations

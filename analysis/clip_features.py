@@ -18,7 +18,7 @@ H.264 stream, the poster's image data, the payload's values): two deliveries of 
 share them whatever their bytes (:func:`same_content`), as a viewer recognises the clip.
 
 Plain Python and NumPy (and the file layouts of :mod:`rendering`); the Django side
-(``studyapp.survey.audit``) fetches the files.
+(``studyapp.results.audit``) fetches the files.
 """
 
 from __future__ import annotations

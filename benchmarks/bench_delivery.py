@@ -52,7 +52,7 @@ def measure(size: int, rounds: int) -> dict:
 
     django.setup()
     from rendering.delivery import deliver
-    from studyapp.survey.media import delivery_seed
+    from studyapp.stimuli.media import delivery_seed
 
     with tempfile.TemporaryDirectory() as folder:
         stored = clips(size, Path(folder))

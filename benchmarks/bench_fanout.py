@@ -84,13 +84,13 @@ def stop(workers) -> None:
 
 
 def key_of(motion, settings) -> str:
-    from studyapp.survey.stimulus_build import digest
+    from studyapp.stimuli.build import digest
 
     return digest({"motion": motion.content_hash(), **settings})
 
 
 def one_round(n_workers, motions, framing, args, env, scratch, app) -> dict:
-    from studyapp.survey.render_fanout import fan_out
+    from studyapp.stimuli.render_fanout import fan_out
 
     settings = {"style": "mesh", "size": args.size}
     workers = start_workers(n_workers, env, scratch)

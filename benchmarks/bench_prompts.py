@@ -92,8 +92,8 @@ def run(args, work: Path) -> None:
 
     django.setup()
     call_command("migrate", verbosity=0)
-    from studyapp.survey.stimulus_build import build_stimuli
-    from studyapp.survey.stimulus_config import load_config
+    from studyapp.stimuli.build import build_stimuli
+    from studyapp.stimuli.config import load_config
 
     prompts = [f"a person walks forward, turns and waves {k + 1} times" for k in range(args.prompts)]
     files = []

@@ -268,7 +268,7 @@ def make_study(slug: str, media_root: Path, actions=("walk", "wave", "jump"),
     from django.conf import settings
 
     from studyapp.survey.models import Study
-    from studyapp.survey.stimuli import Clip, register_clips
+    from studyapp.stimuli.clips import Clip, register_clips
     from tests.studyapp.conftest import FPS, FRAMES, write_clip
 
     settings.MEDIA_ROOT = media_root

@@ -58,6 +58,12 @@ INSTALLED_APPS = [
     "django.contrib.messages",
     "django.contrib.staticfiles",
     "studyapp.survey",
+    # Rooms of one concern beside the study itself (each brings its own commands):
+    "studyapp.participation",
+    "studyapp.stimuli",
+    "studyapp.crowd",
+    "studyapp.results",
+    "studyapp.offline",
 ]
 
 MIDDLEWARE = [
@@ -70,7 +76,7 @@ MIDDLEWARE = [
     "django.contrib.auth.middleware.AuthenticationMiddleware",
     "django.contrib.messages.middleware.MessageMiddleware",
     "django.middleware.clickjacking.XFrameOptionsMiddleware",
-    "studyapp.survey.ratelimit.EntryRateLimitMiddleware",
+    "studyapp.participation.ratelimit.EntryRateLimitMiddleware",
 ]
 
 # New participants per IP address (entry link and consent); generous for shared NATs.

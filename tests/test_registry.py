@@ -17,9 +17,9 @@ REGISTRIES = [
     ("motion_metrics.evaluate", "PROTOCOLS"),
     ("motion_metrics.protocol", "MMD_PROTOCOLS"),
     ("studyapp.survey.study_types.base", "registry"),
-    ("studyapp.survey.crowd", "registry"),
+    ("studyapp.crowd.platform", "registry"),
     ("studyapp.survey.tasks", "JOBS"),
-    ("studyapp.survey.bots", "POLICIES"),
+    ("studyapp.participation.bots", "POLICIES"),
 ]
 
 

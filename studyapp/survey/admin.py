@@ -129,7 +129,9 @@ class StudyAdmin(admin.ModelAdmin):
     def get_urls(self):
         from django.urls import path
 
-        from studyapp.survey import plan_page, results
+        from studyapp.results import plan_page
+
+        from studyapp.results import analysis_page as results
 
         own = [
             path("<int:pk>/plan/", self.admin_site.admin_view(

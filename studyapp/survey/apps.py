@@ -9,10 +9,11 @@ class SurveyConfig(AppConfig):
     def ready(self):
         from django.contrib.auth.signals import user_login_failed
 
-        from studyapp.survey.ratelimit import count_failed_login
+        from studyapp.participation.ratelimit import count_failed_login
 
         user_login_failed.connect(count_failed_login, dispatch_uid="survey-login-limit")
-        from studyapp.survey import render_fanout, tasks
+        from studyapp.survey import tasks
+        from studyapp.stimuli import render_fanout
 
         tasks.queue = _celery_queue
         render_fanout.queue = _celery_queue

@@ -24,8 +24,8 @@ from django.db.models.functions import Coalesce
 from django.urls import reverse
 from django.utils import timezone
 
-from studyapp.survey.crowd import outcomes_of, platform_of
-from studyapp.survey.duration import Duration, fixed_seconds, study_duration
+from studyapp.crowd.platform import outcomes_of, platform_of
+from studyapp.participation.duration import Duration, fixed_seconds, study_duration
 from studyapp.survey.study_type_registry import STUDY_TYPES
 
 
@@ -190,7 +190,7 @@ class Study(models.Model):
 
     @property
     def platform(self):
-        """Return this study's crowd platform adapter (:mod:`studyapp.survey.crowd`)."""
+        """Return this study's crowd platform adapter (:mod:`studyapp.crowd.platform`)."""
         return platform_of(self)
 
     def clean(self):
@@ -242,7 +242,7 @@ class Study(models.Model):
     def duration(self) -> Duration:
         """Return how long a session takes: estimated from the study's trials and clips,
         and measured (the median of completed participants' sessions) once there are
-        enough of them (:mod:`studyapp.survey.duration`)."""
+        enough of them (:mod:`studyapp.participation.duration`)."""
         if self.pk is None:
             return Duration(fixed_seconds(self.ask_demographics))
         rows = (Participant.objects.filter(study=self, outcome=Participant.Outcome.COMPLETED)
@@ -620,7 +620,7 @@ class TrialManager(models.Manager):
             trial.shown_at = now
 
     def record_answer(self, trial: "Trial", answer, items) -> bool:
-        """Store a checked answer (:class:`~studyapp.survey.answers.Answer`) of a trial once.
+        """Store a checked answer (:class:`~studyapp.participation.answers.Answer`) of a trial once.
 
         A practice trial keeps only its plays and events: its answer is no judgement. A
         catch, instructed or repeated trial is graded by the study type into

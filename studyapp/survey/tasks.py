@@ -62,9 +62,9 @@ def _in_thread(kind, params):
 @register_job("register_stimuli")
 def register_stimuli(study: str, clips: list[dict]) -> list[int]:
     """Register rendered clips with study ``study`` (slug); each clip is the fields of a
-    :class:`~studyapp.survey.stimuli.Clip` (JSON: paths as text)."""
+    :class:`~studyapp.stimuli.clips.Clip` (JSON: paths as text)."""
     from studyapp.survey.models import Study
-    from studyapp.survey.stimuli import Clip, register_clips
+    from studyapp.stimuli.clips import Clip, register_clips
 
     made = [Clip(**clip) for clip in clips]
     return [s.pk for s in register_clips(Study.objects.get(slug=study), made)]
@@ -73,7 +73,7 @@ def register_stimuli(study: str, clips: list[dict]) -> list[int]:
 @register_job("render_clip")
 def render_clip(folder: str, key: str, style: str, size, framing: dict) -> dict:
     """Render one clip of a fanned-out build (queue ``render``, see ``survey.render_fanout``)."""
-    from studyapp.survey.render_fanout import render_one
+    from studyapp.stimuli.render_fanout import render_one
 
     return render_one(folder, key, style, size, framing)
 
@@ -99,7 +99,7 @@ def build_stimuli_job(job: int) -> int | None:
     """
     from django.utils import timezone
 
-    from studyapp.survey.build_jobs import run_build
+    from studyapp.stimuli.build_jobs import run_build
     from studyapp.survey.models import BuildJob
 
     jobs = BuildJob.objects.filter(pk=job)

@@ -7,7 +7,11 @@ from django.shortcuts import get_object_or_404
 from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_http_methods, require_safe
 
-from studyapp.survey import flow, media, preview
+from studyapp.participation import flow
+
+from studyapp.stimuli import media
+
+from studyapp.participation import preview
 from studyapp.survey.models import Stimulus, Study, TrialItem
 
 CONTENT_TYPES = {"mp4": "video/mp4", "png": "image/png", "motion": "application/octet-stream"}

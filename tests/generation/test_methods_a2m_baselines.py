@@ -8,7 +8,7 @@ from motion.datasets import get_dataset
 from generation.methods import MethodError, get_method
 from generation.methods.gan_common import gradient_penalty, random_frames
 from motion.skeletons import get_skeleton
-from tests.motion.test_methods import ACTIONS, FRAMES, build, joints_of, planar_motions
+from tests.generation.test_methods import ACTIONS, FRAMES, build, joints_of, planar_motions
 
 torch.set_num_threads(1)
 

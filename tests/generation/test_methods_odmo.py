@@ -9,7 +9,7 @@ from motion.datasets import get_dataset
 from motion.formats import npz
 from generation.methods import MethodError, get_method
 from generation.methods.odmo_modes import choose_components, discover_modes, fit_gmm, silhouette
-from tests.motion.test_methods import planar_motions
+from tests.generation.test_methods import planar_motions
 
 torch.set_num_threads(1)
 

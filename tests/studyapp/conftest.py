@@ -100,7 +100,7 @@ def _fresh_rate_limits():
 @pytest.fixture(scope="session")
 def clips(tmp_path_factory) -> list:
     """Return 2 actions x 3 sources of real, distinct, playable clips (written once)."""
-    from studyapp.survey.stimuli import Clip
+    from studyapp.stimuli.clips import Clip
 
     root = tmp_path_factory.mktemp("clips")
     rng = np.random.default_rng(0)
@@ -121,7 +121,7 @@ def extra_clips(tmp_path_factory) -> list:
     """Return, per action, clips of every extra role a study type may ask for: a
     reference, five scoring-standard examples, a catch clip and a low anchor; and five
     practice clips of the first action (as many as a MUSHRA trial of 3 sources shows)."""
-    from studyapp.survey.stimuli import Clip
+    from studyapp.stimuli.clips import Clip
 
     root = tmp_path_factory.mktemp("extra-clips")
     rng = np.random.default_rng(1)
@@ -151,7 +151,7 @@ def make_study(study_type, clips, extra_clips=(), slug=None, catch=False, **fiel
     The type finishes the study as a build would (``after_register``).
     """
     from studyapp.survey.models import Study
-    from studyapp.survey.stimuli import register_clips
+    from studyapp.stimuli.clips import register_clips
     from studyapp.survey.study_types import get_study_type
 
     kind = get_study_type(study_type)
@@ -234,7 +234,7 @@ class Bot:
     def participant(self):
         from studyapp.survey.models import Participant
 
-        from studyapp.survey.flow import cookie_name, token_from_cookie
+        from studyapp.participation.flow import cookie_name, token_from_cookie
 
         token = token_from_cookie(self.client.cookies[cookie_name(self.study)].value)
         return Participant.objects.get(token=token)

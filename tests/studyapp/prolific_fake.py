@@ -1,7 +1,7 @@
 """A local stand-in for Prolific's REST API, for the tests of ``manage.py prolific``.
 
 It implements the endpoints the command uses as Prolific's API reference documents them
-(docs.prolific.com, read in December 2026; see studyapp/survey/prolific/client.py):
+(docs.prolific.com, read in December 2026; see studyapp/crowd/prolific/client.py):
 paths, request bodies, validation, status codes, response shapes, pagination by
 ``_links.next.href`` and errors (401 without the right ``Authorization: Token``, 404 for
 unknown ids, 400 with ``{"error": {"detail": ...}}``, 429 with ``Retry-After`` on the

@@ -34,7 +34,7 @@ def motions(catch_per_action: int = 2) -> list:
 
 def render_clips(root: Path, catch_per_action: int = 2) -> list:
     """Render :func:`motions` into ``root``; return their ``Clip`` records (payloads too)."""
-    from studyapp.survey.stimuli import Clip
+    from studyapp.stimuli.clips import Clip
 
     shown = motions(catch_per_action)
     framing = Framing.from_motions(shown)

@@ -19,8 +19,8 @@ import pytest
 
 from rendering.player import read
 from studyapp.survey.models import Stimulus, Study, Trial
-from studyapp.survey.stimulus_build import build_stimuli
-from studyapp.survey.stimulus_config import load_config
+from studyapp.stimuli.build import build_stimuli
+from studyapp.stimuli.config import load_config
 
 pytestmark = pytest.mark.django_db
 STUDY_ID = "60aaca280709ee40ec37d488"

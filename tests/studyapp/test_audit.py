@@ -10,9 +10,9 @@ import pytest
 from django.core.management import call_command
 from django.core.management.base import CommandError
 
-from studyapp.survey import media
+from studyapp.stimuli import media
 from studyapp.survey.models import Participant, Trial, TrialItem
-from studyapp.survey.stimuli import Clip
+from studyapp.stimuli.clips import Clip
 from tests.studyapp.conftest import FPS, FRAMES, make_study, write_clip, write_poster
 from tests.studyapp.rendered_clips import render_clips
 
@@ -115,9 +115,9 @@ def test_analyze_reports_the_audit(leaky_clips, media_root, make_bot, tmp_path):
 def test_the_demo_passes_the_deep_audit_and_shaken_catch_clips_fail_it(
         media_root, live_server, tmp_path, monkeypatch):
     from motion import perturb
-    from studyapp.survey.management.commands.demo import DEMO_CONFIGS
-    from studyapp.survey.stimulus_build import build_stimuli
-    from studyapp.survey.stimulus_config import load_config
+    from studyapp.stimuli.management.commands.demo import DEMO_CONFIGS
+    from studyapp.stimuli.build import build_stimuli
+    from studyapp.stimuli.config import load_config
 
     # The demo's ranking study, every action, small, played in the page: 48 judged clips
     # and 48 catch clips (two broken versions of a clip of each source, per action).

@@ -3,7 +3,7 @@ exported."""
 
 import pytest
 
-from studyapp.survey.export import responses_frame
+from studyapp.results.export import responses_frame
 from studyapp.survey.models import Study, Trial
 from studyapp.survey.study_types import get_study_type
 from tests.studyapp.conftest import SOURCES, make_stimuli, make_study

@@ -6,10 +6,10 @@ without WebGL 2 the same page plays the mp4s."""
 import pytest
 from playwright.sync_api import expect
 
-from studyapp.survey.management.commands.demo import DEMO_CONFIGS
+from studyapp.stimuli.management.commands.demo import DEMO_CONFIGS
 from studyapp.survey.models import Participant, TrialItem
-from studyapp.survey.stimulus_build import build_stimuli
-from studyapp.survey.stimulus_config import load_config
+from studyapp.stimuli.build import build_stimuli
+from studyapp.stimuli.config import load_config
 from tests.studyapp.test_browser import ALL_WATCHED
 from tests.studyapp.test_motion_player import FIGURE_PIXELS
 

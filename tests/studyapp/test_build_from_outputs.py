@@ -11,8 +11,8 @@ import pytest
 from django.core.management import call_command
 from django.core.management.base import CommandError
 
-from studyapp.survey.stimulus_build import Build, build_stimuli
-from studyapp.survey.stimulus_config import ConfigError, load_config
+from studyapp.stimuli.build import Build, build_stimuli
+from studyapp.stimuli.config import ConfigError, load_config
 from tests.studyapp.mdm_results import write_mdm_results
 
 pytestmark = pytest.mark.django_db

@@ -10,8 +10,8 @@ from motion.datasets import get_dataset
 from motion.formats import npz
 from generation.sampling import sample_real
 from studyapp.survey.models import Study
-from studyapp.survey.stimulus_build import BuildError, build_stimuli
-from studyapp.survey.stimulus_config import ConfigError, load_config, parse
+from studyapp.stimuli.build import BuildError, build_stimuli
+from studyapp.stimuli.config import ConfigError, load_config, parse
 
 ROOT = Path(__file__).resolve().parents[2]
 BVH = ROOT / "tests" / "motion" / "data" / "cmu_walk.bvh"

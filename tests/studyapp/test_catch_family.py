@@ -7,9 +7,9 @@ from pathlib import Path
 import pytest
 
 from studyapp.survey.models import Stimulus, TrialItem
-from studyapp.survey.catch_clips import CATCH_PER_BASE, catch_bases, catch_clips
-from studyapp.survey.stimulus_build import Build, build_stimuli
-from studyapp.survey.stimulus_config import load_config
+from studyapp.stimuli.catch_clips import CATCH_PER_BASE, catch_bases, catch_clips
+from studyapp.stimuli.build import Build, build_stimuli
+from studyapp.stimuli.config import load_config
 
 ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "studies" / "demo" / "ranking.yaml"
@@ -78,7 +78,7 @@ def test_the_versions_kept_match_the_judged_clips_payload_numbers(built):
     import numpy as np
 
     from motion import perturb
-    from studyapp.survey.catch_clips import _numbers, keep_like
+    from studyapp.stimuli.catch_clips import _numbers, keep_like
 
     config, _, tmp_path = built
     build = Build(config, tmp_path / "b", cache=tmp_path / "cache")

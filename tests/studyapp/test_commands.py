@@ -8,8 +8,8 @@ from django.core.management import call_command
 from django.core.management.base import CommandError
 
 from analysis.registry import get_analysis
-from studyapp.survey import bots
-from studyapp.survey.export import participants_frame, responses_frame
+from studyapp.participation import bots
+from studyapp.results.export import participants_frame, responses_frame
 from studyapp.survey.models import Participant, Study, TrialItem
 from studyapp.survey.study_types import list_study_types
 from tests.studyapp.conftest import make_study

@@ -12,8 +12,8 @@ from django.core.management.base import CommandError
 
 from motion_metrics.recognition import train_classifier
 from studyapp.survey.models import Study
-from studyapp.survey.stimulus_build import build_stimuli
-from studyapp.survey.stimulus_config import parse
+from studyapp.stimuli.build import build_stimuli
+from studyapp.stimuli.config import parse
 from tests.conftest import ROOT
 
 CHECKPOINTS = ROOT / "studies" / "demo" / "checkpoints"

@@ -7,9 +7,9 @@ import pytest
 from django.core.management import call_command
 
 from analysis.study import AnalysisConfig, analyse_all
-from studyapp.survey.export import responses_frame
+from studyapp.results.export import responses_frame
 from studyapp.survey.models import Trial
-from studyapp.survey.stimulus_config import ConfigError, parse
+from studyapp.stimuli.config import ConfigError, parse
 from studyapp.survey.study_types.base import check_criteria, criterion_of
 from tests.studyapp.conftest import make_study
 from tests.studyapp.test_build_stimuli import small
@@ -92,7 +92,7 @@ def test_a_config_with_two_criteria_is_read_for_every_type(tmp_path, study_type)
 @pytest.mark.parametrize("study_type", ["ranking", "rating_reference", "pairwise"])
 def test_a_two_criterion_config_builds_a_study_asking_both(tmp_path, media_root, study_type,
                                                            make_bot):
-    from studyapp.survey.stimulus_build import build_stimuli
+    from studyapp.stimuli.build import build_stimuli
 
     raw = small(slug=f"two-{study_type.replace('_', '-')}", sources=["real", "cond_gru"],
                 study={"type": study_type, "criteria": CRITERIA})
@@ -200,7 +200,7 @@ def test_each_question_is_analysed_and_reported_on_its_own(
 @pytest.mark.django_db(transaction=True)
 def test_the_admin_shows_the_report_of_each_question(
         media_root, clips, extra_clips, make_bot, admin_client, settings, tmp_path):
-    from studyapp.survey.results import report_folder
+    from studyapp.results.analysis_page import report_folder
 
     settings.VAR_DIR = tmp_path
     study = two_questions("rating_standards", clips, extra_clips, trials_per_participant=1)

@@ -13,8 +13,8 @@ from django.core.management import call_command
 from django.core.management.base import CommandError
 from django.utils import timezone
 
-from studyapp.survey.crowd import make_platform
-from studyapp.survey.export import participants_frame, responses_frame
+from studyapp.crowd.platform import make_platform
+from studyapp.results.export import participants_frame, responses_frame
 from studyapp.survey.models import Participant, Study, Trial, TrialItem
 from tests.studyapp.conftest import SOURCES, make_stimuli, make_study
 
@@ -230,7 +230,7 @@ def test_every_participant_sees_the_real_share_and_stimuli_stay_balanced(media_r
 def test_the_base_platform_knows_no_platform_and_each_platform_its_own_settings():
     import inspect
 
-    from studyapp.survey import crowd
+    from studyapp.crowd import platform as crowd
 
     base = inspect.getsource(crowd.Platform)
     assert not re.search("prolific|PROLIFIC|SESSION_ID|STUDY_ID", base)

@@ -11,10 +11,10 @@ from django.core.exceptions import ValidationError
 from django.test import Client
 from django.utils import timezone
 
-from studyapp.survey.crowd import make_platform
-from studyapp.survey.platforms.prolific import prolific_minimum_time, prolific_time_limit
+from studyapp.crowd.platform import make_platform
+from studyapp.crowd.platforms.prolific import prolific_minimum_time, prolific_time_limit
 from studyapp.survey.models import FailedLogin, Participant, Stimulus, Study, Trial
-from studyapp.survey.stimulus_config import ConfigError, parse
+from studyapp.stimuli.config import ConfigError, parse
 from tests.studyapp.conftest import make_stimuli, make_study
 
 pytestmark = pytest.mark.django_db
@@ -231,7 +231,7 @@ def test_one_failed_check_is_forgiven_two_fail(media_root, clips, extra_clips, m
 def test_a_prolific_study_over_five_minutes_is_warned_about_too_few_checks(tmp_path,
                                                                           admin_client):
     # Before its build a config that leaves the trials to the data is estimated at 10
-    # trials of 3-second clips (studyapp.survey.duration): 8 minutes for ranking 6 clips.
+    # trials of 3-second clips (studyapp.participation.duration): 8 minutes for ranking 6 clips.
     config = small_config(tmp_path, catch_trials=1, instructed_checks=0, crowd=PROLIFIC)
     assert config.warnings == ["study: 1 attention check(s) in a study estimated at 8 minutes; "
                                "Prolific asks for at least 2 in a study over 5 minutes (set "

@@ -8,7 +8,7 @@ import logging
 import pytest
 
 from analysis.clip_features import content_keys, same_content
-from studyapp.survey import media
+from studyapp.stimuli import media
 from studyapp.survey.models import Stimulus, Trial, TrialItem
 from tests.studyapp.conftest import make_study
 from tests.studyapp.rendered_clips import render_clips
@@ -117,7 +117,7 @@ def test_a_file_the_transformation_cannot_read_is_sent_as_stored(clips, media_ro
     bot.trial_page(watch=False)
     item = bot.participant().current_trial().items.first()
     stored = open(media_root / item.stimulus.video, "rb").read()
-    with caplog.at_level(logging.WARNING, logger="studyapp.survey.media"):
+    with caplog.at_level(logging.WARNING, logger="studyapp.stimuli.media"):
         assert fetch(bot.client, item, "mp4")[1] == stored
     assert "is sent as stored, the same bytes for every delivery" in caplog.text
     poster = open(media_root / item.stimulus.poster, "rb").read()

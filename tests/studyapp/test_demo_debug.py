@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from studyapp.survey.management.commands.demo import is_loopback
+from studyapp.stimuli.management.commands.demo import is_loopback
 
 ROOT = Path(__file__).resolve().parents[2]
 SMALL = ["--only", "ranking", "--size", "64", "--actions", "walk", "--clips-per-source", "1"]

@@ -7,9 +7,9 @@ from datetime import timedelta
 import pytest
 from django.utils import timezone
 
-from studyapp.survey import duration
+from studyapp.participation import duration
 from studyapp.survey.models import Participant, Stimulus, Study
-from studyapp.survey.prolific.draft import DraftOptions, draft_payload
+from studyapp.crowd.prolific.draft import DraftOptions, draft_payload
 from studyapp.survey.study_types import list_study_types
 from tests.studyapp.conftest import make_stimuli
 

@@ -13,10 +13,10 @@ from django.core.management import call_command
 from playwright.sync_api import expect
 
 from rendering import list_styles
-from studyapp.survey.management.commands.demo import DEMO_CONFIGS, demo_configs
+from studyapp.stimuli.management.commands.demo import DEMO_CONFIGS, demo_configs
 from studyapp.survey.models import Participant, ScoringStandard, Stimulus, TrialItem
-from studyapp.survey.stimulus_build import build_stimuli
-from studyapp.survey.stimulus_config import load_config
+from studyapp.stimuli.build import build_stimuli
+from studyapp.stimuli.config import load_config
 from studyapp.survey.study_types import list_study_types
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow, pytest.mark.django_db(transaction=True)]

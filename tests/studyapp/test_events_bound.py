@@ -10,7 +10,7 @@ import os
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from studyapp.survey.answers import MAX_EVENTS_BYTES, nesting, parse_events
+from studyapp.participation.answers import MAX_EVENTS_BYTES, nesting, parse_events
 
 pytestmark = pytest.mark.django_db
 FUZZ = settings(max_examples=int(os.environ.get("STUDY_FUZZ_EXAMPLES", "50")), deadline=None,

@@ -8,7 +8,7 @@ from django.core.management import call_command
 from django.core.management.base import CommandError
 from django.utils import timezone
 
-from studyapp.survey.export import responses_frame
+from studyapp.results.export import responses_frame
 from studyapp.survey.models import Participant, Stimulus, Study, Trial, TrialItem
 
 SOURCES = ("real", "a2m", "cond_gru")

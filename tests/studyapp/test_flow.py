@@ -11,7 +11,7 @@ from django.contrib.staticfiles import finders
 from django.utils import timezone
 
 from studyapp.survey.models import Participant, Stimulus, Study, Trial, TrialItem
-from studyapp.survey.stimuli import Clip, register_clips
+from studyapp.stimuli.clips import Clip, register_clips
 from studyapp.survey.study_types import list_study_types
 from tests.studyapp.conftest import SOURCES, make_stimuli, words
 
@@ -428,7 +428,7 @@ def test_an_answer_and_the_next_trial_cost_ten_statements(ranking_study, make_bo
 def test_the_participant_cookie_is_signed_and_no_session_is_made(ranking_study, make_bot):
     from django.core import signing
 
-    from studyapp.survey.flow import COOKIE_SALT, cookie_name
+    from studyapp.participation.flow import COOKIE_SALT, cookie_name
 
     bot = make_bot(ranking_study)
     bot.join(PROLIFIC_PID="signed")

@@ -173,9 +173,9 @@ def test_stimulus_sources_and_media_are_not_readable(joined, ranking_study):
 def test_entry_rate_limit_per_ip(ranking_study, settings):
     from django.core.cache import cache
 
-    from studyapp.survey import ratelimit
+    from studyapp.participation import ratelimit
 
-    assert "studyapp.survey.ratelimit.EntryRateLimitMiddleware" in settings.MIDDLEWARE
+    assert "studyapp.participation.ratelimit.EntryRateLimitMiddleware" in settings.MIDDLEWARE
     settings.STUDY_ENTRY_RATE_LIMIT = "5/h"  # fixed windows: an hour is never crossed here
     cache.clear()
     statuses = [Client().get(f"/s/{ranking_study.slug}/", {"PROLIFIC_PID": f"p{i}"}).status_code
@@ -204,7 +204,7 @@ def test_the_rate_limit_fails_open_when_its_cache_is_down(ranking_study, setting
 def test_a_refusal_says_how_long_to_wait(ranking_study, settings):
     from django.core.cache import cache
 
-    from studyapp.survey import ratelimit
+    from studyapp.participation import ratelimit
 
     settings.STUDY_ENTRY_RATE_LIMIT = "1/h"
     cache.clear()
@@ -218,7 +218,7 @@ def test_a_refusal_says_how_long_to_wait(ranking_study, settings):
 
 
 def test_long_crowd_ids_still_fit_in_the_cookie(ranking_study):
-    from studyapp.survey.flow import cookie_name
+    from studyapp.participation.flow import cookie_name
     from studyapp.survey.models import Participant
 
     ids = {name: "\u00e9\u4e2d" * 60 for name in ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID",

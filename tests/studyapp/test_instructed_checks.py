@@ -10,8 +10,8 @@ from django.test import Client
 from django.utils.html import escape
 
 from analysis.study import AnalysisConfig, analyse_all
-from studyapp.survey.bots import TrialPage, contrary
-from studyapp.survey.export import participants_frame, responses_frame
+from studyapp.participation.bots import TrialPage, contrary
+from studyapp.results.export import participants_frame, responses_frame
 from studyapp.survey.models import Trial
 from studyapp.survey.study_types import list_study_types
 from tests.studyapp.conftest import make_study

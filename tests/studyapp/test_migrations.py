@@ -6,7 +6,7 @@ from django.db import connection
 from django.db.migrations.executor import MigrationExecutor
 from django.utils import timezone
 
-from studyapp.survey.export import participants_frame, responses_frame
+from studyapp.results.export import participants_frame, responses_frame
 
 OLD = [("survey", "0002_build_job")]
 

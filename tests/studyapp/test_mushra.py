@@ -9,7 +9,7 @@ from collections import Counter
 import pytest
 from django.core.management import call_command
 
-from studyapp.survey.export import responses_frame
+from studyapp.results.export import responses_frame
 from studyapp.survey.models import Trial
 from studyapp.survey.study_types import get_study_type
 from tests.studyapp.conftest import SOURCES, make_study

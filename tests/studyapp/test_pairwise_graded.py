@@ -6,8 +6,8 @@ import random
 
 import pytest
 
-from studyapp.survey.bots import BradleyTerry, TrialPage
-from studyapp.survey.export import responses_frame
+from studyapp.participation.bots import BradleyTerry, TrialPage
+from studyapp.results.export import responses_frame
 from studyapp.survey.models import Stimulus, Trial, TrialItem
 from studyapp.survey.study_types import get_study_type
 from studyapp.survey.study_types.base import Graded

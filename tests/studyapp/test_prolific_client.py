@@ -4,7 +4,7 @@ import socket
 
 import pytest
 
-from studyapp.survey.prolific.client import (
+from studyapp.crowd.prolific.client import (
     BadToken,
     Client,
     MissingToken,

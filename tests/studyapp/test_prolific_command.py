@@ -162,7 +162,7 @@ def test_create_mistakes_are_clear(fake, study, monkeypatch):
 
 
 def test_the_stored_prolific_id_is_checked():
-    from studyapp.survey.crowd import make_platform
+    from studyapp.crowd.platform import make_platform
 
     settings = {"platform": "prolific", "codes": {"completed": "C1"}}
     assert make_platform({**settings, "prolific_study_id": "60AACA280709EE40EC37D4885"[:24]})
@@ -376,7 +376,7 @@ def test_bonus_mistakes_pay_nothing(fake, study, paid_study, tmp_path):
 
 
 def test_review_decisions_follow_the_analysis_rules():
-    from studyapp.survey.prolific import review
+    from studyapp.crowd.prolific import review
 
     submission = {"id": "s1", "participant_id": "A" * 24, "status": "AWAITING REVIEW",
                   "study_code": "CCOPIED1"}
@@ -427,7 +427,7 @@ def test_the_readmes_crowd_examples_are_valid_settings():
 
     import yaml
 
-    from studyapp.survey.crowd import make_platform
+    from studyapp.crowd.platform import make_platform
     from tests.conftest import ROOT
 
     text = (ROOT / "README.md").read_text()

@@ -13,9 +13,9 @@ from io import StringIO
 import pytest
 from django.core.management import call_command
 
-from studyapp.survey import bots
+from studyapp.participation import bots
 from studyapp.survey.models import Participant
-from studyapp.survey.platforms.prolific import prolific_time_limit
+from studyapp.crowd.platforms.prolific import prolific_time_limit
 from tests.studyapp.conftest import SOURCES, make_study
 from tests.studyapp.prolific_fake import COMPLETE_URL, FakeProlific
 

@@ -9,8 +9,8 @@ import yaml
 
 from motion.formats import npz
 from motion.motion import Motion
-from studyapp.survey.stimulus_build import build_stimuli, motions_for_prompts
-from studyapp.survey.stimulus_config import ConfigError, load_config, parse, prompt_key
+from studyapp.stimuli.build import build_stimuli, motions_for_prompts
+from studyapp.stimuli.config import ConfigError, load_config, parse, prompt_key
 from tests.studyapp.mdm_results import moving_body, write_mdm_results
 
 ROOT = Path(__file__).resolve().parents[2]

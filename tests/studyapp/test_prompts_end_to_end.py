@@ -13,8 +13,8 @@ from django.core.management import call_command
 from playwright.sync_api import expect
 
 from studyapp.survey.models import Participant, Stimulus, Trial
-from studyapp.survey.stimulus_build import build_stimuli
-from studyapp.survey.stimulus_config import load_config
+from studyapp.stimuli.build import build_stimuli
+from studyapp.stimuli.config import load_config
 from tests.studyapp.mdm_results import write_mdm_results
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow, pytest.mark.django_db(transaction=True)]

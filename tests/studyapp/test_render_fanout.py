@@ -16,9 +16,9 @@ from motion import ops
 from motion.datasets import get_dataset
 from generation.sampling import sample_real
 from rendering import Framing, get_style, render_clip, render_set
-from studyapp.survey.render_fanout import LEASE_PREFIX, FanOutError, fan_out
-from studyapp.survey.stimulus_build import BuildError, build_stimuli, render_workers
-from studyapp.survey.stimulus_config import parse
+from studyapp.stimuli.render_fanout import LEASE_PREFIX, FanOutError, fan_out
+from studyapp.stimuli.build import BuildError, build_stimuli, render_workers
+from studyapp.stimuli.config import parse
 from tests.studyapp.test_build_stimuli import small
 from tests.studyapp.test_tasks import redis_up
 
@@ -55,7 +55,7 @@ def test_a_build_run_again_takes_what_the_workers_drew_and_a_redelivery_draws_no
     import redis
 
     from motion.formats import npz
-    from studyapp.survey.render_fanout import FANOUT, lease_name, render_one
+    from studyapp.stimuli.render_fanout import FANOUT, lease_name, render_one
 
     broker = f"redis://127.0.0.1:6379/{7 + os.getpid() % 8}"
     settings.STUDY_CELERY_BROKER = broker

@@ -13,10 +13,10 @@ from generation.methods import load_checkpoint
 from generation.methods.budget import train_within_budget
 from motion_metrics.recognition import Split, one_thread
 from motion_metrics.comparison import H36M_TEST, H36M_TRAIN, recipe_for
-from studyapp.survey.export import responses_frame
-from studyapp.survey.stimulus_build import Build, build_stimuli
-from studyapp.survey.stimulus_config import ConfigError, parse
-from studyapp.survey.stimulus_sources import sources_table
+from studyapp.results.export import responses_frame
+from studyapp.stimuli.build import Build, build_stimuli
+from studyapp.stimuli.config import ConfigError, parse
+from studyapp.stimuli.sources import sources_table
 
 ROOT = Path(__file__).resolve().parents[2]
 

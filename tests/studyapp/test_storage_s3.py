@@ -112,7 +112,7 @@ def test_clips_go_to_the_bucket_and_are_served_in_ranges(db, s3, clips, client, 
 
 
 def test_a_clip_is_uploaded_once(db, s3, clips, uploads):
-    from studyapp.survey.stimuli import register_clips
+    from studyapp.stimuli.clips import register_clips
 
     study = make_ranking_study(clips)
     assert len(uploads) == 2 * len(clips) and len(keys(s3)) == 2 * len(clips)
@@ -140,7 +140,7 @@ def first_exists_misses(monkeypatch, storage_class):
 
 def test_the_name_is_never_changed(db, s3, clips, uploads, monkeypatch):
     """A storage that renames (file_overwrite off) never leaves a suffixed copy."""
-    from studyapp.survey.stimuli import _store
+    from studyapp.stimuli.clips import _store
 
     monkeypatch.setattr(default_storage._wrapped, "file_overwrite", False)
     clip = clips[0]
@@ -179,7 +179,7 @@ def test_unknown_tokens_and_names_outside_stimuli_are_404(db, s3, clips, client)
 
 def test_fs_storage_keeps_the_name_and_leaves_no_temporary_files(db, media_root, clips,
                                                                  monkeypatch):
-    from studyapp.survey.stimuli import _store
+    from studyapp.stimuli.clips import _store
 
     assert isinstance(default_storage, FileSystemStorage)  # STORAGES restored after the S3 tests
     name = "1" * 64 + ".mp4"

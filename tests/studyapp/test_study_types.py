@@ -13,7 +13,7 @@ from django.contrib.staticfiles import finders
 from django.db import connection
 from django.test import Client
 
-from studyapp.survey.export import participants_frame, responses_frame
+from studyapp.results.export import participants_frame, responses_frame
 from studyapp.survey.models import Participant, Stimulus, Study, Trial, TrialItem
 from studyapp.survey.study_types import get_study_type, list_study_types
 from tests.studyapp.conftest import SOURCES, Bot, make_stimuli, make_study, words

@@ -33,8 +33,8 @@ import re
 from collections import Counter
 from dataclasses import dataclass, field
 
-from studyapp.survey import assignment
-from studyapp.survey.answers import Criterion
+from studyapp.participation import assignment
+from studyapp.participation.answers import Criterion
 from studyapp.survey.models import Stimulus, Trial, TrialItem
 from studyapp.survey.study_type_registry import STUDY_TYPES
 
@@ -121,7 +121,7 @@ class StudyType:
     scripts: tuple[str, ...] = ("survey/choices.js",)
     # Seconds to give one answer (per judged clip, or per trial for a type with a
     # ``trial_answer``) after the clips played: the estimate of a session's length
-    # (:mod:`studyapp.survey.duration`) adds it to the clips' playing time.
+    # (:mod:`studyapp.participation.duration`) adds it to the clips' playing time.
     answer_seconds = 4.0
     default_clips_per_trial = 6
     min_items = 2

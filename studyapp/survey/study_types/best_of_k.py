@@ -9,7 +9,7 @@ trial: the position of the chosen clip, or ``"all_good"`` / ``"all_bad"``.
 
 from django import forms
 
-from studyapp.survey.answers import Criterion
+from studyapp.participation.answers import Criterion
 from studyapp.survey.study_types.base import Option, StudyType, judged_at, registry
 
 ALL_GOOD, ALL_BAD = "all_good", "all_bad"

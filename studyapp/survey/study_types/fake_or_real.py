@@ -13,8 +13,8 @@ import math
 
 from django import forms
 
-from studyapp.survey import assignment
-from studyapp.survey.answers import Criterion
+from studyapp.participation import assignment
+from studyapp.participation.answers import Criterion
 from studyapp.survey.study_types.base import StudyType, TrialPlan, judged_at, registry
 
 REAL = "real"

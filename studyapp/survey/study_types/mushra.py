@@ -15,9 +15,9 @@ out of the analysis (``analysis/mushra.py``).
 
 from django import forms
 
-from studyapp.survey.answers import Criterion
+from studyapp.participation.answers import Criterion
 from studyapp.survey.models import Stimulus
-from studyapp.survey import assignment
+from studyapp.participation import assignment
 from studyapp.survey.study_types.base import (
     Option,
     StudyType,

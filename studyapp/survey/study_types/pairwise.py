@@ -8,7 +8,7 @@ right.
 
 from django import forms
 
-from studyapp.survey.answers import Criterion
+from studyapp.participation.answers import Criterion
 from studyapp.survey.study_types.base import Option, StudyType, registry
 
 SIDES = ("Left clip", "Right clip")

@@ -13,7 +13,7 @@ other, from +3 (much better) to -3 (much worse), blank for "Both bad".
 
 from django import forms
 
-from studyapp.survey.answers import Criterion
+from studyapp.participation.answers import Criterion
 from studyapp.survey.study_types.base import Option, StudyType, registry
 
 # (stored value, what the participant reads, grade of clip A)

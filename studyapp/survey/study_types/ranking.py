@@ -8,7 +8,7 @@ from collections import Counter
 
 from django import forms
 
-from studyapp.survey.answers import Criterion
+from studyapp.participation.answers import Criterion
 from studyapp.survey.study_types.base import StudyType, judged_at, registry
 
 # A repeated ranking is consistent when clips move by at most this many places on average.

@@ -7,7 +7,7 @@ template ``rating.html`` beside this module.
 
 from django import forms
 
-from studyapp.survey.answers import Criterion
+from studyapp.participation.answers import Criterion
 from studyapp.survey.study_types.base import StudyType, judged_at, scores_consistent
 
 SCALE = [

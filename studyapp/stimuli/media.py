@@ -1,0 +1,214 @@
+"""Serve a stimulus file with HTTP Range support and nothing that names it.
+
+Browsers fetch video in byte ranges (to seek and to read the moov atom); Django's
+FileResponse answers every request in full and adds a filename header, so clips are
+served here instead. No Last-Modified either: render times could differ by source.
+
+Files are read through Django's storage API (``default_storage``: the file system under
+``MEDIA_ROOT``, or S3-compatible object storage), never from a public storage URL.
+
+Every delivery has bytes of its own (:mod:`rendering.delivery`): the stored file is
+turned into this delivery's bytes by a seed that is an HMAC of the site's secret and the
+delivery's token (:func:`delivery_seed`), so the byte ranges of one delivery always agree
+and no two deliveries share a hash. A stored file the transformation cannot read (not
+laid out as the build writes mp4s) is sent as stored, and the blindness audit says so.
+"""
+
+import logging
+import re
+import struct
+
+from django.core.files.storage import default_storage
+from django.http import HttpResponse, HttpResponseNotModified, StreamingHttpResponse
+from django.utils.crypto import salted_hmac
+
+from rendering.delivery import deliver
+from rendering.padding import PaddingError
+from rendering.player import PayloadError
+
+logger = logging.getLogger(__name__)
+
+RANGE = re.compile(r"^bytes=(\d*)-(\d*)$")
+CHUNK = 64 * 1024
+FOLDER = "stimuli"
+SEED_SALT = "studyapp.stimuli.media.delivery"
+
+
+def delivery_seed(token: str) -> bytes:
+    """Return the seed of one delivery's bytes: an HMAC-SHA256 of the site's secret and
+    the delivery's token (unguessable without the secret, the same for every request)."""
+    return salted_hmac(SEED_SALT, token, algorithm="sha256").digest()
+
+
+def delivered_bytes(data: bytes, kind: str, seed: bytes, name: str = "") -> bytes:
+    """Return one delivery's bytes of the stored file ``data`` (the stored bytes when the
+    file is not one the transformation reads)."""
+    try:
+        out = deliver(data, kind, seed)
+        reason = "it has no padding to lay out anew (build it with build_stimuli)"
+    except (PaddingError, PayloadError, ValueError, IndexError, struct.error) as error:
+        out, reason = data, str(error)
+    if out == data:
+        logger.warning("%s is sent as stored, the same bytes for every delivery: %s",
+                       name or kind, reason)
+    return out
+
+
+def is_stimulus_name(name) -> bool:
+    """Whether ``name`` is a plain relative storage name under ``stimuli/``.
+
+    No absolute names, no ``..`` or ``.`` parts, no empty parts, no backslashes.
+    """
+    if not isinstance(name, str) or "\\" in name or "\x00" in name:
+        return False
+    parts = name.split("/")
+    return (
+        len(parts) >= 2
+        and parts[0] == FOLDER
+        and all(part not in ("", ".", "..") for part in parts)
+    )
+
+
+class _Span:
+    """``length`` bytes of an open storage file from ``start``; ``close`` closes the file.
+
+    A file of django-storages' S3 backend (it has the boto3 ``obj``) is read with a
+    ranged GET, so a seek in a long clip does not download all of it. ``on_sent`` is
+    called once the last byte was handed to the server (not when the client went away).
+    """
+
+    def __init__(self, f, start: int, length: int, on_sent=None):
+        self.f, self.start, self.length = f, start, length
+        self.body = None
+        self.on_sent = on_sent
+
+    def __iter__(self):
+        length = self.length
+        if length <= 0:
+            return
+        obj = getattr(self.f, "obj", None)
+        if obj is not None and hasattr(obj, "get"):
+            self.body = obj.get(Range=f"bytes={self.start}-{self.start + length - 1}")["Body"]
+            read = self.body.read
+        else:
+            self.f.seek(self.start)
+            read = self.f.read
+        while length > 0:
+            chunk = read(min(CHUNK, length))
+            if not chunk:
+                return
+            length -= len(chunk)
+            yield chunk
+        if self.on_sent is not None:
+            self.on_sent()
+
+    def close(self):
+        try:
+            if self.body is not None:
+                self.body.close()
+        finally:
+            self.f.close()
+
+
+class _Bytes:
+    """``length`` bytes of ``data`` from ``start``, in chunks; ``on_sent`` as for _Span."""
+
+    def __init__(self, data: bytes, start: int, length: int, on_sent=None):
+        self.data, self.start, self.length = data, start, length
+        self.on_sent = on_sent
+
+    def __iter__(self):
+        view = memoryview(self.data)[self.start:self.start + self.length]
+        for at in range(0, len(view), CHUNK):
+            yield bytes(view[at:at + CHUNK])
+        if self.length > 0 and self.on_sent is not None:
+            self.on_sent()
+
+
+def _read_all(f) -> bytes:
+    """Return a storage file's bytes (one GET of an S3 object, not its spooled copy)."""
+    obj = getattr(f, "obj", None)
+    if obj is not None and hasattr(obj, "get"):
+        body = obj.get()["Body"]
+        try:
+            return body.read()
+        finally:
+            body.close()
+    f.seek(0)
+    return f.read()
+
+
+def parse_range(header: str, size: int):
+    """Return ``(start, end)`` inclusive for a single byte range, None to send it all.
+
+    Raise ValueError when the range cannot be satisfied.
+    """
+    match = RANGE.match(header.strip())
+    if not match or match.groups() == ("", ""):
+        return None  # several ranges or a malformed header: the whole file is allowed
+    first, last = match.groups()
+    if first == "":
+        start, end = max(0, size - int(last)), size - 1
+    else:
+        start, end = int(first), min(int(last), size - 1) if last else size - 1
+    if start >= size or start > end:
+        raise ValueError(header)
+    return start, end
+
+
+def file_response(request, name: str, content_type: str, etag: str, on_sent=None,
+                  delivery: tuple[str, bytes] | None = None):
+    """Return the stored file ``name`` (or the requested byte range of it) as an
+    anonymous response; the response closes the file.
+
+    ``name`` must be a stimulus name under ``stimuli/``, opened through
+    ``default_storage``. Raise FileNotFoundError when it is not one, or nothing is
+    stored under it. ``on_sent(start, end, size)`` is called when the bytes ``start``
+    to ``end`` (inclusive) of a GET were all sent. ``delivery`` is ``(kind, seed)``:
+    send that delivery's bytes (:func:`delivered_bytes`, the same size) instead of the
+    stored ones.
+    """
+    if not is_stimulus_name(name):
+        raise FileNotFoundError(f"not a stimulus name: {name!r}")
+    f = default_storage.open(name, "rb")
+    try:
+        size = f.size
+    except BaseException:
+        f.close()
+        raise
+    headers = {
+        "Accept-Ranges": "bytes",
+        "ETag": etag,
+        "Cache-Control": "private, max-age=86400",
+    }
+    if request.headers.get("If-None-Match") == etag:
+        f.close()
+        return HttpResponseNotModified(headers=headers)
+    span = None
+    if_range = request.headers.get("If-Range")
+    if "Range" in request.headers and (if_range is None or if_range == etag):
+        try:
+            span = parse_range(request.headers["Range"], size)
+        except ValueError:
+            f.close()
+            return HttpResponse(status=416, headers={**headers, "Content-Range": f"bytes */{size}"})
+    start, end = span or (0, size - 1)
+    headers["Content-Length"] = str(end - start + 1)
+    if span:
+        headers["Content-Range"] = f"bytes {start}-{end}/{size}"
+    status = 206 if span else 200
+    if request.method == "HEAD":
+        f.close()
+        return HttpResponse(status=status, content_type=content_type, headers=headers)
+    done = (lambda: on_sent(start, end, size)) if on_sent is not None else None
+    if delivery is None:
+        body = _Span(f, start, end - start + 1, done)
+    else:
+        try:
+            data = _read_all(f)
+        finally:
+            f.close()
+        if len(data) != size:
+            raise FileNotFoundError(f"{name} changed while it was read")
+        body = _Bytes(delivered_bytes(data, *delivery, name=name), start, end - start + 1, done)
+    return StreamingHttpResponse(body, status=status, content_type=content_type, headers=headers)
