@@ -212,3 +212,14 @@ def file_response(request, name: str, content_type: str, etag: str, on_sent=None
             raise FileNotFoundError(f"{name} changed while it was read")
         body = _Bytes(delivered_bytes(data, *delivery, name=name), start, end - start + 1, done)
     return StreamingHttpResponse(body, status=status, content_type=content_type, headers=headers)
+def merge_ranges(ranges) -> list[list[int]]:
+    """Return inclusive byte ranges merged where they touch or overlap, sorted."""
+    out: list[list[int]] = []
+    for start, end in sorted([int(a), int(b)] for a, b in ranges):
+        if out and start <= out[-1][1] + 1:
+            out[-1][1] = max(out[-1][1], end)
+        else:
+            out.append([start, end])
+    return out
+
+

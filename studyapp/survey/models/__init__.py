@@ -1,0 +1,23 @@
+"""The data model of studies, one module per concern; every model keeps the ``survey`` app
+label, so databases made before the split migrate forward unchanged.
+
+- :mod:`.study`: ``Study`` (type, options, texts, places, crowd, duration);
+- :mod:`.stimuli`: ``Stimulus`` (a registered clip and its role), ``ScoringStandard``;
+- :mod:`.participation`: ``Participant``, ``Trial``, ``TrialItem`` (answers, fetches);
+- :mod:`.jobs`: ``BuildJob``; :mod:`.logins`: ``FailedLogin``.
+
+The lower modules never import the higher: participation imports stimuli and study,
+stimuli imports study; where a study counts its participants it asks Django's app
+registry for the model (:func:`.study.model`) instead of importing it back.
+"""
+
+from studyapp.survey.models.study import Study, Unavailable, new_token, study_type_choices
+from studyapp.survey.models.stimuli import ScoringStandard, Stimulus
+from studyapp.survey.models.participation import Participant, Response, Trial, TrialItem
+from studyapp.survey.models.jobs import BuildJob
+from studyapp.survey.models.logins import FailedLogin
+
+__all__ = [
+    "BuildJob", "FailedLogin", "Participant", "Response", "ScoringStandard", "Stimulus",
+    "Study", "Trial", "TrialItem", "Unavailable", "new_token", "study_type_choices",
+]
