@@ -27,7 +27,7 @@ SUFFIXES = {".py", ".html", ".js"}
 # shrink: a listed file that no longer names a key fails, as does any file not listed.
 EXAMPLES = {
     "benchmarks/loadtest.py": {"ranking"},
-    "studyapp/survey/models.py": {"ranking"},  # Study.study_type's default, as migrated
+    "studyapp/survey/models/study.py": {"ranking"},  # Study.study_type's default, as migrated
     "tests/analysis/test_bad_input.py": {"fake_or_real", "pairwise", "ranking", "rating_standards"},
     "tests/analysis/test_correlate.py": {"ranking"},
     "tests/analysis/test_crossed.py": {"pairwise", "rating_standards"},
@@ -130,8 +130,9 @@ def test_no_file_outside_a_type_names_its_key():
             stale.append(f"{relative}: {', '.join(sorted(allowed - named))}")
     assert not wrong, ("these files name a study type's key outside its own files; ask the "
                        "registry or a hook of the plug-in instead:\n" + "\n".join(wrong))
-    assert not stale, ("these files no longer name what EXAMPLES allows them; shrink the "
-                       "list:\n" + "\n".join(stale))
+    gone = sorted(name for name in EXAMPLES if not (ROOT / name).exists())
+    assert not stale and not gone, ("these files no longer name what EXAMPLES allows them, "
+                                    "or are gone; shrink the list:\n" + "\n".join(stale + gone))
 
 
 @pytest.mark.parametrize("key", list_study_types())
