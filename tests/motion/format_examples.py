@@ -7,8 +7,10 @@ it with (``body_models`` is added by the test); ``MALFORMED[name](folder) -> (pa
 message)``: a file of the format's kind that is broken, and what the error must say.
 """
 
+import importlib
 import pickle
 from collections import OrderedDict
+from pathlib import Path
 
 import joblib
 import numpy as np
@@ -330,3 +332,20 @@ def _npy_pair(folder):
 
 
 MALFORMED_OPTIONS = {"a2m": lambda folder: {"classes_path": folder / "classes.npy"}}
+
+
+def _own_examples():
+    """Add the examples that a format brings in its own file, ``examples/<format>.py``
+    beside this one: ``example(folder) -> (path, options)``, ``malformed(folder) -> path``,
+    ``MALFORMED_MESSAGE`` (a regular expression of its error) and optionally
+    ``malformed_options(folder) -> options``. A new format is its module and that file."""
+    folder = Path(__file__).parent / "examples"
+    for path in sorted(folder.glob("[!_]*.py")):
+        module = importlib.import_module(f"tests.motion.examples.{path.stem}")
+        EXAMPLES[path.stem] = module.example
+        MALFORMED[path.stem] = (module.malformed, module.MALFORMED_MESSAGE)
+        if hasattr(module, "malformed_options"):
+            MALFORMED_OPTIONS[path.stem] = module.malformed_options
+
+
+_own_examples()
