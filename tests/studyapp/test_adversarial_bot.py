@@ -97,7 +97,7 @@ def test_a_bot_that_reads_only_bytes_fails_attention_and_is_paid_nothing(study, 
                                                                        monkeypatch):
     # Seeded sessions, so which guesses land does not change from run to run.
     seeds = iter(range(1, 100))
-    monkeypatch.setattr("studyapp.survey.models.secrets.randbits", lambda bits: next(seeds))
+    monkeypatch.setattr("studyapp.survey.models.participation.secrets.randbits", lambda bits: next(seeds))
     assert study.player and study.max_failed_catch == 1  # fails after two failed checks
     rng = np.random.default_rng(0)
     caught = catches = failed = 0

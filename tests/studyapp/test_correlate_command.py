@@ -69,7 +69,7 @@ def test_correlate_a_built_and_answered_study(tmp_path, media_root, make_bot, se
     # Each participant's trial plan comes from a random seed; with six of them the order of
     # the two lowest sources would differ from run to run. Seeds 1, 2, ... instead.
     seeds = itertools.count(1)
-    monkeypatch.setattr("studyapp.survey.models.secrets.randbits", lambda bits: next(seeds))
+    monkeypatch.setattr("studyapp.survey.models.participation.secrets.randbits", lambda bits: next(seeds))
     answer_all(make_bot, study, 6)
 
     classifier = tmp_path / "classifier.pt"

@@ -138,7 +138,7 @@ def test_a_hung_cache_does_not_hold_up_entry(hung_redis, clips, media_root):
 def test_tokens_never_start_as_a_spreadsheet_formula(monkeypatch):
     """A token starting with "-" would be written to the CSV export as "'-..." (a formula
     neutralised) and no longer read back as itself: such draws are drawn again."""
-    from studyapp.survey import models
+    from studyapp.survey.models import study as models
 
     draws = iter(["-d8opZFlI_z2lmBZ6uhYaA", "_x8opZFlI_z2lmBZ6uhYaA", "Qd8opZFlI_z2lmBZ6uhYaA"])
     monkeypatch.setattr(models.secrets, "token_urlsafe", lambda n: next(draws))
