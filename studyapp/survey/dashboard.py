@@ -95,6 +95,10 @@ def dashboard_data(study: Study, now: datetime | None = None) -> dict:
         "generated_at": now.isoformat(),
         "participants": participants,
         "cells": cells,
+        "judgements": sum(cell["judgements"] for cell in cells),
+        "per_participant": slow["per_participant"],
+        "judgements_target": (study.max_participants * slow["per_participant"]
+                              if study.max_participants else None),
         "clips": clips,
         "exclusions": {**slow["exclusions"], "recent": recent_exclusions(study)},
         "timing": {**trial_times(study), "session": slow["session"]},
@@ -278,7 +282,8 @@ def recent_exclusions(study) -> list:
             .order_by("-completed_at").values("pk", "completed_at", "failed", "bot")
             [:RECENT_EXCLUSIONS])
     return [{"participant": row["pk"], "at": row["completed_at"].isoformat()
-             if row["completed_at"] else None, "failed_checks": row["failed"],
+             if row["completed_at"] else None, "at_text": _text(row["completed_at"]),
+             "failed_checks": row["failed"],
              "bot": bool(row["bot"])} for row in rows]
 
 
@@ -315,7 +320,7 @@ def predicted_finish(study, participants: dict, session_s: float, now) -> dict:
     arrived = people(study).exclude(consented_at=None).aggregate(
         n=Count("pk"), first=Min("consented_at"))
     out = {"places": places, "arrived": arrived["n"], "holding": participants["holding"],
-           "rate_per_hour": None, "left": None, "eta": None}
+           "rate_per_hour": None, "left": None, "eta": None, "eta_text": ""}
     if arrived["n"] and arrived["first"] is not None:
         hours = max((now - arrived["first"]).total_seconds() / 3600, 1 / 60)
         out["rate_per_hour"] = arrived["n"] / hours
@@ -327,7 +332,7 @@ def predicted_finish(study, participants: dict, session_s: float, now) -> dict:
     if left == 0:
         taking = next(o["n"] for o in participants["outcomes"] if o["outcome"] == TAKING_PART)
         eta = now + timedelta(seconds=session_s) if taking else now
-        out["eta"] = eta.isoformat()
+        out["eta"], out["eta_text"] = eta.isoformat(), _text(eta)
         out["says"] = (f"Every place is taken; the last of {taking} participants taking part "
                        f"should finish within one session." if taking
                        else "Every place is taken and finished.")
@@ -336,12 +341,17 @@ def predicted_finish(study, participants: dict, session_s: float, now) -> dict:
         out["says"] = f"{left} of {places} places left; nobody has arrived yet to give a rate."
         return out
     eta = now + timedelta(hours=left / out["rate_per_hour"], seconds=session_s)
-    out["eta"] = eta.isoformat()
+    out["eta"], out["eta_text"] = eta.isoformat(), _text(eta)
     out["says"] = (f"{left} of {places} places left at {out['rate_per_hour']:.1f} arrivals per "
                    f"hour so far: the last arrives in about "
                    f"{_span(timedelta(hours=left / out['rate_per_hour']))} and finishes one "
                    f"session later.")
     return out
+
+
+def _text(moment) -> str:
+    """Return a time as staff read it: ``2026-05-01 14:03`` (UTC)."""
+    return moment.astimezone(dt_timezone.utc).strftime("%Y-%m-%d %H:%M") if moment else ""
 
 
 def _span(delta: timedelta) -> str:
@@ -383,8 +393,10 @@ def latest_analysis(study) -> dict | None:
             "notes": summary.get("notes", []),
         })
         blindness = blindness or summary.get("blindness")
+    written = datetime.fromtimestamp(written, tz=dt_timezone.utc)
     return {
-        "written": datetime.fromtimestamp(written, tz=dt_timezone.utc).isoformat(),
+        "written": written.isoformat(),
+        "written_text": _text(written),
         "criteria": parts,
         "blindness": [{"label": label, "passed": bool(part.get("passed")),
                        "says": part.get("says", "")} for label, part in (blindness or {}).items()],

@@ -11,7 +11,8 @@ from studyapp.survey import dashboard
 from studyapp.survey.bots import USER_AGENT
 from studyapp.survey.models import Participant, Stimulus, Study, Trial, TrialItem
 from studyapp.survey.results import note_report, report_folder
-from tests.studyapp.conftest import ACTIONS, SOURCES, make_stimuli
+from studyapp.survey.study_types import list_study_types
+from tests.studyapp.conftest import ACTIONS, SOURCES, make_stimuli, make_study
 
 pytestmark = pytest.mark.django_db
 
@@ -226,3 +227,27 @@ def test_bots_are_told_by_their_user_agent(settings, tmp_path, agent, is_bot):
     study = small_study("bots")
     take_part(study, Participant.Outcome.COMPLETED, agent=agent)
     assert dashboard.dashboard_data(study)["participants"]["bots"] == int(is_bot)
+
+
+@pytest.mark.parametrize("key", list_study_types())
+def test_every_study_type_has_its_dashboard(admin_client, make_bot, media_root, clips, extra_clips,
+                                            settings, tmp_path, key):
+    """Played by the test bot through the real pages: the dashboard counts what the
+    export holds, with the analysis' exclusion table, for a study of every type."""
+    settings.VAR_DIR = tmp_path / "var"
+    study = make_study(key, clips, extra_clips, catch=True, max_participants=3)
+    bot = make_bot(study)
+    bot.join()
+    bot.finish()
+    data = dashboard.dashboard_data(study)
+    main = TrialItem.objects.judged().filter(trial__participant__study=study,
+                                             trial__kind=Trial.Kind.MAIN,
+                                             trial__answered_at__isnull=False,
+                                             stimulus__role=Stimulus.Role.JUDGED).count()
+    assert main and data["judgements"] == main
+    assert data["per_participant"] == main  # the planned session is the one they took
+    rules = data["exclusions"]["rules"]
+    assert rules and rules[0]["rule"] == "Main-trial judgements before exclusions"
+    response = admin_client.get(f"/admin/survey/study/{study.pk}/dashboard/")
+    assert response.status_code == 200
+    assert f'data-clip="{study.stimuli.first().pk}"' in response.content.decode()
