@@ -251,3 +251,22 @@ def test_every_study_type_has_its_dashboard(admin_client, make_bot, media_root, 
     response = admin_client.get(f"/admin/survey/study/{study.pk}/dashboard/")
     assert response.status_code == 200
     assert f'data-clip="{study.stimuli.first().pk}"' in response.content.decode()
+
+
+@pytest.mark.django_db(transaction=True)
+def test_simulate_participants_bots_are_marked(live_server, media_root, clips, settings, tmp_path):
+    """The bots of ``simulate_participants`` (over real HTTP) are counted as bots."""
+    from io import StringIO
+
+    from django.core.management import call_command
+
+    from tests.studyapp.conftest import make_ranking_study
+
+    settings.VAR_DIR = tmp_path / "var"
+    study = make_ranking_study(clips)
+    call_command("simulate_participants", study=study.slug, url=live_server.url, n=2, pace=0,
+                 seed=1, stdout=StringIO())
+    people = dashboard.dashboard_data(study)["participants"]
+    assert people["total"] == people["bots"] == 2
+    assert set(Participant.objects.filter(study=study).values_list("user_agent", flat=True)) == {
+        USER_AGENT}
