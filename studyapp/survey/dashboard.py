@@ -19,6 +19,7 @@ their user agent and counted apart.
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import random
@@ -86,7 +87,9 @@ def dashboard_data(study: Study, now: datetime | None = None) -> dict:
     now = now or timezone.now()
     state = _state(study)
     slow = _cached(study, state, lambda: _slow_parts(study))
-    participants = participant_counts(study, now)
+    # The places held depend on the time limit, which may follow the session's minutes:
+    # take them from the cache rather than planning a session on every refresh.
+    participants = participant_counts(_with_minutes(study, slow["session"]["minutes"]), now)
     cells, clips = judgement_counts(study, slow["per_participant"])
     data = {
         "study": {"id": study.pk, "slug": study.slug, "title": study.title,
@@ -106,6 +109,13 @@ def dashboard_data(study: Study, now: datetime | None = None) -> dict:
         "analysis": latest_analysis(study),
     }
     return data
+
+
+def _with_minutes(study, minutes: int):
+    """Return a copy of ``study`` whose ``minutes()`` is ``minutes`` (already found)."""
+    found = copy.copy(study)
+    found.minutes = lambda: minutes
+    return found
 
 
 def _state(study) -> list:

@@ -270,3 +270,28 @@ def test_simulate_participants_bots_are_marked(live_server, media_root, clips, s
     assert people["total"] == people["bots"] == 2
     assert set(Participant.objects.filter(study=study).values_list("user_agent", flat=True)) == {
         USER_AGENT}
+
+
+def test_a_refresh_plans_no_session_and_reads_no_table(study, monkeypatch,
+                                                       django_assert_max_num_queries):
+    """Once computed for the answers as they are, the planned session, the session
+    estimate and the exclusions come from the cache (a Prolific study's time limit
+    follows its minutes)."""
+    from studyapp.survey import export
+
+    codes = {"completed": "C0MPL3TE", "failed_attention": "FA1LED00", "no_consent": "N0C0NSNT"}
+    Study.objects.filter(pk=study.pk).update(crowd={"platform": "prolific", "codes": codes},
+                                             catch_trials=2)
+    study.refresh_from_db()
+    first = dashboard.dashboard_data(study)
+
+    def refused(*args, **kwargs):
+        raise AssertionError("computed again")
+
+    monkeypatch.setattr(type(study.kind), "plan_trials", refused)
+    monkeypatch.setattr(export, "responses_frame", refused)
+    with django_assert_max_num_queries(20):
+        again = dashboard.dashboard_data(study)
+    assert again["exclusions"]["rules"] == first["exclusions"]["rules"]
+    assert again["participants"]["holding"] == first["participants"]["holding"]
+    assert again["timing"]["session"] == first["timing"]["session"]
