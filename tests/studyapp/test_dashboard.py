@@ -295,3 +295,32 @@ def test_a_refresh_plans_no_session_and_reads_no_table(study, monkeypatch,
     assert again["exclusions"]["rules"] == first["exclusions"]["rules"]
     assert again["participants"]["holding"] == first["participants"]["holding"]
     assert again["timing"]["session"] == first["timing"]["session"]
+
+
+def test_an_analyze_run_with_its_audit_shows(make_bot, media_root, clips, settings, tmp_path):
+    """``analyze --study --out`` elsewhere, blindness audit included: the dashboard shows
+    its sources with their intervals and the audit's verdicts."""
+    from io import StringIO
+
+    from django.core.management import call_command
+
+    from tests.studyapp.conftest import make_ranking_study
+
+    settings.VAR_DIR = tmp_path / "var"
+    study = make_ranking_study(clips, max_participants=3)
+    for n in range(3):
+        bot = make_bot(study)
+        bot.join(PROLIFIC_PID=f"person-{n}")
+        bot.finish()
+    out = tmp_path / "elsewhere"
+    call_command("analyze", study=study.slug, out=str(out), bootstrap=20, min_time_factor=0.0,
+                 stdout=StringIO(), stderr=StringIO())
+    written = json.loads((out / "summary.json").read_text())
+    analysis = dashboard.dashboard_data(study)["analysis"]
+    part = analysis["criteria"][0]
+    assert [s["source"] for s in part["sources"]] == written["order"]
+    assert [s["ci"] for s in part["sources"]] == [written["sources"][name]["ci"]
+                                                  for name in written["order"]]
+    assert part["n_participants"] == 3
+    assert {b["label"] for b in analysis["blindness"]} == set(written["blindness"])
+    assert all(b["says"] for b in analysis["blindness"])
