@@ -2,9 +2,11 @@
 previews, the bots marked, nothing fetched from elsewhere, and a new answer appears
 without a reload."""
 
+from io import StringIO
 from urllib.parse import urlsplit
 
 import pytest
+from django.core.management import call_command
 from django.test import Client
 from playwright.sync_api import expect
 
@@ -41,7 +43,7 @@ def main_judgements(study):
         trial__answered_at__isnull=False).count()
 
 
-def test_the_dashboard_shows_the_study_and_refreshes_itself(page, live_server, study):
+def test_the_dashboard_shows_the_study_and_refreshes_itself(page, live_server, study, tmp_path):
     person = Bot(Client(), study)
     person.join(PROLIFIC_PID="person")
     person.finish()
@@ -105,6 +107,16 @@ def test_the_dashboard_shows_the_study_and_refreshes_itself(page, live_server, s
                                           trial__answered_at__isnull=False).count()
     expect(page.locator(f'[data-clip-judgements="{judged.pk}"]')).to_have_text(str(n))
     expect(page.locator("#dashboard-updated")).to_contain_text("updated")
+
+    # An analysis run from the command line, written elsewhere, appears with its
+    # intervals and the blindness audit.
+    expect(page.locator("#dash-analysis")).to_contain_text("No analysis yet")
+    call_command("analyze", study=study.slug, out=str(tmp_path / "elsewhere"), bootstrap=20,
+                 min_time_factor=0.0, stdout=StringIO(), stderr=StringIO())
+    expect(page.locator("[data-analysis] tbody tr")).to_have_count(3, timeout=10_000)
+    expect(page.locator("[data-analysis]")).to_contain_text("[")
+    expect(page.locator("[data-audit=blindness] tbody tr").first).to_be_visible()
+    snap(page, "dashboard-analysed")
     assert outside == []
 
 
