@@ -22,6 +22,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
+import os
 import random
 from datetime import datetime, timedelta, timezone as dt_timezone
 
@@ -480,7 +481,15 @@ def _allowed(request, pk) -> Study:
 
 
 def refresh_seconds() -> float:
-    return float(getattr(settings, "STUDY_DASHBOARD_REFRESH_S", REFRESH_S))
+    """Return the seconds between refreshes: the Django setting, else the environment
+    variable ``STUDY_DASHBOARD_REFRESH_S``, else ``REFRESH_S``."""
+    found = getattr(settings, "STUDY_DASHBOARD_REFRESH_S", None)
+    if found is None:
+        found = os.environ.get("STUDY_DASHBOARD_REFRESH_S", "") or REFRESH_S
+    try:
+        return max(1.0, float(found))
+    except ValueError:
+        return float(REFRESH_S)
 
 
 def sections_html(study, data) -> str:
