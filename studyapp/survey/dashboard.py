@@ -24,6 +24,7 @@ import hashlib
 import json
 import os
 import random
+import time
 from datetime import datetime, timedelta, timezone as dt_timezone
 
 from django.conf import settings
@@ -45,6 +46,9 @@ from studyapp.survey.results import latest_folder
 
 REFRESH_S = 10
 CACHE_S = 3600
+# Seconds the exclusions and the planned session of a study whose answers keep coming
+# are reused before they are computed again (the response table is read for them).
+RECOMPUTE_S = 30
 # Bots name themselves (bots.USER_AGENT); older runs sent urllib's default agent.
 BOT_AGENTS = (BOT_AGENT, "Python-urllib/")
 TAKING_PART = "taking_part"  # the outcome key of participants still taking part
@@ -104,7 +108,10 @@ def dashboard_data(study: Study, now: datetime | None = None) -> dict:
         "judgements_target": (study.max_participants * slow["per_participant"]
                               if study.max_participants else None),
         "clips": clips,
-        "exclusions": {**slow["exclusions"], "recent": recent_exclusions(study)},
+        "exclusions": {**slow["exclusions"], "recent": recent_exclusions(study),
+                       "counted_at": _text(datetime.fromtimestamp(slow["at"], dt_timezone.utc),
+                                           seconds=True),
+                       "recompute_s": recompute_seconds()},
         "timing": {**trial_times(study), "session": slow["session"]},
         "finish": predicted_finish(study, participants, slow["session"]["seconds"], now),
         "analysis": latest_analysis(study),
@@ -119,32 +126,62 @@ def _with_minutes(study, minutes: int):
     return found
 
 
-def _state(study) -> list:
-    """Return what changes whenever an answer or a participant does (one aggregate each)."""
+def _state(study) -> dict:
+    """Return what changes whenever an answer or a participant does (one aggregate each),
+    and the settings the slow parts follow."""
     trials = Trial.objects.filter(participant__study=study, answered_at__isnull=False).aggregate(
         n=Count("pk"), last=Max("answered_at"))
     who = Participant.objects.filter(study=study).aggregate(
         n=Count("pk"), last=Max("completed_at"), outcomes=Count("outcome", filter=~Q(outcome="")))
-    return [trials["n"], str(trials["last"]), who["n"], str(who["last"]), who["outcomes"],
-            study.max_failed_catch, study.clips_per_trial, study.trials_per_participant,
-            study.catch_trials, study.practice, study.repeat_trials,
-            study.stimuli.count(), json.dumps(study.options or {}, sort_keys=True)]
+    return {
+        "answers": [trials["n"], str(trials["last"]), who["n"], str(who["last"]),
+                    who["outcomes"]],
+        "settings": [study.max_failed_catch, study.clips_per_trial,
+                     study.trials_per_participant, study.catch_trials, study.practice,
+                     study.repeat_trials, study.instructed_checks, study.stimuli.count(),
+                     json.dumps(study.options or {}, sort_keys=True),
+                     json.dumps(study.crowd or {}, sort_keys=True)],
+    }
 
 
-def _cached(study, state, compute):
+def recompute_seconds() -> float:
+    """Return how long the slow parts of a busy study are kept while answers come in
+    (the ``STUDY_DASHBOARD_RECOMPUTE_S`` setting, default ``RECOMPUTE_S``)."""
+    return float(getattr(settings, "STUDY_DASHBOARD_RECOMPUTE_S", RECOMPUTE_S))
+
+
+def _cached(study, state: dict, compute) -> dict:
+    """Return ``compute()`` for the study as ``state`` says it is, from the cache when
+    computed for the same state; while answers come in, the last result is kept for
+    ``recompute_seconds()`` (its ``at`` says when it was counted) unless the settings
+    changed."""
     digest = hashlib.sha1(json.dumps(state).encode()).hexdigest()
-    key = f"survey-dashboard:{study.pk}:{digest}"
-    try:
-        found = cache.get(key)
-    except Exception:  # noqa: BLE001 - a cache that is down only costs the computation
-        found = None
-    if found is None:
-        found = compute()
-        try:
-            cache.set(key, found, CACHE_S)
-        except Exception:  # noqa: BLE001
-            pass
+    key, latest_key = f"survey-dashboard:{study.pk}:{digest}", f"survey-dashboard:{study.pk}"
+    found = _cache_get(key)
+    if found is not None:
+        return found
+    latest = _cache_get(latest_key)
+    if (latest is not None and latest.get("settings") == state["settings"]
+            and time.time() - latest["at"] < recompute_seconds()):
+        return latest
+    found = {**compute(), "at": time.time(), "settings": state["settings"]}
+    _cache_set(key, found)
+    _cache_set(latest_key, found)
     return found
+
+
+def _cache_get(key):
+    try:
+        return cache.get(key)
+    except Exception:  # noqa: BLE001 - a cache that is down only costs the computation
+        return None
+
+
+def _cache_set(key, value) -> None:
+    try:
+        cache.set(key, value, CACHE_S)
+    except Exception:  # noqa: BLE001
+        pass
 
 
 def _slow_parts(study) -> dict:
@@ -360,9 +397,12 @@ def predicted_finish(study, participants: dict, session_s: float, now) -> dict:
     return out
 
 
-def _text(moment) -> str:
+def _text(moment, seconds: bool = False) -> str:
     """Return a time as staff read it: ``2026-05-01 14:03`` (UTC)."""
-    return moment.astimezone(dt_timezone.utc).strftime("%Y-%m-%d %H:%M") if moment else ""
+    if not moment:
+        return ""
+    return moment.astimezone(dt_timezone.utc).strftime("%Y-%m-%d %H:%M" + (":%S" if seconds
+                                                                           else ""))
 
 
 def _span(delta: timedelta) -> str:

@@ -19,6 +19,12 @@ pytestmark = pytest.mark.django_db
 PLACES = 10
 
 
+@pytest.fixture(autouse=True)
+def _count_every_answer(settings):
+    """Count the exclusions again on every new answer (a busy study waits a while)."""
+    settings.STUDY_DASHBOARD_RECOMPUTE_S = 0
+
+
 def small_study(slug="dash"):
     """Return a study of the default type: 2 conditions x 3 sources, one clip each."""
     study = Study.objects.create(slug=slug, title="Dashboard test", clips_per_trial=3,
@@ -324,3 +330,20 @@ def test_an_analyze_run_with_its_audit_shows(make_bot, media_root, clips, settin
     assert part["n_participants"] == 3
     assert {b["label"] for b in analysis["blindness"]} == set(written["blindness"])
     assert all(b["says"] for b in analysis["blindness"])
+
+
+def test_a_busy_study_counts_its_exclusions_at_most_so_often(study, settings):
+    settings.STUDY_DASHBOARD_RECOMPUTE_S = 60
+    first = dashboard.dashboard_data(study)
+    take_part(study, Participant.Outcome.COMPLETED)
+    again = dashboard.dashboard_data(study)
+    assert again["judgements"] == first["judgements"] + 6  # counted on every refresh
+    assert again["exclusions"]["rules"] == first["exclusions"]["rules"]  # kept a while
+    assert again["exclusions"]["counted_at"] == first["exclusions"]["counted_at"]
+    Study.objects.filter(pk=study.pk).update(max_failed_catch=2)  # a setting: at once
+    study.refresh_from_db()
+    changed = {r["rule"] for r in dashboard.dashboard_data(study)["exclusions"]["rules"]}
+    assert "Failed more than 2 catch trial(s)" in changed
+    settings.STUDY_DASHBOARD_RECOMPUTE_S = 0
+    rules = dashboard.dashboard_data(study)["exclusions"]["rules"]
+    assert rules[0]["judgements"] == first["exclusions"]["rules"][0]["judgements"] + 6
