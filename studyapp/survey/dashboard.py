@@ -62,6 +62,7 @@ OUTCOME_COLOURS = {
 }
 OUTCOME_LABELS = {TAKING_PART: "Taking part", **dict(Participant.Outcome.choices)}
 RECENT_EXCLUSIONS = 20
+BOT_COLOUR = "#6a1b9a"
 
 
 def bot_q(prefix: str = "") -> Q:
@@ -235,17 +236,19 @@ def timeline(study, now) -> dict:
     else:
         unit, trunc, step = "day", TruncDay, timedelta(days=1)
     rows = (people(study).annotate(at=trunc("created_at")).values("at", "outcome")
-            .annotate(n=Count("pk")).order_by("at"))
-    added = {}
+            .annotate(n=Count("pk"), bots=Count("pk", filter=bot_q())).order_by("at"))
+    added, bots = {}, {}
     for row in rows:
         added.setdefault(row["at"], {})[row["outcome"] or TAKING_PART] = row["n"]
-    steps, total = [], dict.fromkeys(OUTCOME_LABELS, 0)
+        bots[row["at"]] = bots.get(row["at"], 0) + row["bots"]
+    steps, total, simulated = [], dict.fromkeys(OUTCOME_LABELS, 0), 0
     at = min(added)
     last = max(max(added), _truncate(now, unit))
     while at <= last and len(steps) < 400:
         for key, n in added.get(at, {}).items():
             total[key] += n
-        steps.append({"at": at.isoformat(), "counts": dict(total)})
+        simulated += bots.get(at, 0)
+        steps.append({"at": at.isoformat(), "counts": dict(total), "bots": simulated})
         at += step
     return {"unit": unit, "steps": steps}
 
@@ -496,6 +499,17 @@ def timeline_svg(line: dict, width: int = 720, height: int = 180) -> str:
                           f"{step['at'][:16].replace('T', ' ')}: {n} {OUTCOME_LABELS[key]}"))
     body = format_html_join("", '<rect x="{}" y="{}" width="{}" height="{}" fill="{}">'
                             '<title>{}</title></rect>', rects)
+    if steps[-1].get("bots"):  # the simulated participants among them: a dashed line
+        points = " ".join(
+            f"{left + (k + 0.5) * bar:.1f},{10 + plot_h - plot_h * step['bots'] / top:.1f}"
+            for k, step in enumerate(steps))
+        if len(steps) == 1:
+            x, y = points.split(",")
+            points = f"{left},{y} {left + bar:.1f},{y}"
+        body = format_html('{}<polyline class="bots" points="{}" fill="none" stroke="{}" '
+                           'stroke-width="3" stroke-dasharray="5 3"><title>{} simulated '
+                           '(bots)</title></polyline>', body, points, BOT_COLOUR,
+                           steps[-1]["bots"])
     first, last = steps[0]["at"][:16].replace("T", " "), steps[-1]["at"][:16].replace("T", " ")
     return format_html(
         '<svg class="dashboard-timeline" role="img" viewBox="0 0 {w} {h}" width="{w}" '

@@ -89,6 +89,7 @@ def test_participants_by_outcome_with_the_bots_apart(study):
     assert sum(last.values()) == 5 and last["completed"] == 2
     svg = dashboard.timeline_svg(people["timeline"])
     assert svg.startswith("<svg") and "<rect" in svg and "Completed" in svg
+    assert people["timeline"]["steps"][-1]["bots"] == 1 and 'class="bots"' in svg
 
 
 def test_judgements_per_source_and_condition_against_the_plan(study):
