@@ -168,16 +168,7 @@ def analyse(table: pd.DataFrame, config: AnalysisConfig | None = None,
         table = table.loc[table["criterion"].astype(str) == criterion]
     study_type = study_type or _study_type(table)
     kind = get_analysis(study_type)
-    rows, notes = _prepare(table, kind)
-    kept, excluded, exclusion_notes = exclusions.apply(rows, config)
-    notes += exclusion_notes
-
-    main = kept.loc[(kept["trial_kind"] == "main").to_numpy() & ~kept["is_catch"].to_numpy()]
-    main, answer_notes = kind.answered(main)
-    notes += answer_notes
-    main, screened, screen_notes = kind.screen(main, config)
-    notes += screen_notes
-    excluded = _with_screening(excluded, screened)
+    rows, kept, main, excluded, notes = _excluded(table, config, kind)
     if main.empty:
         raise AnalysisError(
             "no answered main-trial judgements are left after exclusions "
@@ -231,6 +222,32 @@ def analyse(table: pd.DataFrame, config: AnalysisConfig | None = None,
                        demographics, notes + analysis.notes,
                        kind.design.replace("one action", "one text prompt") if by_prompt
                        else kind.design, criterion)
+
+
+def apply_exclusions(table: pd.DataFrame, config: AnalysisConfig | None = None,
+                     study_type: str | None = None) -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
+    """Return the answered main-trial judgements of ``table`` (one criterion's rows) that
+    :func:`analyse` would analyse, its exclusion table (the shared rules and the study
+    type's screening) and notes: the same rules, without the statistics (the admin's
+    live dashboard counts exclusions as they happen)."""
+    config = config or AnalysisConfig()
+    kind = get_analysis(study_type or _study_type(table))
+    _, _, main, excluded, notes = _excluded(table, config, kind)
+    return main, excluded, notes
+
+
+def _excluded(table, config, kind):
+    """Return the prepared rows, those kept by the shared rules, the answered main-trial
+    judgements analysed, the exclusion table and notes."""
+    rows, notes = _prepare(table, kind)
+    kept, excluded, exclusion_notes = exclusions.apply(rows, config)
+    notes += exclusion_notes
+    main = kept.loc[(kept["trial_kind"] == "main").to_numpy() & ~kept["is_catch"].to_numpy()]
+    main, answer_notes = kind.answered(main)
+    notes += answer_notes
+    main, screened, screen_notes = kind.screen(main, config)
+    notes += screen_notes
+    return rows, kept, main, _with_screening(excluded, screened), notes
 
 
 def has_prompts(rows: pd.DataFrame) -> bool:

@@ -54,6 +54,7 @@ CATCH_STRENGTH = 0.05
 MAX_STEPS = 500
 TIMEOUT = 30
 WAIT_MARGIN_S = 0.15  # beyond the clips' length, as the page's own playback would take
+USER_AGENT = "studyapp-bot (simulate_participants)"  # how the admin's dashboard tells bots
 
 
 class SimulationError(RuntimeError):
@@ -340,6 +341,7 @@ class Bot:
         self.opener = urllib.request.build_opener(
             urllib.request.HTTPCookieProcessor(http.cookiejar.CookieJar())
         )
+        self.opener.addheaders = [("User-Agent", USER_AGENT)]
 
     def fetch(self, url: str, data: dict | None = None) -> tuple[str, str]:
         """Return ``(final url, html)`` of a GET, or of a POST when ``data`` is given."""

@@ -51,6 +51,7 @@ class ScoringStandardInline(admin.TabularInline):
 class StudyAdmin(admin.ModelAdmin):
     list_display = [
         "slug",
+        "dashboard_link",
         "title",
         "study_type",
         "status",
@@ -65,12 +66,13 @@ class StudyAdmin(admin.ModelAdmin):
     ]
     list_filter = ["study_type", "status"]
     search_fields = ["slug", "title"]
-    readonly_fields = ["participant_link", "preview_link", "results_link", "plan_link",
-                       "duration", "progress", "created_at"]
+    readonly_fields = ["dashboard_link", "participant_link", "preview_link", "results_link",
+                       "plan_link", "duration", "progress", "created_at"]
     actions = ["open_studies", "close_studies"]
     inlines = [ScoringStandardInline]
     fieldsets = [
-        ("Progress", {"fields": ["participant_link", "preview_link", "results_link", "plan_link",
+        ("Progress", {"fields": ["dashboard_link", "participant_link", "preview_link",
+                                 "results_link", "plan_link",
                                  "duration", "progress", "created_at"]}),
         (None, {"fields": ["slug", "title", "study_type", "status", "dataset", "data_note"]}),
         (
@@ -129,11 +131,16 @@ class StudyAdmin(admin.ModelAdmin):
     def get_urls(self):
         from django.urls import path
 
-        from studyapp.results import plan_page
-
         from studyapp.results import analysis_page as results
+        from studyapp.results import dashboard, plan_page
 
         own = [
+            path("<int:pk>/dashboard/", self.admin_site.admin_view(
+                lambda request, pk: dashboard.dashboard_view(self.admin_site, request, pk)),
+                name="survey_study_dashboard"),
+            path("<int:pk>/dashboard/data.json",
+                 self.admin_site.admin_view(dashboard.dashboard_data_view),
+                 name="survey_study_dashboard_data"),
             path("<int:pk>/plan/", self.admin_site.admin_view(
                 lambda request, pk: plan_page.plan_view(self.admin_site, request, pk)),
                 name="survey_study_plan"),
@@ -149,6 +156,13 @@ class StudyAdmin(admin.ModelAdmin):
                  name="survey_study_criterion_report"),
         ]
         return own + super().get_urls()
+
+    @admin.display(description="Dashboard")
+    def dashboard_link(self, obj):
+        if not obj.pk:
+            return "-"
+        url = reverse("admin:survey_study_dashboard", args=[obj.pk])
+        return format_html('<a href="{}"><strong>Live dashboard</strong></a>', url)
 
     @admin.display(description="Results")
     def results_link(self, obj):
