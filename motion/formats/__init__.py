@@ -1,6 +1,8 @@
 """Motion file formats, one module each with ``load``; :func:`load_motions` reads any.
 
-Every format is registered by name (:func:`list_formats` is the authoritative list);
+Every format is a module of this package that registers itself at its end
+(``format_module(__name__)``), found by the registry's discovery (:func:`list_formats`
+is the authoritative list; a module may declare the file endings it reads, ``SUFFIXES``);
 ``get_format(name).load(path, **options)`` returns the motions of a file or folder. The
 options of each format are its ``load``'s keyword arguments:
 
@@ -31,27 +33,6 @@ import inspect
 from pathlib import Path
 
 from motion import ops
-from motion.formats import (
-    a2m,
-    actor,
-    aistpp,
-    amass,
-    amp_poselib,
-    auto,
-    bvh,
-    humanml3d,
-    humanml3d_vec,
-    joints,
-    mdm,
-    motioncritic,
-    npz,
-    phalp,
-    phc,
-    smplx_motions,
-    tram,
-    vibe,
-    wham,
-)
 from motion.formats.base import (
     FormatError,
     MotionList,
@@ -60,11 +41,6 @@ from motion.formats.base import (
     register_format,
 )
 from motion.motion import Motion
-
-for _module in (a2m, actor, aistpp, amass, amp_poselib, auto, bvh, humanml3d, humanml3d_vec,
-                joints, mdm, motioncritic, npz, phalp, phc, tram, vibe, wham):
-    register_format(_module.__name__.rsplit(".", 1)[-1])(_module)
-register_format("smplx")(smplx_motions)  # the module's name keeps the smplx package's free
 
 
 def format_options(format: str) -> list[str]:
@@ -103,4 +79,4 @@ def load_motions(path: str | Path, format: str, fps: float | None = None,
 
 
 __all__ = ["FormatError", "MotionList", "format_options", "get_format", "list_formats",
-           "load_motions", "register_format", "a2m", "bvh", "npz"]
+           "load_motions", "register_format"]

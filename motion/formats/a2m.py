@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from motion.datasets import humanact12
-from motion.formats.base import FormatError, finite_only, read_npy, skeleton_for
+from motion.formats.base import FormatError, finite_only, format_module, read_npy, skeleton_for
 from motion.motion import Motion
 
 DEFAULT_ACTIONS = {"humanact12": humanact12.CLASSES}
@@ -88,3 +88,6 @@ def detect(probe) -> str | None:
     if shape is not None and probe.options.get("classes_path") and len(shape) in (3, 4):
         return f"an array of shape {shape} with class indices: Action2Motion"
     return None
+
+
+format_module(__name__)

@@ -17,7 +17,7 @@ import numpy as np
 
 from motion.body_models import BodyModelError, load_body_model
 from motion.datasets.humanact12 import CLASSES
-from motion.formats.base import FormatError, check_shape, finite_only, read_npy
+from motion.formats.base import FormatError, check_shape, finite_only, format_module, read_npy
 from motion.formats.smpl_poses import stand_upright
 from motion.motion import Motion
 
@@ -67,3 +67,6 @@ def detect(probe) -> str | None:
     if shape is not None and len(shape) == 5 and shape[3] == 3:
         return f"an array of shape {shape}: (samples, actions, vertices, 3, T) (ACTOR)"
     return None
+
+
+format_module(__name__)

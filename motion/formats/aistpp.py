@@ -14,7 +14,14 @@ from pathlib import Path
 
 import numpy as np
 
-from motion.formats.base import FormatError, MotionList, files_in, load_each, need_keys
+from motion.formats.base import (
+    FormatError,
+    MotionList,
+    files_in,
+    format_module,
+    load_each,
+    need_keys,
+)
 from motion.formats.smpl_estimates import array, pose, read_data
 
 LAYOUT = "an AIST++ motion .pkl: smpl_poses (T, 72), smpl_trans (T, 3), smpl_scaling (1,)"
@@ -55,3 +62,6 @@ def detect(probe) -> str | None:
     if probe.suffix in (".pkl", ".joblib") and {"smpl_poses", "smpl_trans"} <= probe.keys:
         return "a dict with smpl_poses, smpl_trans and smpl_scaling: AIST++"
     return None
+
+
+format_module(__name__)

@@ -23,6 +23,7 @@ from motion.formats.base import (
     check_finite,
     check_shape,
     files_in,
+    format_module,
     load_each,
     need_keys,
     read_npz,
@@ -105,3 +106,6 @@ def detect(probe) -> str | None:
         return (f"an .npz with poses {shape} and trans: AMASS "
                 f"{'SMPL+H' if shape[1] == 156 else 'SMPL'}")
     return None
+
+
+format_module(__name__)

@@ -17,7 +17,14 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from motion.formats.base import FormatError, MotionList, files_in, load_each, need_keys
+from motion.formats.base import (
+    FormatError,
+    MotionList,
+    files_in,
+    format_module,
+    load_each,
+    need_keys,
+)
 from motion.formats.smpl_estimates import array, read_data
 from motion.motion import UNKNOWN_ACTION, Motion
 from motion.skeletons import custom_skeleton
@@ -82,3 +89,6 @@ def detect(probe) -> str | None:
     if probe.suffix == ".npy" and {"rotation", "root_translation", "skeleton_tree"} <= probe.keys:
         return "a SkeletonMotion dict (rotation, root_translation, skeleton_tree): AMP poselib"
     return None
+
+
+format_module(__name__)

@@ -22,6 +22,7 @@ from pathlib import Path
 from motion.formats.base import (
     FormatError,
     MotionList,
+    format_module,
     get_format,
     list_formats,
     natural_key,
@@ -38,6 +39,14 @@ def detectors() -> dict[str, object]:
             if name != "auto" and hasattr(get_format(name), "detect")}
 
 
+def suffixes() -> tuple[str, ...]:
+    """Return the file endings of motion files: the common ones and those a format module
+    declares it reads (its ``SUFFIXES``)."""
+    declared = {suffix.lower() for name in list_formats()
+                for suffix in getattr(get_format(name), "SUFFIXES", ())}
+    return tuple(sorted(set(SUFFIXES) | declared))
+
+
 def detect(path: str | Path, options: dict | None = None) -> tuple[str, str]:
     """Return ``(format, why)`` for one file (or a folder some format reads whole), or
     raise :class:`FormatError` saying what was seen."""
@@ -51,9 +60,9 @@ def detect(path: str | Path, options: dict | None = None) -> tuple[str, str]:
         return found[0]
     if path.is_dir():
         raise FormatError(f"{path}: no format reads this folder whole")
-    if probe.suffix not in SUFFIXES:
+    if probe.suffix not in suffixes():
         raise FormatError(f"{path}: cannot tell the format of a {probe.suffix or 'suffix-less'} "
-                          f"file (motion files end in {', '.join(SUFFIXES)}); pass --format")
+                          f"file (motion files end in {', '.join(suffixes())}); pass --format")
     raise FormatError(f"{path}: {_seen(probe)}, which no format has; pass --format")
 
 
@@ -74,11 +83,12 @@ def _seen(probe: Probe) -> str:
 def survey(folder: Path, options: dict | None = None):
     """Return the motion files under a folder grouped by format ``{format: [(file, why)]}``
     and the files no format recognised ``[(file, reason)]``."""
+    endings = suffixes()
     files = sorted((f for f in Path(folder).rglob("*") if f.is_file()
-                    and f.suffix.lower() in SUFFIXES and f.stem not in IGNORED_STEMS),
+                    and f.suffix.lower() in endings and f.stem not in IGNORED_STEMS),
                    key=natural_key)
     if not files:
-        raise FormatError(f"{folder}: no motion files ({', '.join(SUFFIXES)}) to detect a "
+        raise FormatError(f"{folder}: no motion files ({', '.join(endings)}) to detect a "
                           "format from")
     groups: dict[str, list[tuple[Path, str]]] = {}
     skipped = []
@@ -161,3 +171,6 @@ def format_table(path: Path, rows) -> str:
                                                   in zip(row, widths)).rstrip()
                                   for row in cells]
     return "\n".join(lines)
+
+
+format_module(__name__)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import re
+import sys
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
@@ -48,6 +49,13 @@ _FORMATS = Registry("motion format", package="motion.formats")
 def register_format(name: str):
     """Return a decorator registering a format module (or object with ``load``) as ``name``."""
     return _FORMATS.register(name)
+
+
+def format_module(module_name: str, name: str | None = None) -> None:
+    """Register the format module called ``module_name`` (its ``__name__``, at its end) as
+    ``name`` (default: the module's own name). Discovery imports every module of this
+    package, so a new format is its module and no list names it."""
+    _FORMATS.add(name or module_name.rsplit(".", 1)[-1], sys.modules[module_name])
 
 
 def get_format(name: str):

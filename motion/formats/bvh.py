@@ -63,6 +63,7 @@ from motion.formats.base import (
     FormatError,
     MotionList,
     files_in,
+    format_module,
     load_each,
     prompt_file_beside,
     prompts_for,
@@ -620,3 +621,6 @@ def save(path: str | Path, motion: Motion, units: str = "cm") -> Path:
 def detect(probe) -> str | None:
     """Recognise a ``.bvh`` file."""
     return "a .bvh file" if probe.suffix == ".bvh" else None
+
+
+format_module(__name__)

@@ -23,6 +23,7 @@ from motion.formats.base import (
     check_finite,
     check_shape,
     files_in,
+    format_module,
     load_each,
     read_npy,
     skeleton_for,
@@ -130,3 +131,6 @@ def detect(probe) -> str | None:
                                 or (probe.path / "new_joints").is_dir()):
         return "a new_joints/ folder (HumanML3D's layout)"
     return None
+
+
+format_module(__name__)

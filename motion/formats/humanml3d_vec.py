@@ -26,6 +26,7 @@ from motion.formats.base import (
     MotionList,
     check_finite,
     check_shape,
+    format_module,
     load_each,
     read_npy,
     skeleton_for,
@@ -139,3 +140,6 @@ def detect(probe) -> str | None:
     if shape is not None and len(shape) == 2 and joints_of_features(shape[1]):
         return f"an array of shape {shape}: HumanML3D features (T, 12 J - 1)"
     return None
+
+
+format_module(__name__)

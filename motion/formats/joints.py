@@ -26,6 +26,7 @@ from motion.formats.base import (
     check_finite,
     check_shape,
     files_in,
+    format_module,
     load_each,
     prompt_file_beside,
     prompt_from_name,
@@ -92,3 +93,6 @@ def detect(probe) -> str | None:
     if len(shape) == 3 or (len(shape) == 4 and shape[0] == 1):
         return f"an array of shape {shape}: joint positions (T, J, 3)"
     return None
+
+
+format_module(__name__)

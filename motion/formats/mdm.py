@@ -38,6 +38,7 @@ from motion.formats.base import (
     check_shape,
     files_in,
     finite_only,
+    format_module,
     load_each,
     need_keys,
     pickled_dict,
@@ -193,3 +194,6 @@ def detect(probe) -> str | None:
     if isinstance(content, dict) and "motion" in content:
         return "a dict with motion and text (MDM's results.npy)"
     return None
+
+
+format_module(__name__)

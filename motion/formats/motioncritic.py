@@ -21,6 +21,7 @@ from motion.formats.base import (
     MotionList,
     files_in,
     finite_only,
+    format_module,
     load_each,
     need_keys,
     pickled_dict,
@@ -82,3 +83,6 @@ def detect(probe) -> str | None:
         if isinstance(content, dict) and {"prompt", "motion"} <= set(content):
             return "an .npz whose arr_0 holds prompt and motion (MotionCritic)"
     return None
+
+
+format_module(__name__)

@@ -30,7 +30,14 @@ from pathlib import Path
 
 import numpy as np
 
-from motion.formats.base import FormatError, MotionList, check_finite, files_in, read_npz
+from motion.formats.base import (
+    FormatError,
+    MotionList,
+    check_finite,
+    files_in,
+    format_module,
+    read_npz,
+)
 from motion.motion import Motion, MotionError
 from motion.skeletons import custom_skeleton, get_skeleton, is_custom, sides_of
 
@@ -245,3 +252,6 @@ def detect(probe) -> str | None:
     if probe.suffix == ".npz" and {"joints", "actions", "skeleton"} <= probe.keys:
         return "an .npz with joints, actions and skeleton (the interchange file)"
     return None
+
+
+format_module(__name__)

@@ -16,7 +16,14 @@ from pathlib import Path
 
 import numpy as np
 
-from motion.formats.base import FormatError, MotionList, files_in, load_each, natural_key
+from motion.formats.base import (
+    FormatError,
+    MotionList,
+    files_in,
+    format_module,
+    load_each,
+    natural_key,
+)
 from motion.formats.smpl_estimates import array, axis_angles, choose, pose, read_data
 
 LAYOUT = ("4D-Humans/PHALP results .pkl: {frame name: {time, tracked_ids, smpl: [{global_orient "
@@ -90,3 +97,6 @@ def detect(probe) -> str | None:
     if probe.suffix in (".pkl", ".joblib") and frames_of(probe.content):
         return "per-frame dicts with tracked_ids and smpl: 4D-Humans/PHALP results"
     return None
+
+
+format_module(__name__)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from motion.formats.base import FormatError, MotionList, files_in, load_each
+from motion.formats.base import FormatError, MotionList, files_in, format_module, load_each
 from motion.formats.smpl_estimates import array, pose, read_data
 
 LAYOUT = ("a PHC motion library (joblib): {clip name: {pose_aa (T, 72), trans (T, 3), "
@@ -64,3 +64,6 @@ def detect(probe) -> str | None:
     if probe.suffix in (".pkl", ".joblib") and clips_of(probe.content):
         return f"{len(clips_of(probe.content))} clips with pose_aa and trans: a PHC motion library"
     return None
+
+
+format_module(__name__)

@@ -30,6 +30,7 @@ from motion.formats.base import (
     FormatError,
     MotionList,
     files_in,
+    format_module,
     load_each,
     need_keys,
     read_npz,
@@ -155,3 +156,6 @@ def detect(probe) -> str | None:
             layout = "AMASS SMPL-X" if "surface_model_type" in probe.keys else "BEAT2/EMAGE"
             return f"an .npz with poses {shape}: SMPL-X ({layout})"
     return None
+
+
+format_module(__name__, "smplx")  # the module's name keeps the smplx package's free

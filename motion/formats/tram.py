@@ -12,7 +12,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from motion.formats.base import FormatError, MotionList, files_in, load_each, need_keys
+from motion.formats.base import (
+    FormatError,
+    MotionList,
+    files_in,
+    format_module,
+    load_each,
+    need_keys,
+)
 from motion.formats.smpl_estimates import array, axis_angles, pose, read_data
 
 LAYOUT = ("TRAM's track file: a dict with pred_rotmat (T, 24, 3, 3), pred_trans (T, 3), "
@@ -51,3 +58,6 @@ def detect(probe) -> str | None:
     if probe.suffix in (".npy", ".pkl", ".pt") and {"pred_rotmat", "pred_trans"} <= probe.keys:
         return "a dict with pred_rotmat and pred_trans (world frame): TRAM's track file"
     return None
+
+
+format_module(__name__)

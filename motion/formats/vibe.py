@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from motion.formats.base import FormatError, MotionList, files_in, load_each
+from motion.formats.base import FormatError, MotionList, files_in, format_module, load_each
 from motion.formats.smpl_estimates import array, choose, pose, read_data
 
 LAYOUT = ("VIBE's vibe_output.pkl: {person id: {pose (T, 72), betas (T, 10), frame_ids, "
@@ -61,3 +61,6 @@ def detect(probe) -> str | None:
     if probe.suffix in (".pkl", ".joblib") and tracks_of(probe.content):
         return "person tracks with pose, cameras and no trans: VIBE's vibe_output.pkl"
     return None
+
+
+format_module(__name__)

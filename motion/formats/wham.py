@@ -13,7 +13,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from motion.formats.base import FormatError, MotionList, files_in, load_each, need_keys
+from motion.formats.base import (
+    FormatError,
+    MotionList,
+    files_in,
+    format_module,
+    load_each,
+    need_keys,
+)
 from motion.formats.smpl_estimates import array, choose, pose, read_data
 
 LAYOUT = ("WHAM's output.pkl: {person id: {pose (T, 72), trans (T, 3), pose_world (T, 72), "
@@ -73,3 +80,6 @@ def detect(probe) -> str | None:
                                           tracks_of(probe.content).values()) else "camera"
         return f"person tracks with pose and trans ({frames} frame): WHAM's output.pkl"
     return None
+
+
+format_module(__name__)

@@ -104,6 +104,10 @@ class Platform:
     strict_ids = False
     session_param = ""
     id_format = PLAIN_ID
+    # What the contract test (and a reader) builds the platform with: its own settings
+    # and a person's id as the platform spells it.
+    example_settings: dict = {}
+    example_person = "P0001"
 
     def __init__(self, settings: dict):
         settings = dict(settings or {})

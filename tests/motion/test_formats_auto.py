@@ -94,3 +94,30 @@ def test_a_file_of_no_known_kind_says_what_it_holds(tmp_path):
     (tmp_path / "x.fbx").write_bytes(b"Kaydara")
     with pytest.raises(FormatError, match="cannot tell the format of a .fbx file"):
         detect(tmp_path / "x.fbx")
+
+
+def test_a_format_module_brings_its_own_file_endings(tmp_path):
+    """A format that reads another kind of file declares its endings (``SUFFIXES``): auto
+    then surveys such files in a folder, and no shared list names them."""
+    import types
+
+    from motion.formats import base
+    from motion.formats.auto import survey
+    from motion.motion import Motion
+
+    def load(path, **options):
+        joints = np.loadtxt(path, delimiter=",").reshape(-1, 22, 3)
+        return [Motion(joints=joints, skeleton="smpl22", fps=20.0, source="real",
+                       action="walk")]
+
+    def detect(probe):
+        return "a toy CSV" if probe.suffix == ".toycsv" else None
+
+    toy = types.SimpleNamespace(load=load, detect=detect, SUFFIXES=(".toycsv",))
+    np.savetxt(tmp_path / "walk.toycsv", walking(4, 22).reshape(4, -1), delimiter=",")
+    base._FORMATS.add("toy_endings", toy)
+    try:
+        groups, skipped = survey(tmp_path)
+        assert list(groups) == ["toy_endings"] and not skipped
+    finally:
+        base._FORMATS.pop("toy_endings")

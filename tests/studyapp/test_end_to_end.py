@@ -5,6 +5,7 @@ type, each finished by simulated participants."""
 
 import json
 from io import StringIO
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -28,7 +29,8 @@ PLAIN = ["study.practice=false", "study.catch_trials=0", "study.repeat_trials=0"
 
 
 def build(name, tmp_path, *overrides):
-    config = load_config(DEMO_CONFIGS / name, [*SMALL, *overrides])
+    path = name if isinstance(name, Path) else DEMO_CONFIGS / name
+    config = load_config(path, [*SMALL, *overrides])
     return build_stimuli(config, tmp_path / config.slug, cache=tmp_path / "cache")
 
 
@@ -109,9 +111,8 @@ def test_browser_answers_are_exported_and_analysed_exactly(demo_study, page, liv
 def test_the_demo_has_a_study_of_every_type_that_bots_can_finish(
     transactional_db, media_root, tmp_path, live_server
 ):
-    paths = demo_configs()
-    studies = [build(p.name, tmp_path, "actions=[walk,wave]",
-                     "study.trials_per_participant=null").study for p in paths]
+    studies = [build(path, tmp_path, *fixed, "actions=[walk,wave]",
+                     "study.trials_per_participant=null").study for path, fixed in demo_configs()]
     assert sorted(s.study_type for s in studies) == list_study_types()  # one of every type
     by_type = {s.study_type: s for s in studies}
     for study in studies:

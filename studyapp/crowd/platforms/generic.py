@@ -15,6 +15,8 @@ from studyapp.crowd.platform import Platform, registry
 class Generic(Platform):
     label = "Crowd platform"
     own_settings = ("id_param", "extra_params", "completion_url_template")
+    example_settings = {"id_param": "participantId", "extra_params": ["sessionId"],
+                        "completion_url_template": "https://panel.example.org/done?c={code}&p={id}"}
 
     def __init__(self, settings):
         super().__init__(settings)

@@ -65,6 +65,8 @@ class Prolific(Platform):
     session_param = "SESSION_ID"
     id_format = PROLIFIC_ID
     own_settings = ("prolific_study_id",)
+    example_settings = {"prolific_study_id": "64f0c0ffee0000000000beef"}
+    example_person = "5f0c0ffee00000000000abcd"
     COMPLETE = "https://app.prolific.com/submissions/complete?cc={code}"
 
     def __init__(self, settings):

@@ -2,6 +2,8 @@ import ipaddress
 import secrets
 from pathlib import Path
 
+import yaml
+
 from django.conf import settings
 from django.contrib.auth import get_user_model
 from django.core.management import call_command
@@ -10,6 +12,7 @@ from django.db import transaction
 from django.urls import reverse
 
 from studyapp.survey.models import Participant, Study
+from studyapp.survey.study_types import get_study_type, list_study_types
 from studyapp.survey.site import (
     DEFAULT_ADDR,
     AddressError,
@@ -34,9 +37,24 @@ def is_loopback(host: str) -> bool:
         return False  # another name: it may resolve to any interface
 
 
-def demo_configs(folder: Path = DEMO_CONFIGS) -> list[Path]:
-    """Return the demo's study configs: every YAML file of the folder but ``_*`` ones."""
-    return sorted(p for p in folder.glob("*.yaml") if not p.name.startswith("_"))
+def demo_configs(folder: Path = DEMO_CONFIGS) -> list[tuple[Path, list[str]]]:
+    """Return the demo's study configs as ``(path, overrides)``: every YAML file of the
+    folder but ``_*`` ones, then, for each registered study type that none of them
+    builds, ``_common.yaml`` with the type's key, slug and label, so a new type is in the
+    demo without a file of its own (give it one to set its options)."""
+    paths = sorted(p for p in folder.glob("*.yaml") if not p.name.startswith("_"))
+    configs = [(path, []) for path in paths]
+    common = folder / "_common.yaml"
+    if not common.is_file():
+        return configs
+    named = {((yaml.safe_load(path.read_text()) or {}).get("study") or {}).get("type")
+             for path in paths}
+    for key in list_study_types():
+        if key not in named:
+            configs.append((common, [f"slug=demo-{key.replace('_', '-')}",
+                                     f"title={get_study_type(key).label}",
+                                     f"study.type={key}"]))
+    return configs
 
 
 def ensure_admin(root: Path) -> tuple[str, str]:
@@ -105,7 +123,8 @@ class Command(BaseCommand):
             raise CommandError(f"no study configs (*.yaml) in {options['configs']}")
         only = set(options["only"].split(",")) if options["only"] else None
         try:
-            configs = [load_config(p, self.overrides(options)) for p in paths]
+            configs = [load_config(path, [*fixed, *self.overrides(options)])
+                       for path, fixed in paths]
         except ConfigError as exc:
             raise CommandError(f"the demo could not be built: {exc}") from None
         configs = [c for c in configs if only is None or c.study_type in only]
