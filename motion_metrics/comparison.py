@@ -83,8 +83,8 @@ SELECT_REPEATS = 3
 SELECT_SEED_OFFSET = 1_000_000
 
 
-class BenchmarkError(ValueError):
-    """A benchmark cannot run as asked (unknown dataset or method, no clips, bad budget)."""
+class ComparisonError(ValueError):
+    """A comparison cannot run as asked (unknown dataset or method, no clips, bad budget)."""
 
 
 @dataclass(frozen=True)
@@ -102,18 +102,18 @@ class Selection:
 
     def __post_init__(self):
         if self.rule not in SELECTIONS:
-            raise BenchmarkError(f"unknown checkpoint selection {self.rule!r}; choose from "
+            raise ComparisonError(f"unknown checkpoint selection {self.rule!r}; choose from "
                                  f"{', '.join(SELECTIONS)}")
         if not self.best:
             if self.every is not None:
-                raise BenchmarkError("candidates every N iterations go with the best-mmd-seq "
+                raise ComparisonError("candidates every N iterations go with the best-mmd-seq "
                                      "selection, not with last")
             return
         if self.every is None or int(self.every) != self.every or self.every < 1:
-            raise BenchmarkError(f"best-mmd-seq needs candidates every N >= 1 iterations; "
+            raise ComparisonError(f"best-mmd-seq needs candidates every N >= 1 iterations; "
                                  f"got {self.every!r}")
         if int(self.n) != self.n or self.n < 2:
-            raise BenchmarkError(f"best-mmd-seq scores at least 2 motions per action; got {self.n!r}")
+            raise ComparisonError(f"best-mmd-seq scores at least 2 motions per action; got {self.n!r}")
 
     @property
     def best(self) -> bool:
@@ -166,7 +166,7 @@ def setting_for(dataset: str, subjects=None, test_subjects=None) -> Setting:
     try:
         cls = DATASETS.get(dataset)
     except KeyError as exc:
-        raise BenchmarkError(exc.args[0]) from None
+        raise ComparisonError(exc.args[0]) from None
     setting = SETTINGS.get(dataset)
     if setting is None:
         flat = get_skeleton(cls.skeleton).dims == 2
@@ -375,7 +375,7 @@ def machine() -> dict:
     }
 
 
-def run_benchmark(datasets: Sequence[str], budget: float | None, work: str | Path, *,
+def run_comparison(datasets: Sequence[str], budget: float | None, work: str | Path, *,
                   iters: int | None = None, seeds: Sequence[int] = DEFAULT_SEEDS,
                   methods: Sequence[str] | None = None, presets: dict[str, str] | None = None,
                   repeats: int = 20, n: int = 100, subjects=None,
@@ -383,7 +383,7 @@ def run_benchmark(datasets: Sequence[str], budget: float | None, work: str | Pat
                   classifier_preset: str = "paper", data_root=None, checkpoint_every: float = 15.0,
                   mmd_protocol: str = MMD_PROTOCOL, selection: Selection = LAST,
                   progress: bool = True, log: Callable[[str], None] | None = None) -> dict:
-    """Benchmark ``methods`` (default: all) on each dataset; return the results (JSON-ready).
+    """Compare ``methods`` (default: all) on each dataset; return the results (JSON-ready).
 
     Each method trains once per seed of ``seeds``, for ``iters`` iterations or ``budget``
     seconds (give one); the classifier trains with the first seed. ``selection`` says
@@ -394,22 +394,22 @@ def run_benchmark(datasets: Sequence[str], budget: float | None, work: str | Pat
     methods = list(methods or list_methods())
     unknown = [name for name in methods if name not in list_methods()]
     if unknown:
-        raise BenchmarkError(f"unknown method {', '.join(map(repr, unknown))}; choose from "
+        raise ComparisonError(f"unknown method {', '.join(map(repr, unknown))}; choose from "
                              f"{', '.join(list_methods())}")
     if (budget is None) == (iters is None):
-        raise BenchmarkError("give either a time budget (seconds) or iterations per method, not both")
+        raise ComparisonError("give either a time budget (seconds) or iterations per method, not both")
     if (budget is not None and not budget > 0) or (iters is not None and iters < 1):
-        raise BenchmarkError(f"the budget must be positive; got {budget if iters is None else iters}")
+        raise ComparisonError(f"the budget must be positive; got {budget if iters is None else iters}")
     if repeats < 1 or n < 2:
-        raise BenchmarkError(f"repeats must be at least 1 and n at least 2; got {repeats}, {n}")
+        raise ComparisonError(f"repeats must be at least 1 and n at least 2; got {repeats}, {n}")
     seeds = [int(seed) for seed in seeds]
     if not seeds or len(set(seeds)) != len(seeds) or min(seeds) < 0:
-        raise BenchmarkError(f"seeds must be distinct non-negative integers; got {seeds}")
+        raise ComparisonError(f"seeds must be distinct non-negative integers; got {seeds}")
     if mmd_protocol not in MMD_PROTOCOLS:
-        raise BenchmarkError(f"unknown MMD protocol {mmd_protocol!r}; choose from "
+        raise ComparisonError(f"unknown MMD protocol {mmd_protocol!r}; choose from "
                              f"{', '.join(sorted(MMD_PROTOCOLS))}")
     if selection.best and iters is not None and selection.every > iters:
-        raise BenchmarkError(f"candidates every {selection.every} iterations leave none but the "
+        raise ComparisonError(f"candidates every {selection.every} iterations leave none but the "
                              f"last within {iters} iterations; take at most {iters}")
     work = Path(work)
     settings = [setting_for(name, subjects, test_subjects) for name in datasets]
@@ -420,7 +420,7 @@ def run_benchmark(datasets: Sequence[str], budget: float | None, work: str | Pat
               "classifier_iters": classifier_iters, "classifier_preset": classifier_preset,
               "mmd_protocol": mmd_protocol, "selection": selection.to_dict(),
               "methods": methods, "settings": []}
-    bar = tqdm(total=len(settings) * (1 + len(methods) * len(seeds)), desc="benchmark", unit="step",
+    bar = tqdm(total=len(settings) * (1 + len(methods) * len(seeds)), desc="compare_methods", unit="step",
                disable=not progress, dynamic_ncols=True)
 
     def say(message: str) -> None:
@@ -455,7 +455,7 @@ def _run_setting(setting, methods, presets, budget, iters, folder, repeats, seed
     clips = data.clips(actions=classifier.actions)
     train, test = classifier.split.divide(clips)
     if not train or not test:
-        raise BenchmarkError(f"dataset {name!r} gave {len(train)} training and {len(test)} "
+        raise ComparisonError(f"dataset {name!r} gave {len(train)} training and {len(test)} "
                              f"held-out clips ({classifier.split.describe()})")
     out = {
         "dataset": name, "skeleton": data.skeleton, "frames": classifier.frames,

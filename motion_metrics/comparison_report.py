@@ -1,4 +1,4 @@
-"""Turn the results of :func:`motion_metrics.comparison.run_benchmark` into ``docs/RESULTS.md``.
+"""Turn the results of :func:`motion_metrics.comparison.run_comparison` into ``docs/RESULTS.md``.
 
 Per data setting: how the data was split and the classifier trained, the methods'
 training within the budget (per seed), our numbers (the mean over training seeds with a
@@ -64,7 +64,7 @@ def _budget_text(result: dict) -> str:
 
 
 def render(result: dict, command: str) -> str:
-    """Return the Markdown of a benchmark run, produced by ``command``."""
+    """Return the Markdown of a comparison run, produced by ``command``."""
     lines = ["# Results: our methods measured against the seed papers' tables", ""]
     lines += _provenance(result, command)
     lines += _not_run(result, command)

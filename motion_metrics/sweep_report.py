@@ -1,6 +1,6 @@
 """A budget sweep of ``compare_methods`` as Markdown: does more training help, measured.
 
-``compare_methods --iters 250,500,1000,2000`` runs the benchmark once per budget (a
+``compare_methods --iters 250,500,1000,2000`` runs the comparison once per budget (a
 method without phases trains once, to the largest budget, keeping each budget's
 checkpoint; :func:`motion_metrics.comparison.start_from_shorter`). The report is the main
 budget's (:func:`motion_metrics.comparison_report.render`) followed by the sweep: per

@@ -140,7 +140,7 @@ def test_a_build_trains_the_checkpoint_benchmark_methods_trains(tmp_path, h36m_r
     data = get_dataset("h36m2d", h36m_root)
     train, _ = Split(test_subjects=H36M_TEST, train_subjects=H36M_TRAIN).divide(data.clips())
     assert len(train) == len(build.dataset.clips(subjects=list(H36M_TRAIN)))
-    with one_thread():  # as run_benchmark trains
+    with one_thread():  # as run_comparison trains
         benchmark, _ = train_within_budget("skeleton_gan", train, data.actions(), None,
                                            tmp_path / "benchmark",
                                            recipe_for("skeleton_gan", {"skeleton_gan": "tiny"}, 4),

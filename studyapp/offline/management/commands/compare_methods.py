@@ -10,7 +10,7 @@ from motion_metrics.recognition import ClassifierError
 from generation.sampling import SamplingError, split_names
 from generation.methods.budget import write_json
 from motion_metrics.comparison import (
-    MMD_PROTOCOL, SELECT_N, SELECTIONS, BenchmarkError, Selection, run_benchmark,
+    MMD_PROTOCOL, SELECT_N, SELECTIONS, ComparisonError, Selection, run_comparison,
 )
 from motion_metrics.comparison_report import render
 from motion_metrics.sweep_report import render_sweep
@@ -123,11 +123,11 @@ class Command(BaseCommand):
         results = []
         try:
             for iters in sweep or [None]:  # shorter budgets first: longer ones resume them
-                results.append(run_benchmark(split_names(options["dataset"]), options["budget"],
+                results.append(run_comparison(split_names(options["dataset"]), options["budget"],
                                              work, iters=iters, **common))
         except KeyError as exc:
             raise CommandError(exc.args[0]) from None
-        except (BenchmarkError, DatasetError, ClassifierError, MethodError, CheckpointError,
+        except (ComparisonError, DatasetError, ClassifierError, MethodError, CheckpointError,
                 SamplingError) as exc:
             raise CommandError(str(exc)) from None
         out = Path(options["out"])
