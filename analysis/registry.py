@@ -89,6 +89,13 @@ class StudyAnalysis:
         frame = rows[["pcode", "stimulus", self.answer]]
         return frame.set_axis(["participant", "unit", "value"], axis=1)
 
+    def describe(self, rows: pd.DataFrame, config) -> str:
+        """Return the phrase of the methods paragraph saying what a trial showed and asked,
+        for what this study did: the study type's options (``config.type_options``) and,
+        when a table comes without them, the answers given (:func:`offered`). Never a
+        choice the participants did not have. Default: :attr:`design`."""
+        return self.design
+
     def screen(self, rows: pd.DataFrame, config) -> tuple[pd.DataFrame, list[dict], list[str]]:
         """Return the answered main-trial rows kept by this type's own screening rules,
         one exclusion record per rule (``rule``, ``applied`` ``"yes"`` or why not,
@@ -118,6 +125,14 @@ class StudyAnalysis:
     def simulated_roles(self, is_catch, row_source, n_sources):
         """Return the ``stimulus_role`` of each simulated row (one for all: ``judged``)."""
         return "judged"
+
+
+def offered(config, option: str, seen: bool) -> bool:
+    """Return whether the study offered what its type's ``option`` switches on: the study's
+    own option when the analysis has it (``config.type_options``), else whether any answer
+    used it (``seen``): a table analysed without its study says only what happened."""
+    options = getattr(config, "type_options", None) or {}
+    return bool(options[option]) if option in options else bool(seen)
 
 
 def register_analysis(name: str):

@@ -47,7 +47,7 @@ def test_bots_with_known_strengths_are_recovered(study_type, tmp_path):
     order = [s for s in summary["order"] if s in TRUE_ORDER]  # mushra: also its controls
     tau = scipy_stats.kendalltau([TRUE_ORDER.index(s) for s in order], range(4)).statistic
     assert tau >= 0.9 and len(order) == 4, summary["order"]
-    excluded = result.exclusions.set_index("rule").loc["Failed more than 0 catch trial(s)", "participants"]
+    excluded = result.exclusions.set_index("rule").loc["Failed an attention check", "participants"]
     assert excluded == table.loc[table["catch_passed"].eq(False), "participant"].nunique() > 0
     for source, entry in summary["sources"].items():
         assert entry["ci"][0] <= entry["score"] <= entry["ci"][1], source
