@@ -27,7 +27,8 @@ def test_every_analysed_study_type_can_be_simulated():
 def test_simulated_table_has_the_response_columns_and_valid_answers(study_type):
     table = simulate(study_type, participants=6, trials=4, catch_trials=1, repeat_trials=2, seed=1)
     plugin = get_analysis(study_type)
-    assert list(table.columns) == list(RESPONSE_COLUMNS) + list(plugin.extra_columns)
+    assert list(table.columns) == list(RESPONSE_COLUMNS) + list(plugin.extra_columns) + ["simulated"]
+    assert table["simulated"].all()
     assert table.groupby("participant")["trial"].nunique().eq(4 + 1 + 2).all()
     kinds = table.groupby("trial_id")["trial_kind"].first().value_counts().to_dict()
     assert kinds == {"main": 24, "catch": 6, "repeat": 12}

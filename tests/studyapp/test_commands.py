@@ -61,6 +61,8 @@ def test_prefer_real_bots_answer_by_the_source_from_the_database(study_of, live_
     expected = table["source"].eq("real")
     assert table["judged_real"].astype(bool).tolist() == expected.tolist()
     assert table.loc[table["is_catch"], "catch_passed"].all()
+    # Bots are marked (by the User-Agent they send) in both tables.
+    assert table["simulated"].all() and participants_frame(study)["simulated"].all()
 
 
 def test_the_bots_know_sources_only_through_the_database(study_of, live_server, monkeypatch):

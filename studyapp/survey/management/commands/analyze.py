@@ -13,6 +13,11 @@ from studyapp.survey.export import get_study, responses_frame
 from studyapp.survey.results import note_report
 
 
+# The study's design the methods paragraph states (Study fields).
+STUDY_OPTIONS = ("practice", "catch_trials", "instructed_checks", "repeat_trials",
+                 "trials_per_participant", "clips_per_trial")
+
+
 class Command(BaseCommand):
     help = (
         "Analyse a study's answers for its study type: statistics with confidence intervals, "
@@ -66,7 +71,7 @@ class Command(BaseCommand):
 
     def handle(self, *args, study, responses, out, **options):
         participants = None
-        type_options = {}
+        type_options, study_options = {}, {}
         if responses:
             try:
                 table = read_responses(responses)
@@ -81,6 +86,7 @@ class Command(BaseCommand):
             participants = _participants(record)
             name = record.slug
             type_options = dict(record.options or {})
+            study_options = {name: getattr(record, name) for name in STUDY_OPTIONS}
             if options["max_failed_catch"] is None:
                 options["max_failed_catch"] = record.max_failed_catch  # as its outcomes
             if table.empty:
@@ -93,7 +99,7 @@ class Command(BaseCommand):
                 max_failed_repeats=options["max_failed_repeats"], completed_only=options["completed_only"],
                 bootstrap=options["bootstrap"], seed=options["seed"], real_source=options["real_source"],
                 random_clips=not options["fixed_clips"], mixed_models=options["mixed_models"],
-                type_options=type_options,
+                type_options=type_options, study_options=study_options,
             )
             results = analyse_all(table, config, participants=participants)
             _add_stimulus_sources(results, options["manifest"], None if responses else record)
