@@ -108,6 +108,7 @@ class StudyResult:
             "confidence": self.config.confidence,
             "n_participants": self.counts["participants"],
             "n_judgements": self.counts["judgements"],
+            "n_simulated": self.counts.get("simulated", 0),  # bots among the participants
             "order": [str(s) for s in sources.index],
             "sources": {
                 str(source): {
