@@ -16,7 +16,7 @@ import pandas as pd
 from analysis import crossed, simulate, stats
 from analysis.counts import ranked_sources, source_counts
 from analysis.formatting import estimate_with_interval, p_text, plural
-from analysis.registry import (Analysis, Plot, StudyAnalysis, Table, offered,
+from analysis.registry import (Analysis, AnswerOption, Plot, StudyAnalysis, Table, offered,
                                register_analysis)
 from analysis.tables import AnalysisError
 
@@ -32,13 +32,9 @@ class Pairwise(StudyAnalysis):
     required = ("position",)
     design = ("each trial showed two clips of one action side by side and participants chose the "
               "better one")
-
-    def describe(self, rows, config):
-        """The design; "both good" and "both bad" only when the study offered them (its
-        ``allow_ties`` option, else whether anyone answered so)."""
-        if offered(config, "allow_ties", rows["choice"].astype(str).isin(CHOICES[2:]).any()):
-            return self.design + ", or answered that both were equally good or equally bad"
-        return self.design
+    answer_options = {"allow_ties": AnswerOption(
+        CHOICES[2:], ", or answered that both were equally good or equally bad",
+        ("both good", "both bad", "equally good", "equally bad", "tie"))}
 
     def simulated_trials(self, rng, n_trials, n_sources, clips_per_trial):
         return simulate.pairs(rng, n_trials, n_sources)

@@ -45,7 +45,7 @@ from analysis import crossed, simulate, stats
 from analysis.counts import ranked_sources, source_counts
 from analysis.formatting import estimate_with_interval, p_text, plural
 from analysis.pairwise import _matrix_plot, comparisons_answered
-from analysis.registry import (Analysis, Plot, StudyAnalysis, Table, offered,
+from analysis.registry import (Analysis, AnswerOption, Plot, StudyAnalysis, Table, offered,
                                register_analysis)
 
 SCALE = ("left_much", "left", "left_slightly", "no_preference", "right_slightly", "right",
@@ -77,13 +77,8 @@ class PairwiseGraded(StudyAnalysis):
     design = ("each trial showed two clips of one action side by side (A left, B right) and "
               "participants answered on a symmetric 7-point scale from 'A much better' through "
               "'No preference' to 'B much better'")
-
-    def describe(self, rows, config):
-        """The design; "Both bad" only when the study offered it (its ``both_bad`` option,
-        else whether anyone answered so)."""
-        if offered(config, "both_bad", (rows["choice"].astype(str) == "both_bad").any()):
-            return self.design + ", or answered 'Both bad'"
-        return self.design
+    answer_options = {"both_bad": AnswerOption(
+        ("both_bad",), ", or answered 'Both bad'", ("both bad",))}
 
     def simulated_trials(self, rng, n_trials, n_sources, clips_per_trial):
         return simulate.pairs(rng, n_trials, n_sources)

@@ -18,13 +18,13 @@ from analysis.stats import MIN_PARTICIPANTS
 # Decimals of Krippendorff's alpha and of its interval (one precision for both).
 ALPHA_DIGITS = 2
 
-# How each participant outcome of the export reads: (one, several).
+# How each participant outcome of the export reads: (one, several), in this order.
 OUTCOMES = {
     "completed": ("completed the study", "completed the study"),
     "failed_attention": ("was stopped after failing the attention checks",
                          "were stopped after failing the attention checks"),
-    "no_consent": ("did not consent", "did not consent"),
     "screened_out": ("was screened out", "were screened out"),
+    "no_consent": ("did not consent", "did not consent"),
     "timed_out": ("timed out", "timed out"),
     "": ("had not finished when the data were exported",
          "had not finished when the data were exported"),
@@ -69,7 +69,8 @@ def _participants(result) -> list[str]:
     ended = {k: v for k, v in (outcomes.get("by_outcome") or {}).items() if v}
     if ended:
         parts = []
-        for key in sorted(ended, key=lambda k: (-ended[k], k)):
+        order = list(OUTCOMES)
+        for key in sorted(ended, key=lambda k: (order.index(k) if k in order else len(order), k)):
             one, several = OUTCOMES.get(key, (f"ended as {key.replace('_', ' ')}",) * 2)
             parts.append(f"{ended[key]} {one if ended[key] == 1 else several}")
         total = outcomes["total"]
