@@ -272,7 +272,7 @@ def _inference(result) -> str:
                 f"independent; p-values of families of comparisons are Holm-corrected")
     return (f"Intervals are {ci}; apart from agreement they are over participants only, a "
             f"resample keeping all of a participant's judgements{dprime}: the clips were held "
-            f"fixed (--fixed-clips), so no verdict reaches other clips of the same sources; "
+            f"fixed, so no verdict reaches other clips of the same sources; "
             f"p-values of families of comparisons are Holm-corrected")
 
 

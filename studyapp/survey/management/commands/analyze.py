@@ -85,7 +85,8 @@ class Command(BaseCommand):
             table = responses_frame(record)
             participants = _participants(record)
             name = record.slug
-            type_options = dict(record.options or {})
+            # Every option of the type, defaults included: the report describes what ran.
+            type_options = {name: record.option(name) for name in record.kind.options}
             study_options = {name: getattr(record, name) for name in STUDY_OPTIONS}
             if options["max_failed_catch"] is None:
                 options["max_failed_catch"] = record.max_failed_catch  # as its outcomes
