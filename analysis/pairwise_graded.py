@@ -78,7 +78,7 @@ class PairwiseGraded(StudyAnalysis):
               "participants answered on a symmetric 7-point scale from 'A much better' through "
               "'No preference' to 'B much better'")
     answer_options = {"both_bad": AnswerOption(
-        ("both_bad",), ", or answered 'Both bad'", ("both bad",))}
+        ("both_bad",), ", or 'Both bad'", ("both bad",))}
 
     def simulated_trials(self, rng, n_trials, n_sources, clips_per_trial):
         return simulate.pairs(rng, n_trials, n_sources)
