@@ -157,8 +157,10 @@ class Command(BaseCommand):
                     f"{part['says']}."))
         tables = sum(1 for path in written if path.suffix == ".csv")
         figures = sum(1 for path in written if path.suffix == ".png")
+        headline = sum(1 for path in written if path.name.startswith("headline_"))
         self.stdout.write(f"Wrote report.html, summary.json, {tables} tables (CSV, Markdown, LaTeX) "
-                          f"and {figures} figures (PNG, SVG) to {out}.")
+                          f"and {figures} figures (PNG, SVG), supplement.html and .pdf (one "
+                          f"page) and {headline} headline LaTeX tables to {out}.")
 
 
 def _add_stimulus_sources(results, manifest, study) -> None:
