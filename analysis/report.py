@@ -192,7 +192,7 @@ def supplement_figure(result, title: str | None = None):
         page = Figure(figsize=(8.27, 11.69))
         FigureCanvasPdf(page)
         page.text(0.06, 0.965, _supplement_heading(result, title), fontsize=13,
-                  weight="bold", va="top")
+                  weight="bold", va="top", parse_math=False)
         banner = simulated_banner(result)
         if banner:
             page.text(0.06, 0.94, _wrap(banner + ".", 100), fontsize=9, color="#b00020",
@@ -207,7 +207,7 @@ def supplement_figure(result, title: str | None = None):
             ax.imshow(image)
             ax.set_axis_off()
             page.text(0.06, top - height - 0.01, plot.title, fontsize=8, color="#555",
-                      va="top")
+                      va="top", parse_math=False)
             top -= height + 0.04
         tables = [(headline_sources(result), _headline_caption(
             result, _capital(result.analysis.measure) + " per source"))]
@@ -217,7 +217,8 @@ def supplement_figure(result, title: str | None = None):
         for frame, caption in tables:
             rows = min(len(frame), 18)
             height = 0.022 * (rows + 1)
-            page.text(0.06, top, _wrap(caption + ".", 110), fontsize=8, va="top")
+            page.text(0.06, top, _wrap(caption + ".", 110), fontsize=8, va="top",
+                      parse_math=False)
             top -= 0.03
             if top - height < 0.03:
                 break
@@ -231,6 +232,8 @@ def supplement_figure(result, title: str | None = None):
                              cellLoc="left", colLoc="left", edges="horizontal")
             table.auto_set_font_size(False)
             table.set_fontsize(8)
+            for cell in table.get_celld().values():
+                cell.get_text().set_parse_math(False)  # a source named "$x$" stays as typed
             top -= height + 0.04
     return page
 
