@@ -204,7 +204,18 @@ def _attention(result) -> list[str]:
     sentences = []
     for row in result.quality.itertuples():
         if row.check.startswith("catch"):
-            sentences.append(f"{row.detail} were passed ({number(100 * row.value, 0)} %, "
+            counts = result.counts
+            kinds = [name for name, key in (("catch trials", "catch_trials"),
+                                            ("instructed checks", "instructed_trials"))
+                     if counts.get(key)]
+            what = kinds[0] if len(kinds) == 1 else "attention checks"
+            passed = int(round(row.value * row.n))
+            if row.n == 1:
+                what, were = what[:-1], "was"
+            else:
+                were = "were"
+            sentences.append(f"{passed} of {row.n} {what} {were} passed "
+                             f"({number(100 * row.value, 0)} %, "
                              f"{plural(row.participants, 'participant')})")
         elif row.check.startswith("repeated"):
             detail = row.detail.split("; ", 1)

@@ -141,3 +141,15 @@ def test_agreement_over_few_units_says_so(study_type):
                    config(bootstrap=20))
     if many.agreement["n_units"] >= MIN_AGREEMENT_UNITS:
         assert f"With fewer than {MIN_AGREEMENT_UNITS}" not in many.methods()
+
+
+@pytest.mark.parametrize("study_type", TYPES)
+def test_instructed_checks_are_named_as_such(study_type):
+    table = simulate(study_type, participants=12, trials=4, catch_trials=1, seed=6)
+    checks = table["trial_kind"] == "catch"
+    table["trial_kind"] = table["trial_kind"].astype(str).where(~checks, "instructed")
+    table["is_catch"] = False  # an instructed check shows no broken clip
+    text = analyse(table, config(bootstrap=20)).methods()
+    assert "Attention was checked with 1 instructed check per participant" in text
+    assert "catch trial" not in text.lower()
+    assert "Instructed checks do not enter the statistics" in text
