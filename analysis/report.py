@@ -148,7 +148,8 @@ def write_supplement(result, out: Path, figures, title: str | None = None) -> li
     html_path.write_text(render_supplement(result, figures[:1], title))
     written = [html_path]
     pdf = out / "supplement.pdf"
-    supplement_figure(result, title).savefig(pdf, format="pdf")
+    # No creation date: the same result writes the same file.
+    supplement_figure(result, title).savefig(pdf, format="pdf", metadata={"CreationDate": None})
     written.append(pdf)
     return written
 
