@@ -172,8 +172,7 @@ def _exclusions(result) -> list[str]:
     skipped = rules.loc[rules["applied"].str.startswith("skipped")]
     if len(skipped):
         sentences.append(
-            word_list(f"the rule '{_lower(rule)}' could not be applied "
-                      f"({row['applied'].removeprefix('skipped ').strip('()')})"
+            word_list(f"the rule '{_lower(rule)}' could not be applied ({_why_skipped(row)})"
                       for rule, row in skipped.iterrows()))
     counts = result.counts
     kept_out = [name for name, n in (("catch trials", counts.get("catch_trials", 0)),
@@ -182,6 +181,13 @@ def _exclusions(result) -> list[str]:
     if kept_out:
         sentences.append(word_list(kept_out).capitalize() + " do not enter the statistics")
     return sentences
+
+
+def _why_skipped(row) -> str:
+    why = row["applied"].removeprefix("skipped").strip(" ()")
+    if why == "no data":
+        return "the table has no clip durations or answer times"
+    return why.replace("no ", "the table has no ", 1) if why.startswith("no ") else why
 
 
 def _rule_text(rule: str, row) -> str:

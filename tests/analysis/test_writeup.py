@@ -82,6 +82,7 @@ def test_fixed_clips_and_people_change_what_the_paragraph_says(study_type):
     fixed = analyse(table, config(bootstrap=20, random_clips=False)).methods()
     assert "clips as random" in random and "clips were held fixed" in fixed
     assert "clips as random" not in fixed
+    assert "mixed model" not in random.lower()  # fitted only when asked (--mixed-models)
     assert "simulated" not in random.lower() and "bot" not in random.split()
 
 
