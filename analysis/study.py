@@ -42,8 +42,8 @@ class AnalysisConfig:
     # The study type's own options (Study.options), for analyses that follow them (a
     # screening threshold); empty when a table is analysed without its study.
     type_options: dict = field(default_factory=dict)
-    # The study's own design (Study fields such as practice, catch_trials,
-    # instructed_checks, repeat_trials, trials_per_participant), for the methods paragraph;
+    # The study's own design (Study fields: practice, catch_trials, instructed_checks,
+    # repeat_trials), for the methods paragraph;
     # empty when a table is analysed without its study (the table then says what it holds).
     study_options: dict = field(default_factory=dict)
 

@@ -14,8 +14,7 @@ from studyapp.survey.results import note_report
 
 
 # The study's design the methods paragraph states (Study fields).
-STUDY_OPTIONS = ("practice", "catch_trials", "instructed_checks", "repeat_trials",
-                 "trials_per_participant", "clips_per_trial")
+STUDY_OPTIONS = ("practice", "catch_trials", "instructed_checks", "repeat_trials")
 
 
 class Command(BaseCommand):
