@@ -199,6 +199,8 @@ def _rule_text(rule: str, row) -> str:
         what = what.removeprefix("answered ")
         return (f"{plural(row['trials'], 'trial')} answered {what} "
                 f"({plural(row['participants'], 'participant')}, {judgements})")
+    if what.endswith(")"):  # "... (MUSHRA post-screening)": one pair of brackets
+        return f"{plural(row['participants'], 'participant')} who {what[:-1]}; {judgements})"
     return f"{plural(row['participants'], 'participant')} who {what} ({judgements})"
 
 
