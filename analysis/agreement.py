@@ -20,6 +20,25 @@ from scipy import sparse
 from analysis.stats import percentile_interval
 
 LEVELS = ("nominal", "ordinal", "interval")
+# Fewest units (stimuli, or pairs of them, judged at least twice) for which a report
+# states alpha without a warning. The interval comes from resampling units: with a few
+# units the resamples are a handful of distinct sets, so the percentile interval is
+# coarse and may even miss the estimate, and one unit moves alpha by tenths. Thirty is
+# the usual floor for a bootstrap over independent units, and a study that wants alpha
+# should plan for that many (Krippendorff 2011, section E, asks for more still to test a
+# minimum alpha).
+MIN_AGREEMENT_UNITS = 30
+
+
+def few_units_text(n_units: int) -> str:
+    """Return the warning for agreement measured over fewer than
+    :data:`MIN_AGREEMENT_UNITS` units."""
+    return (f"agreement rests on only {n_units} {'unit' if n_units == 1 else 'units'} judged "
+            f"by two or more participants (a firm figure needs {MIN_AGREEMENT_UNITS} or more): "
+            f"with so few units "
+            f"the bootstrap interval is coarse and one unit can move alpha by tenths, so read "
+            f"alpha as a rough indication only; show each clip (or pair) to more participants "
+            f"for a firmer figure")
 
 
 def krippendorff_alpha(units, values, level: str = "nominal", bootstrap: int = 0,

@@ -488,7 +488,7 @@ def one_clip_note(design: Design) -> str | None:
         df = design.n_clips - design.n_strata
         if df >= FEW_CLIP_DF:
             return None
-        return (f"the clips' variance rests on {df} degree(s) of freedom ({design.n_clips} clips "
+        return (f"the clips' variance rests on {df} {'degree' if df == 1 else 'degrees'} of freedom ({design.n_clips} clips "
                 f"in {design.n_strata} source-and-condition groups): the intervals are rough and "
                 f"may hold less often than stated; add clips (at least 4 per source and "
                 f"condition) for firmer verdicts")
@@ -515,7 +515,8 @@ def methods_text(design: Design, config) -> str:
     return (f"{confidence:.0%} intervals and tests treat participants and clips as random: "
             f"{repeats} bootstrap resamples of the {design.n_participants} participants "
             f"(with all their answers) and, separately, {repeats} of the {design.n_clips} clips "
-            f"(drawn within their source and condition, {per} clips each) give the two "
+            f"(drawn within their source and condition, {per} {'clip' if most == 1 else 'clips'} "
+            f"each) give the two "
             f"variances, less the single answers' noise they both contain (answers resampled "
             f"among those to the same clips); the interval is a t interval of their sum with "
             f"the fewer of the participants' and the clips' degrees of freedom, and each "

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-COLUMNS = ["rule", "applied", "participants", "trials", "judgements"]
+COLUMNS = ["rule", "applied", "excludes", "participants", "trials", "judgements"]
 
 
 def apply(rows: pd.DataFrame, config) -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
@@ -37,7 +37,7 @@ def apply(rows: pd.DataFrame, config) -> tuple[pd.DataFrame, pd.DataFrame, list[
     """
     main = (rows["trial_kind"] == "main").to_numpy() & ~rows["is_catch"].to_numpy()
     notes = []
-    records = [_count("Main-trial judgements before exclusions", "", rows, main)]
+    records = [_count("Main-trial judgements before exclusions", "", rows, main, "")]
     keep = np.ones(len(rows), dtype=bool)
 
     if config.completed_only:
@@ -53,14 +53,14 @@ def apply(rows: pd.DataFrame, config) -> tuple[pd.DataFrame, pd.DataFrame, list[
     # Catch trials: every graded trial but the repeats (a table without ``trial_kind``
     # has its catch results and nothing else graded).
     flagged = _failing(rows, failed & (kind != "repeat"), config.max_failed_catch)
-    label = f"Failed more than {config.max_failed_catch} catch trial(s)"
+    label = catch_rule(config.max_failed_catch)
     records.append(_count(label, _applied(config), rows, main & flagged))
     if config.exclusions:
         keep &= ~flagged
 
     limit = config.max_failed_repeats
     flagged = _failing(rows, failed & (kind == "repeat"), 0 if limit is None else limit)
-    label = f"Answered more than {0 if limit is None else limit} repeated trial(s) differently"
+    label = repeat_rule(0 if limit is None else limit)
     if limit is None:
         applied = "no (counted only; --max-failed-repeats N applies it)"
     else:
@@ -69,15 +69,15 @@ def apply(rows: pd.DataFrame, config) -> tuple[pd.DataFrame, pd.DataFrame, list[
     if config.exclusions and limit is not None:
         keep &= ~flagged
 
-    speed = f"Answered faster than {config.min_time_factor:g} x the clip length"
+    speed = speed_rule(config.min_time_factor)
     has_duration = "duration" in rows.columns and rows["duration"].notna().any()
     has_time = "time_ms" in rows.columns and rows["time_ms"].notna().any()
     if not (has_duration and has_time):
         missing = "clip durations ('duration')" if not has_duration else "answer times ('time_ms')"
         notes.append(f"the table has no {missing}: the rule on answering faster than the clip "
                      f"length was skipped")
-        records.append({"rule": speed, "applied": "skipped (no data)", "participants": 0,
-                        "trials": 0, "judgements": 0})
+        records.append({"rule": speed, "applied": "skipped (no data)", "excludes": "trials",
+                        "participants": 0, "trials": 0, "judgements": 0})
     else:
         duration = pd.to_numeric(rows["duration"], errors="coerce")
         longest = duration.groupby(rows["trial_key"].to_numpy()).transform("max").to_numpy()
@@ -87,12 +87,38 @@ def apply(rows: pd.DataFrame, config) -> tuple[pd.DataFrame, pd.DataFrame, list[
         unknown = int(np.count_nonzero(main & (np.isnan(time_ms) | np.isnan(longest))))
         if unknown:
             notes.append(f"{unknown} judgement(s) with no answer time or clip duration were kept")
-        records.append(_count(speed, _applied(config), rows, main & fast & keep))
+        records.append(_count(speed, _applied(config), rows, main & fast & keep, "trials"))
         if config.exclusions:
             keep &= ~fast
 
-    records.append(_count("Analysed", "", rows, main & keep))
+    records.append(_count("Analysed", "", rows, main & keep, ""))
     return rows.loc[keep], pd.DataFrame(records, columns=COLUMNS), notes
+
+
+def catch_rule(limit: int) -> str:
+    """Return the attention-check rule in words: ``Failed an attention check`` (limit 0),
+    ``Failed more than one attention check``, ``... more than 2 attention checks``."""
+    return f"Failed {_more_than(limit, 'attention check')}"
+
+
+def repeat_rule(limit: int) -> str:
+    """Return the repeated-trials rule in words."""
+    return f"Answered {_more_than(limit, 'repeated trial')} differently"
+
+
+def speed_rule(factor: float) -> str:
+    """Return the answer-time rule in words."""
+    if factor == 1:
+        return "Answered before the longest clip of the trial could have played once"
+    return f"Answered in less than {factor:g} times the length of the trial's longest clip"
+
+
+def _more_than(limit: int, noun: str) -> str:
+    if limit == 0:
+        return f"an {noun}" if noun[0] in "aeiou" else f"a {noun}"
+    if limit == 1:
+        return f"more than one {noun}"
+    return f"more than {limit} {noun}s"
 
 
 def _failing(rows, failed, limit: int):
@@ -106,10 +132,12 @@ def _applied(config) -> str:
     return "yes" if config.exclusions else "no (--no-exclusions)"
 
 
-def _count(rule, applied, rows, mask) -> dict:
+def _count(rule, applied, rows, mask, excludes="participants") -> dict:
+    """Count a rule; ``excludes`` says what it removes: whole ``participants`` or ``trials``."""
     return {
         "rule": rule,
         "applied": applied,
+        "excludes": excludes,
         "participants": int(pd.unique(rows["pcode"].to_numpy()[mask]).size),
         "trials": int(pd.unique(rows["trial_key"].to_numpy()[mask]).size),
         "judgements": int(np.count_nonzero(mask)),

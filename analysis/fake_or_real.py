@@ -15,7 +15,7 @@ import pandas as pd
 
 from analysis import crossed, mixed, simulate, stats
 from analysis.counts import ranked_sources, source_counts
-from analysis.formatting import number, p_text
+from analysis.formatting import number, p_text, plural
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
 from analysis.tables import as_boolean
 
@@ -81,7 +81,7 @@ class FakeOrReal(StudyAnalysis):
                 f"each generated source's rate was compared with the rate of the real clips "
                 f"({number(real_rate, 3)}) by the t test of their difference over participants "
                 f"and clips (the real clips' rate is an estimate too, from its own clips), "
-                f"Holm-corrected over the {len(generated)} generated source(s)"
+                f"Holm-corrected over the {plural(len(generated), 'generated source')}"
             )
             notes += crossed.clip_warnings(
                 against.assign(a=generated, b=real), shown.clips)
@@ -96,7 +96,7 @@ class FakeOrReal(StudyAnalysis):
                     f"each participant's sensitivity d' = z(H) - z(F) was computed with the "
                     f"log-linear correction (H: real clips judged real; F: generated clips judged "
                     f"real); mean d' = {number(overall['mean'], 2)} "
-                    f"{_interval(overall)} over {overall['n']} participants, t test against 0 over "
+                    f"{_interval(overall)} over {plural(overall['n'], 'participant')}, t test against 0 over "
                     f"participants (for these clips): "
                     f"{p_text(overall['p'])}"
                 )

@@ -49,6 +49,42 @@ def interval(low, high, digits: int = 3) -> str:
     return f"[{number(low, digits)}, {number(high, digits)}]"
 
 
+def estimate_with_interval(value, low, high, digits: int = 3) -> str:
+    """Return ``value [low, high]``, all three with ``digits`` decimals (rounding keeps
+    their order, so an interval that holds its estimate still does when printed); just
+    ``value`` when the interval is missing."""
+    shown = number(value, digits)
+    if not (_finite(low) and _finite(high)):
+        return shown
+    return f"{shown} {interval(low, high, digits)}"
+
+
+def contains(value, low, high) -> bool:
+    """Return whether ``low <= value <= high`` (all finite)."""
+    return _finite(value) and _finite(low) and _finite(high) and low <= value <= high
+
+
+def plural(n, word: str, many: str | None = None) -> str:
+    """Return ``n`` and ``word`` in the right number: ``1 participant``, ``2 participants``
+    (``many`` for an irregular plural: ``plural(2, "was", "were")``)."""
+    return f"{n} {word if n == 1 else (many or word + 's')}"
+
+
+def word_list(items) -> str:
+    """Return ``a``, ``a and b``, or ``a, b and c``."""
+    items = [str(item) for item in items if str(item)]
+    if len(items) < 2:
+        return "".join(items)
+    return ", ".join(items[:-1]) + " and " + items[-1]
+
+
+def _finite(value) -> bool:
+    try:
+        return value is not None and math.isfinite(float(value))
+    except (TypeError, ValueError):
+        return False
+
+
 def display_frame(frame: pd.DataFrame) -> pd.DataFrame:
     """Return ``frame`` with its index as columns and numbers as strings for display.
 

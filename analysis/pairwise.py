@@ -15,8 +15,9 @@ import pandas as pd
 
 from analysis import crossed, simulate, stats
 from analysis.counts import ranked_sources, source_counts
-from analysis.formatting import number, p_text
-from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
+from analysis.formatting import estimate_with_interval, p_text, plural
+from analysis.registry import (Analysis, AnswerOption, Plot, StudyAnalysis, Table, offered,
+                               register_analysis)
 from analysis.tables import AnalysisError
 
 CHOICES = ("left", "right", "both_good", "both_bad")
@@ -30,7 +31,10 @@ class Pairwise(StudyAnalysis):
     agreement_level = "nominal"
     required = ("position",)
     design = ("each trial showed two clips of one action side by side and participants chose the "
-              "better one, or answered that both were good or both bad")
+              "better one")
+    answer_options = {"allow_ties": AnswerOption(
+        CHOICES[2:], ", or answered that both were equally good or equally bad",
+        ("both good", "both bad", "equally good", "equally bad", "tie"))}
 
     def simulated_trials(self, rng, n_trials, n_sources, clips_per_trial):
         return simulate.pairs(rng, n_trials, n_sources)
@@ -106,17 +110,22 @@ class Pairwise(StudyAnalysis):
         if "action" in rows.columns and rows["action"].nunique() > 1:
             tables.append(Table("by_action", "Bradley-Terry worth per action",
                                 self._by_action(rows, decided, decided_rows, names, config)))
+        if offered(config, "allow_ties", ties):
+            tied = (f"; {plural(ties, 'comparison')} answered 'both good' or 'both bad' "
+                    f"{'counts' if ties == 1 else 'count'} as {'a tie' if ties == 1 else 'ties'} "
+                    f"and {'is' if ties == 1 else 'are'} left out of win rates and worths")
+        else:
+            tied = ""
         methods = [
-            f"For each pair of sources we report the share of decided comparisons (a clip chosen) "
-            f"won by each, tested against 50 %; {ties} comparison(s) answered 'both good' or "
-            f"'both bad' count as ties and are left out of win rates and worths",
+            f"For each pair of sources we report the share of comparisons won by each, tested "
+            f"against 50 %{tied}",
             "a Bradley-Terry worth per source was fitted to the decided comparisons (log scale, "
             "centred on 0, with a weak prior of one virtual win and loss per source), and refitted "
             "in every bootstrap resample",
             shown.method,
-            f"position bias: the left clip won {number(bias['share_left'], 3)} "
-            f"[{number(bias['ci_low'], 3)}, {number(bias['ci_high'], 3)}] of "
-            f"{bias['n_decided']} decided comparisons (t test against 0.5 over participants and "
+            f"position bias: the left clip won "
+            f"{estimate_with_interval(bias['share_left'], bias['ci_low'], bias['ci_high'], 3)} of "
+            f"{plural(bias['n_decided'], 'decided comparison')} (t test against 0.5 over participants and "
             f"clips: {p_text(bias['p'])})",
         ]
         plots = [

@@ -43,9 +43,10 @@ import pandas as pd
 
 from analysis import crossed, simulate, stats
 from analysis.counts import ranked_sources, source_counts
-from analysis.formatting import number, p_text
+from analysis.formatting import estimate_with_interval, p_text, plural
 from analysis.pairwise import _matrix_plot, comparisons_answered
-from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
+from analysis.registry import (Analysis, AnswerOption, Plot, StudyAnalysis, Table, offered,
+                               register_analysis)
 
 SCALE = ("left_much", "left", "left_slightly", "no_preference", "right_slightly", "right",
          "right_much")
@@ -75,7 +76,9 @@ class PairwiseGraded(StudyAnalysis):
     required = ("position",)
     design = ("each trial showed two clips of one action side by side (A left, B right) and "
               "participants answered on a symmetric 7-point scale from 'A much better' through "
-              "'No preference' to 'B much better', or 'Both bad'")
+              "'No preference' to 'B much better'")
+    answer_options = {"both_bad": AnswerOption(
+        ("both_bad",), ", or 'Both bad'", ("both bad",))}
 
     def simulated_trials(self, rng, n_trials, n_sources, clips_per_trial):
         return simulate.pairs(rng, n_trials, n_sources)
@@ -177,11 +180,12 @@ class PairwiseGraded(StudyAnalysis):
             f"were modelled with a cumulative-logit model: P(grade of A <= k) = "
             f"logistic(c_k - (theta_A - theta_B + beta)), with a source effect theta, a left/right "
             f"shift beta and six ordered cut points symmetric about 0 (as the scale is), fitted by maximum likelihood (normal prior "
-            f"with SD {PRIOR_SD:g} on each source effect and on the shift) to {n_graded} graded comparisons; "
+            f"with SD {PRIOR_SD:g} on each source effect and on the shift) to "
+            f"{plural(n_graded, 'graded comparison')}; "
             f"source effects are centred on 0 and compared by their differences, the model "
             f"refitted in every bootstrap resample",
             f"the direction of the answers (A better, B better, or no preference as a tie; "
-            f"{n_ties} tie(s)) was fitted with Davidson's Bradley-Terry model with ties and "
+            f"{plural(n_ties, 'tie')}) was fitted with Davidson's Bradley-Terry model with ties and "
             f"Davidson and Beaver's order effect for the left clip",
             f"position bias: the ordinal model's shift of the left clip was "
             f"{_interval_text(bias, 'ordinal shift beta (logit)')}; Davidson's log order effect "
@@ -194,9 +198,13 @@ class PairwiseGraded(StudyAnalysis):
             f"Elo ratings (K = {ELO_K:g}, start {ELO_START:g}, averaged over {ELO_ORDERS} random "
             f"orders of the comparisons) are given for comparison only; they are descriptive, "
             f"with no model behind them and no interval",
-            f"{n_both_bad} comparison(s) answered 'Both bad' carry no direction: they are left out "
-            f"of both models and Elo and reported as each source's share of its comparisons",
         ]
+        if offered(config, "both_bad", n_both_bad):
+            methods.append(
+                f"{plural(n_both_bad, 'comparison')} answered 'Both bad' "
+                f"{'carries' if n_both_bad == 1 else 'carry'} no direction: "
+                f"{'it is' if n_both_bad == 1 else 'they are'} left out of both models and Elo "
+                f"and reported as each source's share of its comparisons")
         notes = list(shown.notes)
         if n_people < MIN_PARTICIPANTS:
             notes.append(f"only {n_people} participant(s) were analysed: bootstrap intervals over "
@@ -535,7 +543,7 @@ def _bias_row(bias, measure):
 
 def _interval_text(bias, measure):
     row = _bias_row(bias, measure)
-    return f"{number(row['estimate'], 3)} [{number(row['ci_low'], 3)}, {number(row['ci_high'], 3)}]"
+    return estimate_with_interval(row["estimate"], row["ci_low"], row["ci_high"], 3)
 
 
 def _sigmoid(x):

@@ -39,6 +39,17 @@ class Plot:
     draw: Callable
 
 
+@dataclass(frozen=True)
+class AnswerOption:
+    """Answers a study type's option adds: their values (in the type's answer column),
+    the phrase the design gets when they were offered, and ``words`` the methods
+    paragraph must not use when they were not (lower case)."""
+
+    answers: tuple[str, ...]
+    design: str
+    words: tuple[str, ...]
+
+
 @dataclass
 class Analysis:
     """What a study type's analysis returns.
@@ -75,6 +86,10 @@ class StudyAnalysis:
     agreement_level = "nominal"
     design = ""
     extra_columns: tuple[str, ...] = ()
+    # The type's options (``Study.options``) that offer answers of their own: option ->
+    # ``AnswerOption`` (the answer values it adds, the words that describe them). The
+    # methods paragraph names those answers only when the study offered them.
+    answer_options: dict = {}
 
     def answered(self, rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
         """Return the rows with a valid answer and notes on those left out."""
@@ -88,6 +103,20 @@ class StudyAnalysis:
         """
         frame = rows[["pcode", "stimulus", self.answer]]
         return frame.set_axis(["participant", "unit", "value"], axis=1)
+
+    def describe(self, rows: pd.DataFrame, config) -> str:
+        """Return the phrase of the methods paragraph saying what a trial showed and asked,
+        for what this study did: the study type's options (``config.type_options``) and,
+        when a table comes without them, the answers given (:func:`offered`). Never a
+        choice the participants did not have. Default: :attr:`design`, plus the phrase of
+        each of :attr:`answer_options` that was offered."""
+        text = self.design
+        for option, spec in self.answer_options.items():
+            seen = (self.answer in rows.columns
+                    and rows[self.answer].astype(str).isin(spec.answers).any())
+            if offered(config, option, seen):
+                text += spec.design
+        return text
 
     def screen(self, rows: pd.DataFrame, config) -> tuple[pd.DataFrame, list[dict], list[str]]:
         """Return the answered main-trial rows kept by this type's own screening rules,
@@ -118,6 +147,14 @@ class StudyAnalysis:
     def simulated_roles(self, is_catch, row_source, n_sources):
         """Return the ``stimulus_role`` of each simulated row (one for all: ``judged``)."""
         return "judged"
+
+
+def offered(config, option: str, seen: bool) -> bool:
+    """Return whether the study offered what its type's ``option`` switches on: the study's
+    own option when the analysis has it (``config.type_options``), else whether any answer
+    used it (``seen``): a table analysed without its study says only what happened."""
+    options = getattr(config, "type_options", None) or {}
+    return bool(options[option]) if option in options else bool(seen)
 
 
 def register_analysis(name: str):

@@ -195,7 +195,8 @@ def simulate(study_type: str, strengths: dict | None = None, participants: int =
         "completed": True,
     })
     order = np.lexsort((frame["position"].to_numpy(), frame["trial"].to_numpy(), participant))
-    columns = list(RESPONSE_COLUMNS) + list(plugin.extra_columns)
+    frame["simulated"] = True  # reports say their participants were simulated
+    columns = list(RESPONSE_COLUMNS) + list(plugin.extra_columns) + ["simulated"]
     return frame.iloc[order].reset_index(drop=True)[columns]
 
 

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from analysis import exclusions
-from analysis.agreement import krippendorff_alpha
+from analysis.agreement import MIN_AGREEMENT_UNITS, few_units_text, krippendorff_alpha
 from analysis.stats import small_sample_note
 from analysis.registry import Analysis, Table, get_analysis
 from analysis.tables import AnalysisError, as_boolean
@@ -42,6 +42,10 @@ class AnalysisConfig:
     # The study type's own options (Study.options), for analyses that follow them (a
     # screening threshold); empty when a table is analysed without its study.
     type_options: dict = field(default_factory=dict)
+    # The study's own design (Study fields: practice, catch_trials, instructed_checks,
+    # repeat_trials), for the methods paragraph;
+    # empty when a table is analysed without its study (the table then says what it holds).
+    study_options: dict = field(default_factory=dict)
 
     def __post_init__(self):
         if not 0 < self.confidence < 1:
@@ -104,6 +108,7 @@ class StudyResult:
             "confidence": self.config.confidence,
             "n_participants": self.counts["participants"],
             "n_judgements": self.counts["judgements"],
+            "n_simulated": self.counts.get("simulated", 0),  # bots among the participants
             "order": [str(s) for s in sources.index],
             "sources": {
                 str(source): {
@@ -198,6 +203,8 @@ def analyse(table: pd.DataFrame, config: AnalysisConfig | None = None,
                                       seed=config.seed)}
     if agreement["n_units"] == 0:
         notes.append("no stimulus was judged by two or more participants: agreement is undefined")
+    elif agreement["n_units"] < MIN_AGREEMENT_UNITS:
+        notes.append(few_units_text(agreement["n_units"]))
     counts = {
         "participants": int(main["pcode"].nunique()),
         "judgements": len(main),
@@ -209,6 +216,9 @@ def analyse(table: pd.DataFrame, config: AnalysisConfig | None = None,
     }
     if by_prompt:
         counts["prompts"] = int(main["prompt"].nunique())
+    counts.update(_checks(rows))
+    counts["simulated"] = (int(main.loc[main["simulated"], "pcode"].nunique())
+                           if "simulated" in main.columns else 0)
     small = small_sample_note(counts["participants"])
     if small:
         notes.append(small)
@@ -216,12 +226,14 @@ def analyse(table: pd.DataFrame, config: AnalysisConfig | None = None,
     if participants is not None and len(participants):
         analysed = set(main["participant"].astype(str))
         demographics = _demographics(participants, analysed)
+        counts["outcomes"] = _outcomes(participants)
     names = table["study"].dropna() if "study" in table.columns else pd.Series(dtype=object)
     study = str(names.iloc[0]) if len(names) else ""
+    design = kind.describe(main, config)
     return StudyResult(study, study_type, config, analysis, excluded, agreement, counts, quality,
                        demographics, notes + analysis.notes,
-                       kind.design.replace("one action", "one text prompt") if by_prompt
-                       else kind.design, criterion)
+                       design.replace("one action", "one text prompt") if by_prompt else design,
+                       criterion)
 
 
 def apply_exclusions(table: pd.DataFrame, config: AnalysisConfig | None = None,
@@ -281,6 +293,7 @@ def _with_screening(excluded: pd.DataFrame, screened: list[dict]) -> pd.DataFram
             for name in ("participants", "trials", "judgements"):
                 analysed[name] -= record[name]
     rules = pd.DataFrame(screened, columns=excluded.columns)
+    rules["excludes"] = rules["excludes"].astype(object).fillna("participants")
     return pd.concat([excluded.iloc[:-1], rules, analysed.to_frame().T], ignore_index=True)
 
 
@@ -311,7 +324,7 @@ def _prepare(table: pd.DataFrame, kind) -> tuple[pd.DataFrame, list[str]]:
         table = table.loc[~blank]
     wanted = ["participant", "action", "prompt", "stimulus", "source", "stimulus_role",
               "position", "n_items", kind.answer, *getattr(kind, "required", ()), "trial_kind",
-              "is_catch", "catch_passed", "time_ms", "duration", "completed"]
+              "is_catch", "catch_passed", "time_ms", "duration", "completed", "simulated"]
     rows = table[[name for name in dict.fromkeys(wanted) if name in table.columns]].copy()
     rows["pcode"] = pd.factorize(rows["participant"])[0]
     if "trial_id" in table.columns and table["trial_id"].notna().all():
@@ -342,6 +355,8 @@ def _prepare(table: pd.DataFrame, kind) -> tuple[pd.DataFrame, list[str]]:
     rows["is_catch"] = rows["is_catch"].fillna(False).astype(bool)
     if "completed" in rows.columns:
         rows["completed"] = as_boolean(rows["completed"], "completed")
+    if "simulated" in rows.columns:
+        rows["simulated"] = as_boolean(rows["simulated"], "simulated").fillna(False).astype(bool)
     rows["source"] = rows["source"].astype(str)
     return rows, notes
 
@@ -374,17 +389,54 @@ def _quality(rows, kept, main, kind) -> pd.DataFrame:
     return pd.DataFrame(records, columns=["check", "n", "participants", "value", "detail"])
 
 
-# Columns of the per-participant table that are bookkeeping, not demographics.
+def _checks(rows: pd.DataFrame) -> dict:
+    """Return how many catch, instructed and repeated trials the table holds, and how many
+    participants had each (before exclusions): what the methods paragraph may describe."""
+    out = {}
+    for kind in ("catch", "instructed", "repeat"):
+        trials = rows.loc[rows["trial_kind"] == kind]
+        out[f"{kind}_trials"] = int(trials["trial_key"].nunique())
+        out[f"{kind}_participants"] = int(trials["pcode"].nunique())
+    return out
+
+
+def simulated_mask(participants: pd.DataFrame) -> pd.Series:
+    """Return which rows of a per-participant table are simulated participants (bots)."""
+    if "simulated" not in participants.columns:
+        return pd.Series(False, index=participants.index)
+    return as_boolean(participants["simulated"], "simulated").fillna(False).astype(bool)
+
+
+def _outcomes(participants: pd.DataFrame) -> dict:
+    """Return how many participants of the per-participant table ended each way (its
+    ``outcome`` column; blank: still taking part), and how many were simulated."""
+    out = {"total": len(participants), "simulated": int(simulated_mask(participants).sum())}
+    if "outcome" in participants.columns:
+        ended = participants["outcome"].fillna("").astype(str).str.strip()
+        out["by_outcome"] = {str(k): int(v) for k, v in ended.value_counts().items()}
+    return out
+
+
+# Columns of the per-participant table that are bookkeeping (or free text), not
+# demographics a paragraph summarises.
 _BOOKKEEPING = {"participant", "study", "started", "completed", "started_at", "completed_at",
                 "consented_at", "n_judgements", "n_catch", "failed_catch", "n_repeat",
-                "inconsistent_repeats", "seed", "participant_seed", "completion_code"}
+                "inconsistent_repeats", "seed", "participant_seed", "completion_code",
+                "outcome", "simulated", "user_agent", "comments"}
 
 
 def _demographics(participants: pd.DataFrame, analysed: set) -> pd.DataFrame:
-    """Summarise each demographic column over the analysed participants."""
+    """Summarise each demographic column over the analysed participants who are people:
+    simulated participants' answers (a bot's random age and gender) are counted, never
+    summarised."""
     if "participant" in participants.columns:
         participants = participants.loc[participants["participant"].astype(str).isin(analysed)]
+    simulated = simulated_mask(participants)
     records = [{"variable": "participants", "summary": str(len(participants))}]
+    if simulated.any():
+        records.append({"variable": "simulated participants (bots; not summarised)",
+                        "summary": str(int(simulated.sum()))})
+        participants = participants.loc[~simulated]
     for name in participants.columns:
         lowered = str(name).lower()
         if lowered in _BOOKKEEPING or lowered.endswith(("_id", "pid", "id")):
@@ -399,7 +451,7 @@ def _demographics(participants: pd.DataFrame, analysed: set) -> pd.DataFrame:
                        f"range {numbers.min():g}-{numbers.max():g} (n={len(numbers)})")
         else:
             counts = values.astype(str).value_counts()
-            summary = ", ".join(f"{k} {v}" for k, v in counts.items())
+            summary = ", ".join(f"{k}: {v}" for k, v in counts.items())
         records.append({"variable": str(name), "summary": summary})
     return pd.DataFrame(records, columns=["variable", "summary"])
 

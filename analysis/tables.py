@@ -19,6 +19,8 @@ only ``main`` rows are judgements. ``is_catch`` marks a catch clip and ``catch_p
 whether the trial's check was passed;
 ``duration`` is the clip's length in seconds. Crowd-platform ids (``PROLIFIC_PID``,
 ``workerId``, ... as the platform sent them) follow ``participant`` when a study has them.
+An optional ``simulated`` column (true/false) marks the answers of simulated participants
+(bots, and every row of :mod:`analysis.simulate`); reports say so.
 """
 
 from __future__ import annotations

@@ -50,6 +50,9 @@ from studyapp.participation.forms import AGE_RANGES, GENDERS
 from studyapp.survey.models import Stimulus, Trial, TrialItem
 
 CATCH = "catch"  # the pseudo-source bots see for a catch clip
+# The User-Agent every bot sends: the server stores it (Participant.user_agent), so the
+# export can mark bots' participants and answers as simulated (export.is_simulated).
+USER_AGENT = "motion-study-bot/1 (simulated participant)"
 CATCH_STRENGTH = 0.05
 MAX_STEPS = 500
 TIMEOUT = 30

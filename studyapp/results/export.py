@@ -50,10 +50,11 @@ LOOKUPS = {
 READ = {"item_answers": "answers", "trial_answers": "trial__answers", "events": "trial__events",
         "external": "trial__participant__external_ids",
         "completed_at": "trial__participant__completed_at",
-        "outcome": "trial__participant__outcome"}
+        "outcome": "trial__participant__outcome",
+        "user_agent": "trial__participant__user_agent"}
 # Columns beyond analysis.tables.RESPONSE_COLUMNS, in this order, before the types' own.
 EXTRA_COLUMNS = ("criterion", "prompt", "stimulus_role", "checkpoint", "training_seed", "outcome",
-                 "fetched_at", "n_events", "page_hidden", "window_blurs", "events")
+                 "simulated", "fetched_at", "n_events", "page_hidden", "window_blurs", "events")
 NULLABLE_BOOLEANS = ("judged_real", "catch_passed")
 
 
@@ -77,6 +78,14 @@ def get_study(slug: str) -> Study:
         raise CommandError(f"Unknown study {slug!r}; {known}.") from None
 
 
+def is_simulated(user_agent) -> bool:
+    """Return whether a participant was a bot of ``simulate_participants`` (by the
+    User-Agent it sent: :data:`studyapp.survey.bots.USER_AGENT`)."""
+    from .bots import USER_AGENT
+
+    return (user_agent or "") == USER_AGENT
+
+
 def _event_counts(events) -> dict:
     names = [event[1] for event in events or [] if isinstance(event, list) and len(event) == 3]
     return {"n_events": len(names), "page_hidden": names.count("hidden"),
@@ -95,7 +104,7 @@ def responses_frame(study: Study) -> pd.DataFrame:
     (``Participant.external_ids``) become columns right after ``participant``; times are
     ISO 8601 strings; ``events`` is the page's log of the trial as JSON
     (``[[ms, event, position], ...]``), summarised in ``n_events``, ``page_hidden`` and
-    ``window_blurs``.
+    ``window_blurs``; ``simulated`` marks the answers of bots (``simulate_participants``).
     """
     import json
 
@@ -129,6 +138,7 @@ def responses_frame(study: Study) -> pd.DataFrame:
             is_catch=row["stimulus__role"] == Stimulus.Role.CATCH,
             completed=row[READ["completed_at"]] is not None,
             outcome=row[READ["outcome"]],
+            simulated=is_simulated(row[READ["user_agent"]]),
             shown_at=_iso(base["shown_at"]),
             answered_at=_iso(base["answered_at"]),
             fetched_at=_iso(base["fetched_at"]),
@@ -156,7 +166,7 @@ def responses_frame(study: Study) -> pd.DataFrame:
         table[name] = table[name].astype("Int64")
     for name in NULLABLE_BOOLEANS:
         table[name] = table[name].astype("boolean")
-    for name in ("completed", "is_catch"):
+    for name in ("completed", "is_catch", "simulated"):
         table[name] = table[name].astype(bool)
     return table
 
@@ -170,6 +180,7 @@ PARTICIPANT_COLUMNS = (
     "completed",
     "completed_at",
     "outcome",
+    "simulated",
     "completion_code",
     "n_judgements",
     "n_catch",
@@ -187,7 +198,8 @@ def participants_frame(study: Study) -> pd.DataFrame:
     (still taking part); ``completion_code`` the code they were given.
     ``n_catch`` and ``failed_catch`` count the attention checks answered and failed
     (catch and instructed trials alike, as ``max_failed_catch`` does),
-    ``inconsistent_repeats`` repeated trials answered differently. Crowd-platform ids follow ``participant``; the
+    ``inconsistent_repeats`` repeated trials answered differently; ``simulated`` marks a bot
+    of ``simulate_participants`` (its demographics are random). Crowd-platform ids follow ``participant``; the
     demographic answers (blank when not asked or not given) come last.
     """
     participants = list(Participant.objects.with_checks().filter(study=study).order_by("pk"))
@@ -205,6 +217,7 @@ def participants_frame(study: Study) -> pd.DataFrame:
             "completed": p.completed_at is not None,
             "completed_at": _iso(p.completed_at),
             "outcome": p.outcome,
+            "simulated": is_simulated(p.user_agent),
             "completion_code": p.completion_code,
             "n_judgements": p.n_judgements,
             "n_catch": p.n_catch,
@@ -222,6 +235,7 @@ def participants_frame(study: Study) -> pd.DataFrame:
     for name in ("participant", "participant_seed", *PARTICIPANT_COLUMNS[-5:]):
         table[name] = table[name].astype("Int64")
     table["completed"] = table["completed"].astype(bool)
+    table["simulated"] = table["simulated"].astype(bool)
     return table
 
 

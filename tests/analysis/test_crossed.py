@@ -119,7 +119,7 @@ def test_the_coverage_benchmark_in_small(study_type):
 def test_few_clip_degrees_of_freedom_are_named():
     d = crossed.Design(np.arange(8) % 4, (np.arange(8) % 4)[:, None], np.array([0, 0, 1, 1]),
                        np.arange(8) % 4)
-    assert "rests on 2 degree(s) of freedom (4 clips in 2 source-and-condition groups)" in \
+    assert "rests on 2 degrees of freedom (4 clips in 2 source-and-condition groups)" in \
         crossed.one_clip_note(d)
     many = crossed.Design(np.arange(16) % 4, (np.arange(16) % 8)[:, None], np.arange(8) % 2,
                           np.arange(16) % 8)

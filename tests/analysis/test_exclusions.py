@@ -39,22 +39,26 @@ def test_rules_are_applied_and_counted():
     result = analyse(study_table(), config())
     assert counts(result) == {
         "Main-trial judgements before exclusions": (4, 8, 24),
-        "Failed more than 0 catch trial(s)": (1, 2, 6),
-        "Answered more than 0 repeated trial(s) differently": (0, 0, 0),
-        "Answered faster than 1 x the clip length": (2, 2, 6),
+        "Failed an attention check": (1, 2, 6),
+        "Answered a repeated trial differently": (0, 0, 0),
+        "Answered before the longest clip of the trial could have played once": (2, 2, 6),
         "Analysed": (3, 4, 12),
     }
     assert result.counts["judgements"] == 12 and result.counts["participants"] == 3
     quality = result.quality.set_index("check")
     assert quality.loc["catch trials passed", "value"] == pytest.approx(3 / 4)
-    assert "failed more than 0 catch trial(s): 1 participants" in result.methods()
+    text = result.methods()
+    assert "We excluded 1 participant who failed an attention check (6 judgements) and 2 " \
+           "trials answered before the longest clip of the trial could have played once " \
+           "(2 participants, 6 judgements), leaving 12 of the 24 main-trial judgements" in text
+    assert "(s)" not in text and "1 participants" not in text
 
 
 def test_no_exclusions_keeps_everything_but_still_counts():
     result = analyse(study_table(), config(exclusions=False))
     table = counts(result)
     assert table["Analysed"] == (4, 8, 24)
-    assert table["Failed more than 0 catch trial(s)"] == (1, 2, 6)
+    assert table["Failed an attention check"] == (1, 2, 6)
     assert result.exclusions.set_index("rule").loc["Analysed", "judgements"] == 24
     assert "No exclusions were applied" in result.methods()
 
@@ -62,15 +66,15 @@ def test_no_exclusions_keeps_everything_but_still_counts():
 def test_time_factor_and_catch_tolerance_are_configurable():
     lenient = analyse(study_table(), config(min_time_factor=0.5, max_failed_catch=1))
     table = counts(lenient)
-    assert table["Answered faster than 0.5 x the clip length"] == (0, 0, 0)
-    assert table["Failed more than 1 catch trial(s)"] == (0, 0, 0)
+    assert table["Answered in less than 0.5 times the length of the trial's longest clip"] == (0, 0, 0)
+    assert table["Failed more than one attention check"] == (0, 0, 0)
     assert table["Analysed"] == (4, 8, 24)
 
 
 def test_speed_rule_is_skipped_without_durations():
     result = analyse(study_table().drop(columns=["duration"]), config())
     rows = result.exclusions.set_index("rule")
-    assert rows.loc["Answered faster than 1 x the clip length", "applied"] == "skipped (no data)"
+    assert rows.loc["Answered before the longest clip of the trial could have played once", "applied"] == "skipped (no data)"
     assert rows.loc["Analysed", "judgements"] == 18
     assert any("no clip durations" in note for note in result.notes)
     assert "could not be applied" in result.methods()
@@ -114,13 +118,13 @@ def test_changed_repeats_are_counted_and_excluded_only_when_asked():
         trials.append(trial(participant, RANKS, action="eat", kind="repeat",
                             catch_passed=participant != 3))
     table = make_table("ranking", trials)
-    rule = "Answered more than 0 repeated trial(s) differently"
+    rule = "Answered a repeated trial differently"
     default = analyse(table, config())
     rows = default.exclusions.set_index("rule")
     assert counts(default)[rule] == (1, 2, 6)  # p3's main judgements
     assert rows.loc[rule, "applied"].startswith("no (counted only")
     assert counts(default)["Analysed"] == (3, 6, 18)
-    assert "1 participants answered more than 0 repeated trial(s) differently (reported, " \
+    assert "1 participant answered a repeated trial differently (reported, " \
            "not excluded)" in default.methods()
     strict = analyse(table, config(max_failed_repeats=0))
     assert counts(strict)[rule] == (1, 2, 6) and counts(strict)["Analysed"] == (2, 4, 12)
@@ -129,4 +133,4 @@ def test_changed_repeats_are_counted_and_excluded_only_when_asked():
 
 def test_a_table_without_trial_kinds_still_excludes_failed_catch_trials():
     result = analyse(study_table().drop(columns=["trial_kind"]), config())
-    assert counts(result)["Failed more than 0 catch trial(s)"][0] == 1
+    assert counts(result)["Failed an attention check"][0] == 1

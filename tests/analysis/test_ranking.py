@@ -163,8 +163,10 @@ def test_study_statistics_match_hand_counts():
     friedman = result.analysis.tests["friedman"]
     assert friedman["statistic"] == pytest.approx(3.0) and friedman["n_blocks"] == 3
     assert result.analysis.tests["kendall_w"] == pytest.approx(0.5)
-    assert result.counts == {"participants": 3, "judgements": 18, "trials": 6, "actions": 2,
-                             "sources": ["a2m", "gru", "real"], "participants_before": 3}
+    expected = {"participants": 3, "judgements": 18, "trials": 6, "actions": 2,
+                "sources": ["a2m", "gru", "real"], "participants_before": 3, "simulated": 0,
+                "catch_trials": 0, "instructed_trials": 0, "repeat_trials": 0}
+    assert {name: result.counts[name] for name in expected} == expected
 
 
 def test_rank_share_intervals_are_over_participants_and_clips():

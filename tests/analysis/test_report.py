@@ -1,6 +1,7 @@
 """The report of every study type: HTML, tables in three formats, figures, summary.json."""
 
 import json
+import re
 
 import pandas as pd
 import pytest
@@ -65,6 +66,33 @@ def test_summary_json_gives_score_interval_and_n_per_source(report):
         assert set(entry) == {"score", "ci", "n_participants", "n_judgements"}
         assert entry["n_judgements"] > 0 and len(entry["ci"]) == 2
     assert summary["n_judgements"] == sum(e["n_judgements"] for e in summary["sources"].values())
+
+
+ESTIMATE = re.compile(r"(-?\d+(?:\.(\d+))?) \[(-?\d+(?:\.(\d+))?), (-?\d+(?:\.(\d+))?)\]")
+
+
+def test_supplement_page_and_a_latex_table_per_headline_result(report):
+    result, out, written = report
+    page = (out / "supplement.html").read_text()
+    assert page.count("data:image/png;base64,") == 1 and "<script" not in page
+    assert "These data are simulated" in page  # simulate's rows are marked simulated
+    assert (out / "supplement.pdf").read_bytes().startswith(b"%PDF")
+    latex = (out / "headline_sources.tex").read_text()
+    assert r"\toprule" in latex and r"\bottomrule" in latex and "SIMULATED" in latex
+    names = ["headline_sources.tex"] + (
+        ["headline_differences.tex"] if (out / "headline_differences.tex").exists() else [])
+    assert {out / name for name in names} <= set(written)
+    for name in names:
+        found = ESTIMATE.findall((out / name).read_text())
+        assert found, name
+        for value, d1, low, d2, high, d3 in found:
+            assert len(d1) == len(d2) == len(d3), (name, value, low, high)  # one precision
+
+
+def test_the_report_header_says_the_participants_were_simulated(report):
+    _, out, _ = report
+    head = (out / "report.html").read_text().split("<h2>", 1)[0]
+    assert "class='simulated'" in head and "were bots" in head
 
 
 def test_markdown_and_latex_writers():

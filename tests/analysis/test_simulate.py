@@ -27,7 +27,8 @@ def test_every_analysed_study_type_can_be_simulated():
 def test_simulated_table_has_the_response_columns_and_valid_answers(study_type):
     table = simulate(study_type, participants=6, trials=4, catch_trials=1, repeat_trials=2, seed=1)
     plugin = get_analysis(study_type)
-    assert list(table.columns) == list(RESPONSE_COLUMNS) + list(plugin.extra_columns)
+    assert list(table.columns) == list(RESPONSE_COLUMNS) + list(plugin.extra_columns) + ["simulated"]
+    assert table["simulated"].all()
     assert table.groupby("participant")["trial"].nunique().eq(4 + 1 + 2).all()
     kinds = table.groupby("trial_id")["trial_kind"].first().value_counts().to_dict()
     assert kinds == {"main": 24, "catch": 6, "repeat": 12}
@@ -47,7 +48,7 @@ def test_bots_with_known_strengths_are_recovered(study_type, tmp_path):
     order = [s for s in summary["order"] if s in TRUE_ORDER]  # mushra: also its controls
     tau = scipy_stats.kendalltau([TRUE_ORDER.index(s) for s in order], range(4)).statistic
     assert tau >= 0.9 and len(order) == 4, summary["order"]
-    excluded = result.exclusions.set_index("rule").loc["Failed more than 0 catch trial(s)", "participants"]
+    excluded = result.exclusions.set_index("rule").loc["Failed an attention check", "participants"]
     assert excluded == table.loc[table["catch_passed"].eq(False), "participant"].nunique() > 0
     for source, entry in summary["sources"].items():
         assert entry["ci"][0] <= entry["score"] <= entry["ci"][1], source

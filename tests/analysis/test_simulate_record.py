@@ -22,7 +22,9 @@ SETTINGS = [
 
 
 def table_hash(frame) -> str:
-    """Return a SHA-256 of a table's columns, dtypes and values."""
+    """Return a SHA-256 of a table's columns, dtypes and values (but the constant
+    ``simulated`` column, added after the recording: the draws are what must not change)."""
+    frame = frame.drop(columns=["simulated"], errors="ignore")
     text = json.dumps([list(frame.columns), [str(t) for t in frame.dtypes]]) + frame.to_csv()
     return hashlib.sha256(text.encode()).hexdigest()
 

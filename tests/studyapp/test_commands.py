@@ -61,6 +61,8 @@ def test_prefer_real_bots_answer_by_the_source_from_the_database(study_of, live_
     expected = table["source"].eq("real")
     assert table["judged_real"].astype(bool).tolist() == expected.tolist()
     assert table.loc[table["is_catch"], "catch_passed"].all()
+    # Bots are marked (by the User-Agent they send) in both tables.
+    assert table["simulated"].all() and participants_frame(study)["simulated"].all()
 
 
 def test_the_bots_know_sources_only_through_the_database(study_of, live_server, monkeypatch):
@@ -159,3 +161,24 @@ def test_studies_lists_every_study_as_json(study_of, make_bot):
     text = StringIO()
     call_command("studies", stdout=text)
     assert "study-ranking (ranking, open): 1 participants" in text.getvalue()
+
+
+def test_a_bots_study_reports_what_ran_and_that_it_was_simulated(study_of, live_server,
+                                                                  tmp_path):
+    """Ties not offered (the pairwise default): the paragraph never speaks of them; the
+    study's catch trial, repeat and practice trial are described; bots are named first."""
+    study = study_of("pairwise", catch=True, practice=True, repeat_trials=1)
+    simulate_run(study, live_server.url, n=3, policy="bt", seed=4, strengths="real=8,a2m=2")
+    call_command("analyze", study=study.slug, out=str(tmp_path), bootstrap=20, no_audit=True,
+                 stdout=StringIO())
+    page = (tmp_path / "report.html").read_text()
+    methods = page.split("<p class='methods'>", 1)[1].split("</p>", 1)[0]
+    assert methods.startswith("These data are simulated: all 3 analysed participants were bots")
+    assert "class='simulated'" in page.split("<h2>", 1)[0]
+    lowered = methods.lower()
+    assert not any(word in lowered for word in ("both good", "both bad", "equally", " tie"))
+    assert "1 catch trial per participant" in methods
+    assert "showing 1 main trial per participant a second time" in lowered
+    assert "a practice trial came first" in lowered
+    assert (tmp_path / "supplement.pdf").read_bytes().startswith(b"%PDF")
+    assert (tmp_path / "headline_sources.tex").is_file()

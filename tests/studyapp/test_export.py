@@ -168,3 +168,20 @@ def test_admin_results_page_runs_the_analysis_in_the_background(admin_client, se
     shown = admin_client.get(f"{page}report/")
     assert shown.status_code == 200 and b"<html" in b"".join(shown.streaming_content).lower()
     assert admin_client.get("/admin/survey/study/").content.decode().count("/results/") >= 1
+
+
+@pytest.mark.django_db
+def test_bots_are_exported_and_reported_as_simulated(tmp_path):
+    from studyapp.survey.bots import USER_AGENT
+    from studyapp.survey.export import participants_frame
+
+    study = build_study("rank-bots")
+    Participant.objects.filter(study=study, seed=1).update(
+        user_agent=USER_AGENT, demographics={"age_range": "18-24", "gender": "female"})
+    table = responses_frame(study)
+    assert table.groupby("participant")["simulated"].first().tolist() == [False, True, False]
+    assert participants_frame(study)["simulated"].tolist() == [False, True, False]
+    call_command("analyze", study=study.slug, out=str(tmp_path), bootstrap=20, no_audit=True)
+    page = (tmp_path / "report.html").read_text()
+    assert "1 of the 3 analysed participants was a bot" in page
+    assert "18-24" not in page.split("<h2>Methods</h2>", 1)[1].split("</p>", 1)[0]

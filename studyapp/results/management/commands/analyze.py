@@ -13,6 +13,10 @@ from studyapp.results.export import get_study, responses_frame
 from studyapp.results.analysis_page import note_report
 
 
+# The study's design the methods paragraph states (Study fields).
+STUDY_OPTIONS = ("practice", "catch_trials", "instructed_checks", "repeat_trials")
+
+
 class Command(BaseCommand):
     help = (
         "Analyse a study's answers for its study type: statistics with confidence intervals, "
@@ -66,7 +70,7 @@ class Command(BaseCommand):
 
     def handle(self, *args, study, responses, out, **options):
         participants = None
-        type_options = {}
+        type_options, study_options = {}, {}
         if responses:
             try:
                 table = read_responses(responses)
@@ -80,7 +84,9 @@ class Command(BaseCommand):
             table = responses_frame(record)
             participants = _participants(record)
             name = record.slug
-            type_options = dict(record.options or {})
+            # Every option of the type, defaults included: the report describes what ran.
+            type_options = {name: record.option(name) for name in record.kind.options}
+            study_options = {name: getattr(record, name) for name in STUDY_OPTIONS}
             if options["max_failed_catch"] is None:
                 options["max_failed_catch"] = record.max_failed_catch  # as its outcomes
             if table.empty:
@@ -93,7 +99,7 @@ class Command(BaseCommand):
                 max_failed_repeats=options["max_failed_repeats"], completed_only=options["completed_only"],
                 bootstrap=options["bootstrap"], seed=options["seed"], real_source=options["real_source"],
                 random_clips=not options["fixed_clips"], mixed_models=options["mixed_models"],
-                type_options=type_options,
+                type_options=type_options, study_options=study_options,
             )
             results = analyse_all(table, config, participants=participants)
             _add_stimulus_sources(results, options["manifest"], None if responses else record)
@@ -150,8 +156,10 @@ class Command(BaseCommand):
                     f"{part['says']}."))
         tables = sum(1 for path in written if path.suffix == ".csv")
         figures = sum(1 for path in written if path.suffix == ".png")
+        headline = sum(1 for path in written if path.name.startswith("headline_"))
         self.stdout.write(f"Wrote report.html, summary.json, {tables} tables (CSV, Markdown, LaTeX) "
-                          f"and {figures} figures (PNG, SVG) to {out}.")
+                          f"and {figures} figures (PNG, SVG), supplement.html and .pdf (one "
+                          f"page) and {headline} headline LaTeX tables to {out}.")
 
 
 def _add_stimulus_sources(results, manifest, study) -> None:
