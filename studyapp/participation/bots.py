@@ -51,13 +51,21 @@ from studyapp.survey.models import Stimulus, Trial, TrialItem
 
 CATCH = "catch"  # the pseudo-source bots see for a catch clip
 # The User-Agent every bot sends: the server stores it (Participant.user_agent), so the
-# export can mark bots' participants and answers as simulated (export.is_simulated).
+# export, the report and the dashboard mark bots' participants and answers as simulated
+# (is_simulated). Bots of earlier versions sent urllib's own agent, which no browser does.
 USER_AGENT = "motion-study-bot/1 (simulated participant)"
+BOT_AGENTS = (USER_AGENT, "Python-urllib/")
+
+
+def is_simulated(user_agent) -> bool:
+    """Return whether a participant with this stored User-Agent was a bot."""
+    return (user_agent or "").startswith(BOT_AGENTS)
+
+
 CATCH_STRENGTH = 0.05
 MAX_STEPS = 500
 TIMEOUT = 30
 WAIT_MARGIN_S = 0.15  # beyond the clips' length, as the page's own playback would take
-USER_AGENT = "studyapp-bot (simulate_participants)"  # how the admin's dashboard tells bots
 
 
 class SimulationError(RuntimeError):

@@ -40,7 +40,7 @@ from django.utils import timezone
 from django.utils.html import format_html, format_html_join
 
 from studyapp.results.audit import AUDIT_KEY
-from studyapp.participation.bots import USER_AGENT as BOT_AGENT
+from studyapp.participation.bots import BOT_AGENTS
 from studyapp.survey.models import Participant, Stimulus, Study, Trial, TrialItem
 from studyapp.results.analysis_page import latest_folder
 
@@ -49,8 +49,6 @@ CACHE_S = 3600
 # Seconds the exclusions and the planned session of a study whose answers keep coming
 # are reused before they are computed again (the response table is read for them).
 RECOMPUTE_S = 30
-# Bots name themselves (bots.USER_AGENT); older runs sent urllib's default agent.
-BOT_AGENTS = (BOT_AGENT, "Python-urllib/")
 TAKING_PART = "taking_part"  # the outcome key of participants still taking part
 OUTCOME_COLOURS = {
     Participant.Outcome.COMPLETED: "#2e7d32",

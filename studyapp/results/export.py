@@ -17,6 +17,7 @@ from django.db.models import Count
 
 from analysis.tables import INTEGER_COLUMNS, RESPONSE_COLUMNS
 
+from studyapp.participation.bots import is_simulated
 from studyapp.participation.forms import DemographicsForm
 from studyapp.survey.models import Participant, Stimulus, Study, Trial, TrialItem
 from studyapp.survey.study_types import get_study_type, list_study_types
@@ -76,14 +77,6 @@ def get_study(slug: str) -> Study:
         slugs = sorted(Study.objects.values_list("slug", flat=True))
         known = f"known studies: {', '.join(slugs)}" if slugs else "there are no studies yet"
         raise CommandError(f"Unknown study {slug!r}; {known}.") from None
-
-
-def is_simulated(user_agent) -> bool:
-    """Return whether a participant was a bot of ``simulate_participants`` (by the
-    User-Agent it sent: :data:`studyapp.survey.bots.USER_AGENT`)."""
-    from .bots import USER_AGENT
-
-    return (user_agent or "") == USER_AGENT
 
 
 def _event_counts(events) -> dict:

@@ -124,9 +124,9 @@ def test_no_target_without_places(study):
 
 def test_exclusions_are_the_analysis_rules(study):
     rules = {r["rule"]: r for r in dashboard.dashboard_data(study)["exclusions"]["rules"]}
-    failed = rules["Failed more than 1 catch trial(s)"]
+    failed = rules["Failed more than one attention check"]
     assert (failed["participants"], failed["trials"], failed["judgements"]) == (1, 2, 6)
-    fast = rules["Answered faster than 1 x the clip length"]  # the bot's 500 ms trial
+    fast = rules["Answered before the longest clip of the trial could have played once"]  # the bot's 500 ms trial
     assert (fast["participants"], fast["trials"], fast["judgements"]) == (1, 1, 3)
     # 21 main-trial judgements before exclusions (7 answered main trials x 3 clips).
     assert rules["Main-trial judgements before exclusions"]["judgements"] == 21
@@ -344,7 +344,7 @@ def test_a_busy_study_counts_its_exclusions_at_most_so_often(study, settings):
     Study.objects.filter(pk=study.pk).update(max_failed_catch=2)  # a setting: at once
     study.refresh_from_db()
     changed = {r["rule"] for r in dashboard.dashboard_data(study)["exclusions"]["rules"]}
-    assert "Failed more than 2 catch trial(s)" in changed
+    assert "Failed more than 2 attention checks" in changed
     settings.STUDY_DASHBOARD_RECOMPUTE_S = 0
     rules = dashboard.dashboard_data(study)["exclusions"]["rules"]
     assert rules[0]["judgements"] == first["exclusions"]["rules"][0]["judgements"] + 6

@@ -172,8 +172,8 @@ def test_admin_results_page_runs_the_analysis_in_the_background(admin_client, se
 
 @pytest.mark.django_db
 def test_bots_are_exported_and_reported_as_simulated(tmp_path):
-    from studyapp.survey.bots import USER_AGENT
-    from studyapp.survey.export import participants_frame
+    from studyapp.participation.bots import USER_AGENT
+    from studyapp.results.export import participants_frame
 
     study = build_study("rank-bots")
     Participant.objects.filter(study=study, seed=1).update(
