@@ -117,6 +117,13 @@ def study_motions(study, manifest=None, cache=None) -> StudyMotions:
                         manifest, folders)
 
 
+def source_files(found: StudyMotions) -> dict[str, str]:
+    """Return per file source of the study the sha256 its build's manifest gives its file."""
+    listed = json.loads(found.manifest.read_text())
+    return {entry["source"]: entry["file"] for entry in listed.get("clips", [])
+            if found.kinds.get(entry.get("source")) == "file" and entry.get("file")}
+
+
 def source_checkpoints(found: StudyMotions, given: dict | None = None) -> dict:
     """Return per method source of the study ``(method, [checkpoint paths])`` as its
     build's manifest lists its checkpoints (by sha256), or the reason none was found.

@@ -146,15 +146,24 @@ def test_missing_motions_and_no_methods_name_the_fix(tmp_path, media_root, make_
 
 
 def small_config(tmp_path):
-    """Return a ranking study of real clips and three sources from the demo's shipped
-    checkpoints (a2m twice, two seeds): 2 actions, 2 clips per source, 48 px."""
+    """Return a ranking study of real clips, three sources from the demo's shipped
+    checkpoints (a2m twice, two seeds) and one file of 10 scaled real clips: 2 actions, 2
+    clips per source, 48 px."""
+    from generation.sampling import sample_real
+    from motion.datasets import get_dataset
+    from motion.formats import npz
+
+    real = sample_real(get_dataset("demo"), ["walk", "wave"], 5, FRAMES, seed=4)
+    npz.save(tmp_path / "ext.npz", [m.with_joints(m.joints * np.float32(0.9), source="x", meta={})
+                                    for m in real])
     method = lambda key, **more: {"method": key, "checkpoint": str(CHECKPOINTS / f"{key}.pt"), **more}
     return parse({
         "slug": "corr-fresh", "title": "Which looks best?", "seed": 0, "dataset": "demo",
         "actions": ["walk", "wave"], "frames": FRAMES, "clips_per_source": 2,
-        "sources": ["real", method("a2m"), method("cond_gru"), method("a2m", name="a2m_s7", seed=7)],
+        "sources": ["real", method("a2m"), method("cond_gru"), method("a2m", name="a2m_s7", seed=7),
+                    {"name": "scaled", "file": "ext.npz"}],
         "render": {"style": "stick", "size": 48},
-        "study": {"type": "ranking", "clips_per_trial": 4},
+        "study": {"type": "ranking", "clips_per_trial": 5},
     }, tmp_path)
 
 
@@ -170,12 +179,13 @@ def test_correlate_measures_a_fresh_sample_from_each_checkpoint(tmp_path, media_
     given = [f"a2m={CHECKPOINTS / 'a2m.pt'}", f"cond_gru={CHECKPOINTS / 'cond_gru.pt'}",
              f"a2m_s7={CHECKPOINTS / 'a2m.pt'}"]
     call_command("correlate", study=study.slug, out=str(out), bootstrap=0, min_time_factor=0,
-                 fresh=30, source=given)
+                 fresh=30, source=given + [f"scaled={tmp_path / 'ext.npz'}"])
     printed = capsys.readouterr()
+    assert f"(metrics on all 10 motions of its file {tmp_path / 'ext.npz'})" in printed.out
     assert "(metrics on 30 fresh motions from its checkpoint (a2m.pt; seed 7919, 2 actions))" in printed.out
     assert "(metrics on 30 fresh motions from its checkpoint (cond_gru.pt;" in printed.out
     sources = pd.read_csv(out / "sources.csv").set_index("source")
-    assert sources["metrics_sample"].str.startswith("30 fresh motions").all()
+    assert sources["metrics_sample"].drop("scaled").str.startswith("30 fresh motions").all()
     assert "a2m: 30 fresh motions from its checkpoint" in (out / "report.html").read_text()
     fresh = sources["mmd_avg"]
 
@@ -184,6 +194,7 @@ def test_correlate_measures_a_fresh_sample_from_each_checkpoint(tmp_path, media_
                  shown_clips=True)
     printed = capsys.readouterr()
     assert "(metrics on the 4 clips the study showed)" in printed.out
+    assert "scaled: metrics on" not in printed.err
     shown = pd.read_csv(out / "sources.csv").set_index("source")
     assert not np.allclose(shown["mmd_avg"], fresh.loc[shown.index])
 
@@ -194,6 +205,10 @@ def test_correlate_measures_a_fresh_sample_from_each_checkpoint(tmp_path, media_
     err = capsys.readouterr().err
     assert "cond_gru: metrics on the 4 clips the study showed, not a fresh sample" in err
     assert "--source cond_gru=PATH" in err and "a2m:" not in err.replace("a2m_s7:", "")
+    assert "scaled: metrics on the 4 clips the study showed: pass --source scaled=FILE" in err
     with pytest.raises(CommandError, match="--source cond_gru=.*a2m.pt is not the checkpoint"):
         call_command("correlate", study=study.slug, out=str(out), bootstrap=0,
                      source=[f"cond_gru={CHECKPOINTS / 'a2m.pt'}"])
+    with pytest.raises(CommandError, match="--source scaled=.*a2m.pt is not the file the build read"):
+        call_command("correlate", study=study.slug, out=str(out), bootstrap=0, min_time_factor=0,
+                     fresh=30, source=[f"scaled={CHECKPOINTS / 'a2m.pt'}"])

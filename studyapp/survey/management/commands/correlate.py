@@ -10,7 +10,8 @@ from analysis.formatting import interval, number
 from analysis.study import AnalysisConfig, analyse, analyse_all
 from analysis.tables import AnalysisError
 from studyapp.survey.export import get_study, responses_frame
-from studyapp.survey.study_motions import MotionsUnavailable, source_checkpoints, study_motions
+from studyapp.survey.study_motions import (MotionsUnavailable, source_checkpoints, source_files,
+                                           study_motions)
 
 # The metrics set beside the human scores (those the seeds report per method).
 METRICS = ("fid", "accuracy", "diversity", "multimodality", "mmd_avg", "mmd_seq", "apd")
@@ -205,7 +206,8 @@ class Command(BaseCommand):
                                      f"{', '.join(Path(p).name for p in paths)}; seed "
                                      f"{seed + FRESH_SEED}, {len(actions)} actions)")
             elif source in given:
-                whole = self._file_motions(source, given[source], clips)
+                whole = self._file_motions(source, given[source], clips,
+                                           source_files(motions).get(source))
                 out[source] = whole
                 described[source] = f"all {len(whole)} motions of its file {given[source]}"
             else:
@@ -213,11 +215,16 @@ class Command(BaseCommand):
                              f"{source}=FILE to measure all motions of its file")
         return out, described, notes
 
-    def _file_motions(self, source, path, clips):
+    def _file_motions(self, source, path, clips, sha=None):
         """Return all motions of a file source's file at the clips' rate and length
-        (longer ones cut to it, shorter ones left out)."""
+        (longer ones cut to it, shorter ones left out); a file whose sha256 is not the
+        manifest's ``sha`` is refused."""
         from motion.formats import load_motions
+        from studyapp.survey.stimuli import file_hash
 
+        if Path(path).is_file() and sha and file_hash(path) != sha:
+            raise CommandError(f"--source {source}={path} is not the file the build read (its "
+                               f"sha256 is not the manifest's {sha[:12]})")
         frames, fps = clips[0].frames, clips[0].fps
         try:
             loaded = load_motions(path, "auto", fps=fps)
