@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from analysis import crossed
+from analysis import crossed, mixed
 from analysis.counts import ranked_sources, source_counts
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
 from analysis.tables import AnalysisError
@@ -105,6 +105,7 @@ class BestOfK(StudyAnalysis):
     all are good or all are bad."""
 
     answer = "pick"
+    mixed_model = "worth"
     design = ("each trial showed clips of one action from the sources in random order, and "
               'participants chose the best clip, or answered "all good" or "all bad" when none '
               "stood out")
@@ -233,10 +234,25 @@ class BestOfK(StudyAnalysis):
              f'{share_none.get("all_bad", 0):.0%} "all bad"; these pick no clip and do not '
              f"enter the worths"),
         ]
+        picked_frame = rows.loc[picked_rows]
+        model_tables, model_methods, model_notes, model = mixed.worth_tables(
+            mixed.ranked_pairs(picked_frame.assign(
+                order=np.where(picked_frame["pick"].to_numpy() == "best", 1, 2)), "order"),
+            names, config, sources["score"], measure="Plackett-Luce (top-1) worth",
+            reading="the clip picked as best against each other clip of its trial: under "
+                    "Plackett-Luce, given that one of two clips was picked, it is the one "
+                    "Bradley-Terry with the same worths prefers",
+            clustered=True)
+        tables += model_tables
+        methods += model_methods
+        notes += model_notes
+        tests = {"answers": answers, "differences": shown_result.differences}
+        if model:
+            tests["mixed_model"] = model["differences"]
         plots = [Plot("worth", "Plackett-Luce (top-1) worth", _worth_plot(sources))]
         return Analysis(measure="Plackett-Luce top-1 worth (log scale)", sources=sources,
                         tables=tables, plots=plots, methods=methods, notes=notes,
-                        tests={"answers": answers, "differences": shown_result.differences})
+                        tests=tests)
 
     def _by_action(self, rows, shown, chosen, trial, names, config):
         action = np.empty(len(shown), dtype=object)

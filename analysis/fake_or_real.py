@@ -25,6 +25,7 @@ class FakeOrReal(StudyAnalysis):
     """Each clip is judged real or generated."""
 
     answer = "judged_real"
+    mixed_model = "logistic"
     agreement_level = "nominal"
     design = "each clip was judged real or generated"
 

@@ -7,8 +7,13 @@ library fits the model, so that each checks the other:
   intercepts per participant and per clip, crossed (statsmodels ``MixedLM`` with
   variance components over one group, REML); differences of source means are Wald tests;
 - judged real (fake or real): a logistic mixed model with the same crossed intercepts
-  (statsmodels ``BinomialBayesMixedGLM``, variational Bayes), each source against the
-  real clips on the log-odds scale.
+  (statsmodels ``BinomialBayesMixedGLM``, variational Bayes; SDs from the Laplace
+  covariance, :func:`laplace_covariance`), each source against the real clips on the
+  log-odds scale;
+- worths (pairs, rankings, best of k): Bradley-Terry as a logistic mixed model on pairs
+  with random clip worths and random per-participant worths of each source
+  (``BinomialBayesMixedGLM``, Laplace covariance for the fixed effects), each type's
+  plug-in giving its pairs (:func:`worth_tables`, :func:`ranked_pairs`).
 
 Their fits take seconds, so they run when the analysis asks (``mixed_models``); a table
 too large for their dense design matrices is skipped with a note.
@@ -89,8 +94,8 @@ def linear(rows: pd.DataFrame, value: str, confidence: float = 0.95) -> dict:
 
 def logistic(rows: pd.DataFrame, value: str, reference: str, confidence: float = 0.95) -> dict:
     """Return the crossed logistic mixed model of the 0/1 ``value``: each source's
-    log-odds difference from ``reference`` (posterior mean and SD, interval, Wald-type
-    test, Holm) and the variance ``components`` of the intercepts (logit scale; the
+    log-odds difference from ``reference`` (posterior mean, its SD from the Laplace
+    covariance (:func:`laplace_covariance`), interval, Wald-type test, Holm) and the variance ``components`` of the intercepts (logit scale; the
     residual is the logistic distribution's pi^2 / 3)."""
     # Imported here: statsmodels takes seconds to import, and most analyses never fit it.
     from statsmodels.genmod.bayes_mixed_glm import BinomialBayesMixedGLM
@@ -103,8 +108,12 @@ def logistic(rows: pd.DataFrame, value: str, reference: str, confidence: float =
         warnings.simplefilter("ignore")
         fit = model.fit_vb()
     z = scipy_stats.norm.ppf(0.5 + confidence / 2)
+    # The variational posterior is mean-field: its SDs drop the correlation of a source's
+    # effect with its own clips' intercepts and come out too narrow; the Laplace
+    # covariance keeps it.
+    cov = laplace_covariance(model, fit)
     records = []
-    for name, mean, sd in zip(model.fep_names, fit.fe_mean, fit.fe_sd):
+    for name, mean, sd in zip(model.fep_names, fit.fe_mean, np.sqrt(np.diag(cov))):
         if "[T." not in name:
             continue
         source = name.split("[T.", 1)[1][:-1]
@@ -117,6 +126,27 @@ def logistic(rows: pd.DataFrame, value: str, reference: str, confidence: float =
     components = _components({"participants": sds["participant"] ** 2,
                               "clips": sds["clip"] ** 2, "residual": np.pi ** 2 / 3})
     return {"differences": differences, "components": components}
+
+
+def laplace_covariance(model, fit) -> np.ndarray:
+    """Return the Laplace covariance of a ``BinomialBayesMixedGLM``'s fixed effects at its
+    variational fit: the fixed block of the inverse Hessian of the joint log posterior of
+    fixed and random effects (variances held at their fitted values), as the Schur
+    complement of the random effects' sparse block. Unlike the mean-field SDs it keeps
+    the correlation of the fixed effects with the random ones."""
+    from scipy import sparse
+    from scipy.sparse.linalg import splu
+
+    exog = np.asarray(model.exog, dtype=float)
+    exog_vc = sparse.csr_matrix(model.exog_vc)
+    sd_vc = np.exp(np.asarray(fit.vcp_mean, dtype=float))[np.asarray(model.ident)]
+    eta = exog @ np.asarray(fit.fe_mean, dtype=float) + exog_vc @ np.asarray(fit.vc_mean, dtype=float)
+    p = 1.0 / (1.0 + np.exp(-eta))
+    w = sparse.diags(p * (1 - p))
+    a = exog.T @ (w @ exog) + np.eye(exog.shape[1]) / model.fe_p ** 2
+    b = np.asarray((exog_vc.T @ w @ exog))
+    c = (exog_vc.T @ w @ exog_vc + sparse.diags(1.0 / sd_vc ** 2)).tocsc()
+    return np.linalg.inv(a - b.T @ splu(c).solve(b))
 
 
 def _components(variances: dict) -> pd.DataFrame:
@@ -170,5 +200,242 @@ def logistic_tables(rows: pd.DataFrame, value: str, reference: str, config):
     methods = [f"beside the bootstrap, a logistic mixed model of judged real with a log-odds "
                f"per source and crossed random intercepts for participants and clips was fitted "
                f"by variational Bayes (statsmodels BinomialBayesMixedGLM); each source is "
-               f"compared with {reference} by its posterior mean and SD, Holm-corrected"]
+               f"compared with {reference} by its posterior mean and its SD from the Laplace "
+               f"covariance of the fixed effects (the mean-field variational SDs are too "
+               f"narrow), Holm-corrected"]
     return tables, methods, []
+
+
+# --- worth models: Bradley-Terry as a logistic mixed model on pairs -----------------------
+
+# Prior SD of each fixed effect (log-worth against the first source, left advantage): weak
+# beside real data, it keeps a source that always wins finite (as the bootstrap's prior).
+WORTH_PRIOR_SD = 3.0
+# Most pairs a worth model fits (sparse design; variational Bayes over all random effects).
+MAX_PAIRS = 400_000
+
+
+def ranked_pairs(rows: pd.DataFrame, rank: str) -> pd.DataFrame:
+    """Return the pairs a trial's ``rank`` column implies (lower = better; rows sorted by
+    ``trial_key``, or sorted here): every two clips of a trial with different ranks, the better one won.
+    Complete rankings give all their pairs; a best-of-k answer (best 1, the rest 2) gives
+    the picked clip against each other clip shown. Columns as :func:`worth` takes them."""
+    keys = rows["trial_key"].to_numpy()
+    if len(keys) > 1 and not (keys[1:] >= keys[:-1]).all():
+        rows = rows.iloc[np.argsort(keys, kind="stable")]
+        keys = rows["trial_key"].to_numpy()
+    starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
+    sizes = np.diff(np.r_[starts, len(keys)])
+    ranks = rows[rank].to_numpy(dtype=float)
+    first, second = [], []
+    for m in np.unique(sizes):
+        at = starts[sizes == m]
+        for i, j in itertools.combinations(range(int(m)), 2):
+            first.append(at + i)
+            second.append(at + j)
+    if not first:
+        return pd.DataFrame(columns=["first", "second", "first_clip", "second_clip",
+                                     "participant", "trial", "won"])
+    first, second = np.concatenate(first), np.concatenate(second)
+    keep = ranks[first] != ranks[second]
+    first, second = first[keep], second[keep]
+    # The model has no intercept, so a pair's order is arbitrary: put the sources in name
+    # order (and alternate within a source), so that the first is not always the winner.
+    source = rows["source"].astype(str).to_numpy()
+    flip = (source[first] > source[second]) | (
+        (source[first] == source[second]) & (np.arange(len(first)) % 2 == 1))
+    first, second = np.where(flip, second, first), np.where(flip, first, second)
+    return pd.DataFrame({
+        "first": rows["source"].to_numpy()[first], "second": rows["source"].to_numpy()[second],
+        "first_clip": rows["stimulus"].to_numpy()[first],
+        "second_clip": rows["stimulus"].to_numpy()[second],
+        "participant": rows["pcode"].to_numpy()[first], "trial": keys[first],
+        "won": (ranks[first] < ranks[second]).astype(float)})
+
+
+def worth(pairs: pd.DataFrame, names, *, sided: bool = False, clustered: bool = False,
+          confidence: float = 0.95, prior_sd: float = WORTH_PRIOR_SD) -> dict:
+    """Return the Bradley-Terry logistic mixed model of ``pairs``.
+
+    ``pairs`` has one row per comparison: sources ``first``/``second``, clips
+    ``first_clip``/``second_clip``, ``participant``, ``trial`` and ``won`` (1 when the
+    first was preferred). The model: ``logit P(first won) = theta_first - theta_second
+    (+ beta, the left advantage, when ``sided``: the first clip was the left one)
+    + u_first_clip - u_second_clip + v_participant,first - v_participant,second``, with
+    random clip worths ``u`` and random per-participant worths of each source ``v``
+    (two variance components, crossed), fitted by variational Bayes (statsmodels
+    ``BinomialBayesMixedGLM``). Intervals and tests use the Laplace covariance of the
+    fixed effects at the fitted random effects and variances (the fixed block of the
+    inverse Hessian of the joint log posterior), which keeps the correlation of a source's
+    worth with its clips' that the variational posterior drops.
+
+    ``clustered``: a trial gave several pairs (rankings, best of k), which the model
+    treats as independent; each variance is then multiplied by the ratio of the
+    trial-clustered (sandwich) to the naive variance of the same contrast in the
+    fixed-effects logit (statsmodels ``GLM``), as for a composite likelihood.
+
+    Returns ``scores`` (log-worth per source centred on 0: estimate, sd, interval),
+    ``differences`` (a - b, Wald tests, Holm), ``components``, ``position`` (when
+    ``sided``), ``widening`` (per score, 1 when not clustered) and ``n_pairs``.
+    """
+    from scipy import sparse
+    from statsmodels.genmod.bayes_mixed_glm import BinomialBayesMixedGLM
+
+    names = list(names)
+    k, n = len(names), len(pairs)
+    first = pd.Categorical(pairs["first"], categories=names).codes.astype(np.int64)
+    second = pd.Categorical(pairs["second"], categories=names).codes.astype(np.int64)
+    y = pairs["won"].to_numpy(dtype=float)
+    at = np.arange(n)
+    difference = np.zeros((n, k))
+    np.add.at(difference, (at, first), 1.0)
+    np.add.at(difference, (at, second), -1.0)
+    exog = difference[:, 1:]  # the first source is the reference (log-worth 0)
+    fixed_names = [f"theta[{name}]" for name in names[1:]]
+    if sided:
+        exog = np.column_stack([np.ones(n), exog])
+        fixed_names = ["left"] + fixed_names
+    clip_codes, _ = pd.factorize(np.concatenate([pairs["first_clip"].astype(str).to_numpy(),
+                                                 pairs["second_clip"].astype(str).to_numpy()]))
+    n_clips = int(clip_codes.max()) + 1
+    person = pd.factorize(pairs["participant"].astype(str))[0]
+    ones = np.ones(n)
+    clips = sparse.csr_matrix((np.r_[ones, -ones], (np.r_[at, at], clip_codes)),
+                              shape=(n, n_clips))
+    people = sparse.csr_matrix((np.r_[ones, -ones], (np.r_[at, at], np.r_[person * k + first,
+                                                                         person * k + second])),
+                               shape=(n, (int(person.max()) + 1) * k))
+    people = people[:, np.flatnonzero(people.getnnz(axis=0))]
+    clips.sum_duplicates()
+    exog_vc = sparse.hstack([people, clips]).tocsr()
+    ident = np.r_[np.zeros(people.shape[1], dtype=int), np.ones(n_clips, dtype=int)]
+    model = BinomialBayesMixedGLM(y, exog, exog_vc, ident, vcp_p=1.0, fe_p=prior_sd,
+                                  fep_names=fixed_names, vcp_names=["participant", "clip"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fit = model.fit_vb()
+    fixed = np.asarray(fit.fe_mean, dtype=float)
+    sd_vc = np.exp(np.asarray(fit.vcp_mean, dtype=float))
+
+    cov_fixed = laplace_covariance(model, fit)
+
+    offset = 1 if sided else 0
+    theta = np.r_[0.0, fixed[offset:]]
+    cov = np.zeros((k, k))
+    cov[1:, 1:] = cov_fixed[offset:, offset:]
+    centre = np.eye(k) - 1.0 / k
+    widening = np.ones(k)
+    pair_widening = {}
+    notes = []
+    if clustered:
+        ratio = _cluster_ratio(y, exog, pairs["trial"].to_numpy(), offset, k)
+        if ratio is None:
+            notes.append("the fixed-effects logit of the pairs did not fit (a source always "
+                          "won or lost?): the mixed model's intervals were not widened for "
+                          "the pairs' dependence within trials; read them as too narrow")
+        else:
+            widening = np.array([ratio(row) for row in centre])
+            pair_widening = {(i, j): ratio(np.eye(k)[i] - np.eye(k)[j])
+                             for i, j in itertools.combinations(range(k), 2)}
+    z = scipy_stats.norm.ppf(0.5 + confidence / 2)
+    estimate = centre @ theta
+    se = np.sqrt(np.diag(centre @ cov @ centre.T) * widening)
+    scores = pd.DataFrame({"source": names, "estimate": estimate, "sd": se,
+                           "ci_low": estimate - z * se, "ci_high": estimate + z * se})
+    records = []
+    for i, j in itertools.combinations(range(k), 2):
+        diff = theta[i] - theta[j]
+        sd = np.sqrt((cov[i, i] + cov[j, j] - 2 * cov[i, j]) * pair_widening.get((i, j), 1.0))
+        records.append({"a": names[i], "b": names[j], "difference": diff, "sd": sd,
+                        "ci_low": diff - z * sd, "ci_high": diff + z * sd,
+                        "p": float(2 * scipy_stats.norm.sf(abs(diff) / sd)) if sd > 0 else np.nan})
+    differences = pd.DataFrame(records, columns=["a", "b", "difference", "sd", "ci_low",
+                                                 "ci_high", "p"])
+    differences["p_holm"] = holm(differences["p"]) if len(differences) else []
+    components = _components({"participants": sd_vc[0] ** 2, "clips": sd_vc[1] ** 2,
+                              "residual": np.pi ** 2 / 3})
+    result = {"scores": scores, "differences": differences, "components": components,
+              "widening": widening, "n_pairs": n, "notes": notes}
+    if sided:
+        sd = float(np.sqrt(cov_fixed[0, 0]))
+        result["position"] = {"estimate": float(fixed[0]), "sd": sd,
+                              "ci_low": float(fixed[0] - z * sd), "ci_high": float(fixed[0] + z * sd),
+                              "p": float(2 * scipy_stats.norm.sf(abs(fixed[0]) / sd))}
+    return result
+
+
+def _cluster_ratio(y, exog, groups, offset, k):
+    """Return a function of a contrast ``(k,)`` of the log-worths giving the ratio of its
+    trial-clustered to its naive variance in the fixed-effects logit, or None if the
+    logit does not fit."""
+    import statsmodels.api as sm
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            model = sm.GLM(y, exog, family=sm.families.Binomial())
+            naive = model.fit()
+            robust = model.fit(cov_type="cluster", cov_kwds={"groups": pd.factorize(groups)[0]})
+    except Exception:  # perfect separation and the like: reported, not raised
+        return None
+    v_naive = np.asarray(naive.cov_params())[offset:, offset:]
+    v_robust = np.asarray(robust.cov_params())[offset:, offset:]
+    if not (np.all(np.isfinite(v_naive)) and np.all(np.isfinite(v_robust))):
+        return None
+
+    def ratio(contrast):
+        c = np.asarray(contrast, dtype=float)[1:]
+        return float((c @ v_robust @ c) / (c @ v_naive @ c))
+
+    return ratio
+
+
+def worth_tables(pairs: pd.DataFrame, names, config, bootstrap_scores: pd.Series, *,
+                 measure: str, reading: str, sided: bool = False, clustered: bool = False,
+                 bootstrap_label: str = "bootstrap"):
+    """Return ``(tables, methods, notes, fitted)`` of the Bradley-Terry mixed model for a
+    worth type's analysis: its worths beside ``bootstrap_scores`` (the crossed
+    bootstrap's, by source), its differences and variance components; nothing when not
+    asked for. ``measure`` names the bootstrap's model ("Plackett-Luce worth"),
+    ``reading`` says which pairs the answers gave (for the methods paragraph)."""
+    if not getattr(config, "mixed_models", False):
+        return [], [], [], None
+    if len(pairs) > MAX_PAIRS:
+        return [], [], [f"the mixed model was not fitted: {len(pairs)} pairs exceed its limit of "
+                        f"{MAX_PAIRS}; the crossed bootstrap stands alone"], None
+    if len(pairs) == 0 or len(names) < 2:
+        return [], [], ["the mixed model was not fitted: no pairs of two sources to fit"], None
+    fitted = worth(pairs, names, sided=sided, clustered=clustered, confidence=config.confidence)
+    scores = fitted["scores"].set_index("source")
+    scores[bootstrap_label] = bootstrap_scores.reindex(scores.index)
+    if clustered:
+        scores["widening"] = fitted["widening"]
+    ci = f"{config.confidence:.0%}"
+    tables = [
+        Table("mixed_model_worth", f"Bradley-Terry log-worth (0 = average source) of a logistic "
+              f"mixed model with random clip worths and random per-participant worths (variational "
+              f"Bayes; {ci} intervals from its Laplace covariance), beside the crossed bootstrap's "
+              f"{measure} ({bootstrap_label})", scores.reset_index()),
+        Table("mixed_model", "Difference of the mixed model's log-worths a - b, Wald test (Holm)",
+              fitted["differences"]),
+        Table("variance_components", "Variance of the log-odds from participants' own worths of "
+              "a source, clips' worths and the residual (the logistic distribution's, pi^2 / 3)",
+              fitted["components"]),
+    ]
+    methods = [
+        f"beside the bootstrap, a Bradley-Terry model was fitted as a logistic mixed model to "
+        f"{fitted['n_pairs']} pairs ({reading}): logit P(first preferred) = theta_first - "
+        f"theta_second{' + a left advantage' if sided else ''} plus the difference of the two "
+        f"clips' random worths and of the participant's random worths of the two sources "
+        f"(crossed variance components), by variational Bayes (statsmodels "
+        f"BinomialBayesMixedGLM, normal prior SD {WORTH_PRIOR_SD:g} on fixed effects); its "
+        f"intervals and Wald tests (Holm) use the Laplace covariance of the fixed effects"
+        + ("; as a trial's pairs are not independent, each variance was multiplied by the ratio "
+           "of the trial-clustered (sandwich) to the naive variance of the same contrast in the "
+           "fixed-effects logit" if clustered else "")]
+    if sided:
+        position = fitted["position"]
+        methods.append(f"the mixed model's left advantage (log-odds) was "
+                       f"{position['estimate']:.3f} [{position['ci_low']:.3f}, "
+                       f"{position['ci_high']:.3f}]")
+    return tables, methods, list(fitted["notes"]), fitted

@@ -61,6 +61,7 @@ class Mushra(StudyAnalysis):
     low anchor among them."""
 
     answer = "score"
+    mixed_model = "linear"
     agreement_level = "interval"
     design = ("each trial showed clips of one action side by side, with a hidden real reference "
               "and a low anchor (a degraded real clip) among them, and participants scored every "

@@ -13,7 +13,7 @@ import itertools
 import numpy as np
 import pandas as pd
 
-from analysis import crossed, simulate, stats
+from analysis import crossed, mixed, simulate, stats
 from analysis.counts import ranked_sources, source_counts
 from analysis.formatting import estimate_with_interval, p_text, plural
 from analysis.registry import (Analysis, AnswerOption, Plot, StudyAnalysis, Table, offered,
@@ -28,6 +28,7 @@ class Pairwise(StudyAnalysis):
     """Each trial shows two clips; the participant picks one, or says both good / both bad."""
 
     answer = "choice"
+    mixed_model = "worth"
     agreement_level = "nominal"
     required = ("position",)
     design = ("each trial showed two clips of one action side by side and participants chose the "
@@ -128,15 +129,23 @@ class Pairwise(StudyAnalysis):
             f"{plural(bias['n_decided'], 'decided comparison')} (t test against 0.5 over participants and "
             f"clips: {p_text(bias['p'])})",
         ]
+        model_tables, model_methods, model_notes, model = mixed.worth_tables(
+            sided_pairs(decided, names), names, config, sources["score"],
+            measure="Bradley-Terry worth", reading="the decided comparisons, the left clip first",
+            sided=True)
+        tables += model_tables
+        methods += model_methods
+        tests = {"position_bias": bias, "ties": ties, "differences": shown.differences}
+        if model:
+            tests["mixed_model"] = model["differences"]
         plots = [
             Plot("worth", "Bradley-Terry worth", _worth_plot(sources)),
             Plot("win_matrix", "Win rate of each source (row) against each other (column)",
                  _matrix_plot(matrix.loc[sources.index, sources.index])),
         ]
         return Analysis(measure="Bradley-Terry worth (log scale)", sources=sources, tables=tables,
-                        plots=plots, methods=methods, notes=shown.notes,
-                        tests={"position_bias": bias, "ties": ties,
-                               "differences": shown.differences})
+                        plots=plots, methods=methods, notes=shown.notes + model_notes,
+                        tests=tests)
 
     def _by_action(self, rows, decided, decided_rows, names, config):
         frames = []
@@ -181,6 +190,21 @@ def comparisons(rows: pd.DataFrame, names) -> pd.DataFrame:
     if "action" in rows.columns:
         frame["action"] = rows["action"].to_numpy()[0::2]
     return frame
+
+
+def sided_pairs(trials: pd.DataFrame, names, left_won=None) -> pd.DataFrame:
+    """Return the comparisons ``trials`` (from :func:`comparisons`) as the pairs of
+    :func:`analysis.mixed.worth`, the left clip first; ``left_won`` defaults to the
+    answer "left"."""
+    names = np.asarray(names, dtype=object)
+    if left_won is None:
+        left_won = (trials["choice"] == CHOICES.index("left")).to_numpy()
+    return pd.DataFrame({
+        "first": names[trials["left"].to_numpy()], "second": names[trials["right"].to_numpy()],
+        "first_clip": trials["left_stimulus"].to_numpy(),
+        "second_clip": trials["right_stimulus"].to_numpy(),
+        "participant": trials["pcode"].to_numpy(), "trial": trials["trial_key"].to_numpy(),
+        "won": np.asarray(left_won, dtype=float)})
 
 
 def decided_trial_rows(rows: pd.DataFrame, trials: pd.DataFrame) -> pd.DataFrame:

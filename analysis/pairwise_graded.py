@@ -41,10 +41,10 @@ import itertools
 import numpy as np
 import pandas as pd
 
-from analysis import crossed, simulate, stats
+from analysis import crossed, mixed, simulate, stats
 from analysis.counts import ranked_sources, source_counts
 from analysis.formatting import estimate_with_interval, p_text, plural
-from analysis.pairwise import _matrix_plot, comparisons_answered
+from analysis.pairwise import _matrix_plot, comparisons_answered, sided_pairs
 from analysis.registry import (Analysis, AnswerOption, Plot, StudyAnalysis, Table, offered,
                                register_analysis)
 
@@ -72,6 +72,7 @@ class PairwiseGraded(StudyAnalysis):
     "B much better", or "Both bad"."""
 
     answer = "choice"
+    mixed_model = "worth"
     agreement_level = "ordinal"
     required = ("position",)
     design = ("each trial showed two clips of one action side by side (A left, B right) and "
@@ -210,6 +211,17 @@ class PairwiseGraded(StudyAnalysis):
             notes.append(f"only {n_people} participant(s) were analysed: bootstrap intervals over "
                          f"fewer than {MIN_PARTICIPANTS} participants mean little; collect more "
                          f"before reading them")
+        directional = graded.loc[graded["grade"] != 0]
+        model_tables, model_methods, model_notes, model = mixed.worth_tables(
+            sided_pairs(directional, names, directional["grade"].to_numpy() > 0), names, config,
+            sources["davidson"], measure="Davidson log-worth",
+            reading="the directional answers, the left clip first; no preference and Both bad "
+                    "left out: given a direction, Davidson's model with its order effect is "
+                    "Bradley-Terry with a left advantage, with the same worths",
+            sided=True)
+        tables += model_tables
+        methods += model_methods
+        notes += model_notes
         plots = [
             Plot("effects", "Source effect of the ordinal model", _interval_plot(sources)),
             Plot("win_matrix", "Share of directional answers won by each source (row) against "
@@ -218,6 +230,8 @@ class PairwiseGraded(StudyAnalysis):
         tests = {"position_bias": bias, "n_graded": n_graded, "n_ties": n_ties,
                  "n_both_bad": n_both_bad, "ordinal_converged": ordinal.converged,
                  "davidson_converged": davidson.converged, "differences": shown.differences}
+        if model:
+            tests["mixed_model"] = model["differences"]
         return Analysis(measure="ordinal source effect (logit scale)", sources=sources,
                         tables=tables, plots=plots, methods=methods, notes=notes, tests=tests)
 

@@ -15,7 +15,10 @@ Two ways in, both through the analysis a study's answers will get:
   participant, the clips' part by ``m0 / m``).
 
 :func:`costs` adds minutes per participant and the Prolific cost; :func:`recommend`
-picks the cheapest design that reaches the target power.
+picks the cheapest design that reaches the target power. The minutes come from an
+existing study's duration model (:func:`session_minutes`, given the seconds of its
+planned session: the survey app's ``duration.session_seconds``), or without a study from
+assumptions (:func:`assumed_minutes`); either says where its number came from.
 """
 
 from __future__ import annotations
@@ -151,6 +154,61 @@ def minutes_per_participant(trials: int, clip_seconds: float, plays: float = 1.0
     """Return the expected minutes of one participant: each trial's clips played ``plays``
     times (the server waits for them) and answered, plus the pages around the trials."""
     return overhead_minutes + trials * (clip_seconds * plays + answer_seconds) / 60
+
+
+@dataclass(frozen=True)
+class Minutes:
+    """Minutes per participant and where they came from, in words."""
+
+    minutes: float
+    source: str
+
+
+def assumed_minutes(trials: int, clip_seconds: float) -> Minutes:
+    """Return :func:`minutes_per_participant` of assumed trials and clip length."""
+    return Minutes(minutes_per_participant(trials, clip_seconds),
+                   f"assumed: {trials} trials of {clip_seconds:g} s clips played once and "
+                   f"{ANSWER_SECONDS:g} s to answer, plus {OVERHEAD_MINUTES:g} minutes of other "
+                   f"pages")
+
+
+def session_minutes(fixed_seconds: float, trials: list[tuple[str, float]], main_trials=None,
+                    measured_seconds: float | None = None, n_measured: int = 0,
+                    study: str = "the study", main_kind: str = "main") -> Minutes | None:
+    """Return the minutes of a study's session from its duration model, or None when it
+    plans no main trial (nothing built yet).
+
+    ``fixed_seconds`` are the pages around the trials, ``trials`` each planned trial's
+    kind and seconds (its required clips played once, the type's answer time, reading);
+    ``measured_seconds`` the median of completed sessions when there are enough
+    (``n_measured``). With ``main_trials`` other than the study's own number of main
+    trials, the estimate is rescaled: the same pages and extra trials, and that many
+    main trials of the study's mean main-trial seconds (the measured median holds for
+    the study's own number only)."""
+    main = [seconds for kind, seconds in trials if kind == main_kind]
+    if not main:
+        return None
+    other = sum(seconds for kind, seconds in trials if kind != main_kind)
+    per_trial = sum(main) / len(main)
+    parts = (f"{len(main)} main trials of {per_trial:.1f} s on average (their required clips "
+             f"played once, the type's answer time and reading)"
+             + (f", {len(trials) - len(main)} other trials ({other:.0f} s)" if other else "")
+             + f" and {fixed_seconds:.0f} s of other pages")
+    if main_trials is None or main_trials == len(main):
+        estimate = fixed_seconds + other + sum(main)
+        if measured_seconds is not None:
+            return Minutes(measured_seconds / 60,
+                           f"measured: the median session of {n_measured} completed participants "
+                           f"of {study} (its duration model's estimate was "
+                           f"{estimate / 60:.1f} minutes: {parts})")
+        return Minutes(estimate / 60, f"estimated by {study}'s duration model: {parts}")
+    estimate = fixed_seconds + other + main_trials * per_trial
+    return Minutes(estimate / 60,
+                   f"estimated by {study}'s duration model, rescaled from its {len(main)} to "
+                   f"{main_trials} main trials of {per_trial:.1f} s on average (required clips "
+                   f"played once, the type's answer time and reading)"
+                   + (f", {len(trials) - len(main)} other trials ({other:.0f} s)" if other else "")
+                   + f" and {fixed_seconds:.0f} s of other pages")
 
 
 def costs(frame: pd.DataFrame, minutes: float, reward_per_hour: float,

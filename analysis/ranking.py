@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 from scipy import sparse
 
-from analysis import crossed, simulate, stats
+from analysis import crossed, mixed, simulate, stats
 from analysis.counts import rank_columns, ranked_sources, source_counts
 from analysis.formatting import number, p_text
 from analysis.registry import Analysis, Plot, StudyAnalysis, Table, register_analysis
@@ -100,6 +100,7 @@ class Ranking(StudyAnalysis):
     """Each trial shows one action's clips; the participant ranks them, 1 = best."""
 
     answer = "rank"
+    mixed_model = "worth"
     agreement_level = "ordinal"
     design = ("each trial showed clips of one action from the sources in random order, "
               "and participants ranked them from best (1) to worst")
@@ -211,6 +212,17 @@ class Ranking(StudyAnalysis):
                                 self._by_action(rows, config)))
             tables.append(Table("rank_shares_by_action", "Rank shares per action",
                                 rank_shares(slim, by_action=True)))
+        model_tables, model_methods, model_notes, model = mixed.worth_tables(
+            mixed.ranked_pairs(rows, "rank"), names, config, sources["score"],
+            measure="Plackett-Luce worth",
+            reading="every two clips of a ranking, the higher ranked one preferred: under "
+                    "Plackett-Luce each such pair follows Bradley-Terry with the same worths",
+            clustered=True)
+        tables += model_tables
+        methods += model_methods
+        notes += model_notes
+        if model:
+            tests["mixed_model"] = model["differences"]
         plots = [
             Plot("rank_shares", "Share of each source's clips at each rank", _rank_plot(shares)),
             Plot("worth", "Plackett-Luce worth", _worth_plot(sources, "Plackett-Luce log-worth")),

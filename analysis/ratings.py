@@ -25,6 +25,7 @@ class RatingStandards(StudyAnalysis):
     """Each clip is rated 1-5 after scoring standards with example clips (seed 003)."""
 
     answer = "rating"
+    mixed_model = "linear"
     agreement_level = "ordinal"
     design = ("each clip was rated from 1 to 5 (higher = more realistic) after participants saw "
               "five scoring standards, each a description and an example clip")

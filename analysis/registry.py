@@ -75,7 +75,10 @@ class StudyAnalysis:
     ``answer`` is the response column holding the answer; ``agreement_level`` the
     Krippendorff level matching it; ``design`` a phrase for the methods paragraph;
     ``extra_columns`` the columns this type's table holds beyond
-    :data:`analysis.tables.RESPONSE_COLUMNS` (as the export adds them).
+    :data:`analysis.tables.RESPONSE_COLUMNS` (as the export adds them); ``mixed_model``
+    the model of :mod:`analysis.mixed` its analysis fits beside the bootstrap when asked
+    (``"linear"`` scores, ``"logistic"`` yes/no answers, ``"worth"`` Bradley-Terry on
+    the pairs its answers imply; ``""`` none).
 
     The ``simulated_*`` hooks make :func:`analysis.simulate.simulate` write this type's
     tables; a type without ``simulated_answers`` cannot be simulated.
@@ -90,6 +93,7 @@ class StudyAnalysis:
     # ``AnswerOption`` (the answer values it adds, the words that describe them). The
     # methods paragraph names those answers only when the study offered them.
     answer_options: dict = {}
+    mixed_model = ""
 
     def answered(self, rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
         """Return the rows with a valid answer and notes on those left out."""

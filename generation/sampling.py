@@ -113,3 +113,30 @@ def sample_method(checkpoint: str | Path, actions: str | Iterable[str] | None, n
     actions = choose(actions, model.actions, "action", f"{model.name} checkpoint {checkpoint}")
     return model.sample([action for action in actions for _ in range(n)], frames=frames, seed=seed,
                         **options)
+
+
+def sample_checkpoints(checkpoints: Sequence[str | Path], actions: Sequence[str], n: int,
+                       frames: int | None = None, seed: int = 0,
+                       method: str | None = None) -> list[Motion]:
+    """Return ``n`` motions in all from the methods saved at ``checkpoints`` (a source's
+    checkpoints, one per training seed), spread as evenly as can be over ``actions`` and,
+    within an action, over the checkpoints in turn: a fresh sample of the source, e.g. for
+    its objective metrics."""
+    if n < 1:
+        raise SamplingError(f"n must be at least 1; got {n}")
+    if not checkpoints or not actions:
+        raise SamplingError("give at least one checkpoint and one action")
+    per_action = [len(range(a, n, len(actions))) for a in range(len(actions))]
+    wanted = {}  # checkpoint index -> actions, one entry per motion
+    for a, count in enumerate(per_action):
+        for i in range(count):
+            wanted.setdefault(i % len(checkpoints), []).append(actions[a])
+    from generation.methods import get_method, load_checkpoint
+
+    motions = []
+    for k, labels in sorted(wanted.items()):
+        path = checkpoints[k]
+        model = get_method(method).load(path) if method else load_checkpoint(path)
+        choose(sorted(set(labels)), model.actions, "action", f"{model.name} checkpoint {path}")
+        motions += model.sample(labels, frames=frames, seed=seed)
+    return motions

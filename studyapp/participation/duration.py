@@ -92,17 +92,23 @@ def trial_seconds(kind, study, clip_seconds: list[float], n_judged: int) -> floa
     return READ_SECONDS + sum(clip_seconds) + kind.answer_time(study, n_judged)
 
 
+def session_seconds(study) -> tuple[float, list[tuple[str, float]]]:
+    """Return the seconds of the pages around the trials and, per trial of a session of
+    ``study`` planned as a new participant's would be, its kind and expected seconds."""
+    kind = study.kind
+    trials = []
+    for plan in kind.plan_trials(study, random.Random(0)):
+        clips = [stimulus.duration for stimulus in plan.stimuli]
+        clips += [stimulus.duration for stimulus, _, required in plan.shown if required]
+        trials.append((str(plan.kind), trial_seconds(kind, study, clips, len(plan.stimuli))))
+    return fixed_seconds(study.ask_demographics), trials
+
+
 def estimate_seconds(study) -> tuple[float, int]:
     """Return the estimated seconds of one session of ``study`` and its trials, from a
     session planned as a new participant's would be."""
-    kind = study.kind
-    plans = kind.plan_trials(study, random.Random(0))
-    total = fixed_seconds(study.ask_demographics)
-    for plan in plans:
-        clips = [stimulus.duration for stimulus in plan.stimuli]
-        clips += [stimulus.duration for stimulus, _, required in plan.shown if required]
-        total += trial_seconds(kind, study, clips, len(plan.stimuli))
-    return total, len(plans)
+    fixed, trials = session_seconds(study)
+    return fixed + sum(seconds for _, seconds in trials), len(trials)
 
 
 def measured_seconds(times: list[float]) -> float | None:

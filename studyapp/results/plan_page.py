@@ -50,9 +50,11 @@ def plan_folder(study: Study) -> Path:
 
 
 def start_plan(study: Study, options: dict) -> None:
-    """Run ``plan`` for the study's type in the background."""
+    """Run ``plan`` for the study (its type, and minutes from its duration model) in the
+    background."""
     run_job("call_command", name="plan",
-            options={"study_type": study.study_type, "out": str(plan_folder(study)), **options})
+            options={"study": study.slug, "study_type": study.study_type,
+                     "out": str(plan_folder(study)), **options})
 
 
 def plan_view(admin_site, request, pk):

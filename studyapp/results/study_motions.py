@@ -115,3 +115,62 @@ def study_motions(study, manifest=None, cache=None) -> StudyMotions:
         out[source] = [found[h] for h in wanted]
     return StudyMotions(out, generated, sorted(s for s in shown if kinds[s] == "real"),
                         manifest, folders)
+
+
+def source_files(found: StudyMotions) -> dict[str, str]:
+    """Return per file source of the study the sha256 its build's manifest gives its file."""
+    listed = json.loads(found.manifest.read_text())
+    return {entry["source"]: entry["file"] for entry in listed.get("clips", [])
+            if found.kinds.get(entry.get("source")) == "file" and entry.get("file")}
+
+
+def source_checkpoints(found: StudyMotions, given: dict | None = None) -> dict:
+    """Return per method source of the study ``(method, [checkpoint paths])`` as its
+    build's manifest lists its checkpoints (by sha256), or the reason none was found.
+
+    A checkpoint is looked for among ``given`` (source -> path, e.g. ``--source
+    a2m=ckpt.pt``: it must have the manifest's sha256) and then in the build cache's
+    ``checkpoints/`` folders (where builds train them); a checkpoint the config gave by
+    path is found only when given, as the manifest keeps no paths.
+    """
+    from studyapp.stimuli.clips import file_hash
+
+    given = dict(given or {})
+    listed = json.loads(found.manifest.read_text())
+    in_cache = None
+    out = {}
+    for entry in listed.get("sources", []):
+        source = entry.get("source")
+        if found.kinds.get(source) != "method":
+            continue
+        wanted = [c.get("checkpoint") for c in entry.get("checkpoints", []) if c.get("checkpoint")]
+        if not wanted:
+            out[source] = f"the manifest lists no checkpoint of {source!r}"
+            continue
+        paths = {}
+        if source in given:
+            path = Path(given[source])
+            if not path.is_file():
+                raise MotionsUnavailable(f"--source {source}={path}: no such file")
+            sha = file_hash(path)
+            if sha not in wanted:
+                raise MotionsUnavailable(
+                    f"--source {source}={path} is not the checkpoint the build of study "
+                    f"{found.manifest.parent.name!r} used (its sha256 {sha[:12]} is not "
+                    f"{', '.join(w[:12] for w in wanted)})")
+            paths[sha] = path
+        if len(paths) < len(wanted):
+            if in_cache is None:
+                in_cache = {}
+                for folder in found.cache:
+                    for path in sorted((folder / "checkpoints").glob("*/*.pt")):
+                        in_cache.setdefault(file_hash(path), path)
+            paths.update({sha: in_cache[sha] for sha in wanted if sha in in_cache and sha not in paths})
+        missing = [sha for sha in wanted if sha not in paths]
+        if missing:
+            out[source] = (f"checkpoint(s) {', '.join(sha[:12] for sha in missing)} of {source!r} "
+                           f"are neither given (--source {source}=PATH) nor in the build cache "
+                           f"({', '.join(str(f / 'checkpoints') for f in found.cache)})")
+            continue
+        out[source] = (entry.get("method"), [paths[sha] for sha in wanted])
+    return out

@@ -59,6 +59,13 @@ def test_logistic_model_of_fake_or_real():
     assert model["log_odds_difference"] < 0 and abs(model["log_odds_difference"]) >= 0.8 * abs(empirical)
     assert model["ci_low"] < model["log_odds_difference"] < model["ci_high"]
     assert "BinomialBayesMixedGLM" in result.methods()
+    # Its SD carries the clips' spread as the bootstrap's interval does (that interval of
+    # the difference of shares, turned to the log-odds scale by the slope p (1 - p)); the
+    # mean-field variational SD was a third of it here.
+    row = result.analysis.sources.loc["a"]
+    slope = np.mean([shares[s] * (1 - shares[s]) for s in ("a", "real")])
+    bootstrap_sd = (row["diff_ci_high"] - row["diff_ci_low"]) / (2 * 1.96) / slope
+    assert 0.5 < model["sd"] / bootstrap_sd < 2.0
 
 
 def test_models_are_skipped_when_not_asked_for_or_too_large(monkeypatch):

@@ -65,3 +65,19 @@ def test_minutes_costs_and_the_recommendation():
     assert "more clips gain the most" in plan.advice(none, 0.9999, costed)
     figure = plan.power_figure(costed)
     assert len(figure.axes[0].lines) == 3  # two designs of clips and the target
+
+
+def test_session_minutes_come_from_the_planned_session_and_say_so():
+    trials = [("practice", 20.0), ("main", 30.0), ("main", 40.0), ("catch", 10.0)]
+    own = plan.session_minutes(60.0, trials, study="study x")
+    assert own.minutes == pytest.approx((60 + 20 + 70 + 10) / 60)
+    assert own.source.startswith("estimated by study x's duration model: 2 main trials of 35.0 s")
+    rescaled = plan.session_minutes(60.0, trials, main_trials=10, study="study x")
+    assert rescaled.minutes == pytest.approx((60 + 30 + 10 * 35) / 60)
+    assert "rescaled from its 2 to 10 main trials" in rescaled.source
+    measured = plan.session_minutes(60.0, trials, measured_seconds=420.0, n_measured=6)
+    assert measured.minutes == 7.0 and measured.source.startswith("measured: the median session of 6")
+    assert plan.session_minutes(60.0, [("practice", 20.0)]) is None
+    assumed = plan.assumed_minutes(12, 4.0)
+    assert assumed.minutes == plan.minutes_per_participant(12, 4.0)
+    assert assumed.source.startswith("assumed: 12 trials of 4 s clips")

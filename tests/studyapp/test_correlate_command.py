@@ -80,7 +80,7 @@ def test_correlate_a_built_and_answered_study(tmp_path, media_root, make_bot, se
                      preset="tiny", progress=False)
 
     call_command("correlate", study=study.slug, out=str(out), classifier=str(classifier),
-                 bootstrap=20, min_time_factor=0)
+                 bootstrap=20, min_time_factor=0, shown_clips=True)
     printed = capsys.readouterr()
     assert "Study corr-ranking: 4 methods" in printed.out
     assert "real (real clips) is not a method" in printed.err
@@ -143,3 +143,72 @@ def test_missing_motions_and_no_methods_name_the_fix(tmp_path, media_root, make_
     with pytest.raises(CommandError, match="has no method sources .*build a study whose sources "
                                            "are methods"):
         call_command("correlate", study=study.slug, out=out, manifest=str(folder / "real.json"))
+
+
+def small_config(tmp_path):
+    """Return a ranking study of real clips, three sources from the demo's shipped
+    checkpoints (a2m twice, two seeds) and one file of 10 scaled real clips: 2 actions, 2
+    clips per source, 48 px."""
+    from generation.sampling import sample_real
+    from motion.datasets import get_dataset
+    from motion.formats import npz
+
+    real = sample_real(get_dataset("demo"), ["walk", "wave"], 5, FRAMES, seed=4)
+    npz.save(tmp_path / "ext.npz", [m.with_joints(m.joints * np.float32(0.9), source="x", meta={})
+                                    for m in real])
+    method = lambda key, **more: {"method": key, "checkpoint": str(CHECKPOINTS / f"{key}.pt"), **more}
+    return parse({
+        "slug": "corr-fresh", "title": "Which looks best?", "seed": 0, "dataset": "demo",
+        "actions": ["walk", "wave"], "frames": FRAMES, "clips_per_source": 2,
+        "sources": ["real", method("a2m"), method("cond_gru"), method("a2m", name="a2m_s7", seed=7),
+                    {"name": "scaled", "file": "ext.npz"}],
+        "render": {"style": "stick", "size": 48},
+        "study": {"type": "ranking", "clips_per_trial": 5},
+    }, tmp_path)
+
+
+@pytest.mark.django_db
+def test_correlate_measures_a_fresh_sample_from_each_checkpoint(tmp_path, media_root, make_bot,
+                                                                settings, capsys):
+    settings.VAR_DIR = tmp_path / "var"
+    stimuli = settings.VAR_DIR / "stimuli"
+    build_stimuli(small_config(tmp_path), stimuli / "corr-fresh", cache=stimuli / "cache")
+    study = Study.objects.get(slug="corr-fresh")
+    answer_all(make_bot, study, 3)
+    out = tmp_path / "fresh"
+    given = [f"a2m={CHECKPOINTS / 'a2m.pt'}", f"cond_gru={CHECKPOINTS / 'cond_gru.pt'}",
+             f"a2m_s7={CHECKPOINTS / 'a2m.pt'}"]
+    call_command("correlate", study=study.slug, out=str(out), bootstrap=0, min_time_factor=0,
+                 fresh=30, source=given + [f"scaled={tmp_path / 'ext.npz'}"])
+    printed = capsys.readouterr()
+    assert f"(metrics on all 10 motions of its file {tmp_path / 'ext.npz'})" in printed.out
+    assert "(metrics on 30 fresh motions from its checkpoint (a2m.pt; seed 7919, 2 actions))" in printed.out
+    assert "(metrics on 30 fresh motions from its checkpoint (cond_gru.pt;" in printed.out
+    sources = pd.read_csv(out / "sources.csv").set_index("source")
+    assert sources["metrics_sample"].drop("scaled").str.startswith("30 fresh motions").all()
+    assert "a2m: 30 fresh motions from its checkpoint" in (out / "report.html").read_text()
+    fresh = sources["mmd_avg"]
+
+    # The clips shown instead (4 per method): said so, and other numbers.
+    call_command("correlate", study=study.slug, out=str(out), bootstrap=0, min_time_factor=0,
+                 shown_clips=True)
+    printed = capsys.readouterr()
+    assert "(metrics on the 4 clips the study showed)" in printed.out
+    assert "scaled: metrics on" not in printed.err
+    shown = pd.read_csv(out / "sources.csv").set_index("source")
+    assert not np.allclose(shown["mmd_avg"], fresh.loc[shown.index])
+
+    # A checkpoint the config gave by path is not in the cache: the clips shown, with a note
+    # naming the fix; a wrong file for a source is refused.
+    call_command("correlate", study=study.slug, out=str(out), bootstrap=0, min_time_factor=0,
+                 fresh=30, source=given[:1])
+    err = capsys.readouterr().err
+    assert "cond_gru: metrics on the 4 clips the study showed, not a fresh sample" in err
+    assert "--source cond_gru=PATH" in err and "a2m:" not in err.replace("a2m_s7:", "")
+    assert "scaled: metrics on the 4 clips the study showed: pass --source scaled=FILE" in err
+    with pytest.raises(CommandError, match="--source cond_gru=.*a2m.pt is not the checkpoint"):
+        call_command("correlate", study=study.slug, out=str(out), bootstrap=0,
+                     source=[f"cond_gru={CHECKPOINTS / 'a2m.pt'}"])
+    with pytest.raises(CommandError, match="--source scaled=.*a2m.pt is not the file the build read"):
+        call_command("correlate", study=study.slug, out=str(out), bootstrap=0, min_time_factor=0,
+                     fresh=30, source=[f"scaled={CHECKPOINTS / 'a2m.pt'}"])

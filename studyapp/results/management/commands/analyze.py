@@ -51,9 +51,10 @@ class Command(BaseCommand):
                                  "intervals over participants only, which hold for these clips "
                                  "and say nothing about other clips of the same sources.")
         parser.add_argument("--mixed-models", action="store_true",
-                            help="Also fit mixed models with crossed random intercepts for "
-                                 "participants and clips (ratings, MUSHRA, fake or real; "
-                                 "seconds per fit) beside the bootstrap.")
+                            help="Also fit mixed models with crossed random effects for "
+                                 "participants and clips (scores, fake or real, and worths as "
+                                 "Bradley-Terry; seconds to a minute per fit) beside the "
+                                 "bootstrap.")
         parser.add_argument("--seed", type=int, default=0, help="Seed of the bootstrap.")
         parser.add_argument("--no-audit", action="store_true",
                             help="Skip the blindness audit of the study's clips (the deep "

@@ -6,6 +6,19 @@ from analysis import plan
 from analysis.simulate import STUDY_TYPES
 from analysis.study import AnalysisConfig, analyse
 from analysis.tables import AnalysisError, read_responses
+from studyapp.participation.duration import session_seconds
+from studyapp.results.export import get_study
+from studyapp.survey.models import Trial
+
+MAIN = str(Trial.Kind.MAIN)
+
+
+def _study_session(slug):
+    """Return the study ``slug`` and its duration model's parts: the seconds of the pages
+    around the trials, each planned trial's kind and seconds, and its ``Duration``."""
+    study = get_study(slug)
+    fixed, trials = session_seconds(study)
+    return study, (fixed, trials, study.duration())
 
 
 def _numbers(text):
@@ -23,13 +36,21 @@ class Command(BaseCommand):
         "Plan a study: the power to tell two sources apart, and the width of the interval of "
         "their difference, for a grid of participants x clips per source and condition, by "
         "simulation through the study's own analysis (participants and clips random) or from a "
-        "pilot's responses; with minutes per participant and the Prolific cost. Writes "
-        "plan.csv and power.png with --out."
+        "pilot's responses; with minutes per participant (from an existing study's duration "
+        "model with --study, else from --trials and --clip-seconds) and the Prolific cost. "
+        "Writes plan.csv and power.png with --out."
     )
 
     def add_arguments(self, parser):
         parser.add_argument("--type", dest="study_type", choices=STUDY_TYPES,
-                            help="Study type to simulate (without --pilot).")
+                            help="Study type to simulate (without --pilot; default the "
+                                 "--study's).")
+        parser.add_argument("--study", metavar="SLUG",
+                            help="Plan for this existing study: its type, its main trials per "
+                                 "participant, and minutes from its duration model (a session "
+                                 "planned as a participant's would be, its clips' lengths and "
+                                 "the type's answer time; the measured median once enough "
+                                 "participants completed).")
         parser.add_argument("--pilot", metavar="FILE",
                             help="A pilot's exported responses (CSV or Parquet): plan from its "
                                  "estimated variance shares instead of assumptions.")
@@ -43,7 +64,8 @@ class Command(BaseCommand):
                             help="SD of clip quality about its source's strength (logit scale).")
         parser.add_argument("--noise", type=float, default=1.0, help="Noise of single answers.")
         parser.add_argument("--conditions", type=int, default=1, help="Actions or prompts.")
-        parser.add_argument("--trials", type=int, default=10, help="Main trials per participant.")
+        parser.add_argument("--trials", type=int, default=None,
+                            help="Main trials per participant (default the --study's, else 10).")
         parser.add_argument("--clips-per-trial", type=int, default=2,
                             help="Clips per trial (for types that show several clips a trial).")
         parser.add_argument("--participants", default="20,40,80", metavar="N,N,...")
@@ -56,7 +78,8 @@ class Command(BaseCommand):
         parser.add_argument("--target", type=float, default=0.8, help="Power to reach.")
         parser.add_argument("--alpha", type=float, default=0.05)
         parser.add_argument("--clip-seconds", type=float, default=3.0,
-                            help="Length of a clip, for the minutes per participant.")
+                            help="Length of a clip, for the minutes per participant (without "
+                                 "--study, or when the study has no trials yet).")
         parser.add_argument("--reward-per-hour", type=float, default=12.0,
                             help="Reward per hour in the study's currency (default 12.00).")
         parser.add_argument("--service-fee", type=float, default=plan.PROLIFIC_SERVICE_FEE,
@@ -69,6 +92,19 @@ class Command(BaseCommand):
     def handle(self, *args, **options):
         participants = _numbers(options["participants"])
         clips = _numbers(options["clips"])
+        study, session = None, None
+        if options["study"]:
+            study, session = _study_session(options["study"])
+            if not options["study_type"] and not options["pilot"]:
+                if study.study_type not in STUDY_TYPES:
+                    raise CommandError(f"study {study.slug}'s type has no simulation to plan "
+                                       f"from; give --pilot FILE")
+                options["study_type"] = study.study_type
+        if options["trials"] is None and session is not None:
+            options["trials"] = sum(1 for kind, _ in session[1] if kind == MAIN) or None
+        given_trials = options["trials"]
+        if options["trials"] is None:
+            options["trials"] = 10
         try:
             if options["pilot"]:
                 a, _, b = options["sources"].partition(",")
@@ -97,10 +133,23 @@ class Command(BaseCommand):
                           f"{assumptions.clip_sd:g})")
         except AnalysisError as error:
             raise CommandError(str(error)) from None
-        minutes = plan.minutes_per_participant(trials, options["clip_seconds"])
-        frame = plan.costs(frame, minutes, options["reward_per_hour"], options["service_fee"])
+        minutes = None
+        if study is not None:
+            fixed, trials_seconds = session[0], session[1]
+            duration = session[2]
+            minutes = plan.session_minutes(
+                fixed, trials_seconds, given_trials if options["pilot"] is None else trials,
+                duration.measured, duration.n_measured, f"study {study.slug}", MAIN)
+        if minutes is None:
+            minutes = plan.assumed_minutes(trials, options["clip_seconds"])
+            if study is not None:
+                minutes = plan.Minutes(minutes.minutes, f"{minutes.source} (study {study.slug} "
+                                                        f"plans no main trial yet: no clips built?)")
+        frame = plan.costs(frame, minutes.minutes, options["reward_per_hour"],
+                           options["service_fee"])
         best = plan.recommend(frame, options["target"])
         self.stdout.write(f"Power {source}; service fee {options['service_fee']:.1%} of rewards")
+        self.stdout.write(f"Minutes per participant: {minutes.minutes:.1f}, {minutes.source}")
         self.stdout.write(frame.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
         self.stdout.write("Recommended: " + plan.advice(best, options["target"], frame))
         if options["out"]:
