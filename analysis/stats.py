@@ -33,7 +33,8 @@ def wilson_interval(successes, n, confidence: float = 0.95):
         share = successes / n
         centre = (share + z * z / (2 * n)) / (1 + z * z / n)
         half = z * np.sqrt(share * (1 - share) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return centre - half, centre + half
+        # It holds the share (exactly 0 at no successes, 1 at all; rounding aside).
+        return np.minimum(centre - half, share), np.maximum(centre + half, share)
 
 
 def t_interval(mean, sd, n, confidence: float = 0.95):

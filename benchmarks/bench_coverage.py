@@ -3,6 +3,7 @@
     .venv/bin/python benchmarks/bench_coverage.py [--studies 200] [--types ranking,...]
                                                   [--json out.json] [--markdown out.md]
                                                   [--methods crossed,participants] [--first-seed 0]
+                                                  [--clip-sds 0,0.5,1.5] [--clips 2,8]
 
 Every cell simulates ``--studies`` studies (``analysis.simulate``: two sources ``a`` and
 ``b``, ``--participants`` x ``--trials`` main trials, ``--actions`` conditions) and
@@ -11,7 +12,7 @@ analyses each through ``analysis.study.analyse`` twice: with clips random (the d
 before; ``--methods`` picks one). Runs with different ``--first-seed`` draw different
 studies and can be pooled. Cells: every study type x clip SD {0, 0.5, 1.5} (logit
 scale) x clips per source and condition {2, 8} x equal strengths (a = b) or unequal
-(a - b = ``--effect``).
+(a - b = ``--effect``); ``--clip-sds`` and ``--clips`` run some of them only.
 
 Measured per cell and method, on the difference a - b of the type's headline statistic:
 
@@ -95,9 +96,9 @@ def cell(study_type, effect, clip_sd, clips, target, args) -> dict:
 def run(args) -> list[dict]:
     results = []
     for study_type in args.types:
-        for clip_sd in CLIP_SDS:
+        for clip_sd in args.clip_sds:
             targets = {0.0: 0.0, args.effect: truth(study_type, args.effect, clip_sd, args)}
-            for clips in CLIPS:
+            for clips in args.clips:
                 for effect, target in targets.items():
                     started = time.perf_counter()
                     results.append(cell(study_type, effect, clip_sd, clips, target, args))
@@ -130,6 +131,10 @@ def parse(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--studies", type=int, default=200, help="simulated studies per cell")
     parser.add_argument("--types", type=lambda s: s.split(","), default=list(STUDY_TYPES))
+    parser.add_argument("--clip-sds", type=lambda s: [float(v) for v in s.split(",")],
+                        default=list(CLIP_SDS), help="clip SDs (logit scale) to run")
+    parser.add_argument("--clips", type=lambda s: [int(v) for v in s.split(",")],
+                        default=list(CLIPS), help="clips per source and condition to run")
     parser.add_argument("--participants", type=int, default=40)
     parser.add_argument("--trials", type=int, default=8)
     parser.add_argument("--actions", type=int, default=2)

@@ -148,3 +148,53 @@ def test_sums_drawn_from_sufficient_statistics_match_unit_weights(study_type, un
         assert fast.mean(axis=0) == pytest.approx(slow.mean(axis=0), abs=0.1 * spread.max() + 1e-9)
         # Standard deviations of 3000 replicates each agree within about 2 x 2.6 %.
         assert fast.std(axis=0) == pytest.approx(spread, rel=0.08, abs=1e-9)
+
+
+def test_clip_degrees_of_freedom_come_from_the_sources_compared():
+    # Four sources of 2 clips each (as a MUSHRA study with a hidden reference and an
+    # anchor): a difference of two sources' means rests on their 4 clips (2 degrees of
+    # freedom), not on all 8 (4); one source's mean on its own 2 clips (1).
+    rows = simulate.simulate("rating_standards", {"a": 0.0, "b": 0.0, "c": 1.0, "d": -1.0},
+                             participants=20, trials=8, actions=("x",), clips_per_source=2,
+                             clip_sd=1.0, seed=4)
+    rows = rows.assign(pcode=pd.factorize(rows["participant"])[0])
+    result, groups = crossed.group_means(rows, "rating", config(bootstrap=50))
+    assert list(groups) == ["a", "b", "c", "d"]
+    assert result.clip_df().tolist() == [1.0, 1.0, 1.0, 1.0]
+    assert result.contrast([[1.0, -1.0, 0.0, 0.0]]).clip_df().tolist() == [2.0]
+    # Every difference takes the clips' 2, whether or not its clips' part came out 0.
+    assert crossed.differences(result, list(groups))["df"].tolist() == [2.0] * 6
+    assert result.summary()["df"].tolist() == [1.0] * 4
+    # A fit over all sources (every value moves with every clip) keeps all of them: C - S.
+    trials = simulate.simulate("pairwise", {"a": 0.0, "b": 0.0, "c": 0.5}, participants=20,
+                               trials=8, actions=("x",), clips_per_source=2, clip_sd=1.0, seed=4)
+    trials = _rows(trials)
+    pairs = comparisons(trials, ["a", "b", "c"])
+    worths = crossed.bootstrap(crossed.design(trials, unit="trial_key"),
+                               crossed.worth_statistic(np.stack([pairs.winner, pairs.loser], 1), 3),
+                               config(bootstrap=50))
+    assert worths.contrast([[1.0, -1.0, 0.0]]).clip_df().tolist() == [3.0]
+
+
+def test_few_clip_degrees_of_freedom_of_a_difference_are_named():
+    # Eight sources of 2 clips: 8 clip degrees of freedom in all, but a difference of two
+    # sources rests on their 4 clips (2).
+    d = crossed.Design(np.arange(32) % 8, (np.arange(32) % 16)[:, None], np.arange(16) // 2,
+                       np.arange(32) % 16)
+    assert crossed.one_clip_note(d) is None
+    assert "a difference rests on as few as 2 degrees of freedom" in crossed.one_clip_note(d, 2.0)
+    assert crossed.one_clip_note(d, 14.0) is None
+
+
+def test_a_mushra_difference_rests_on_its_two_sources_clips():
+    # The hidden reference and the anchor are sources of their own: 8 clips in 4 groups
+    # (4 clip degrees of freedom), but a - b moves with a's and b's 4 clips only (2).
+    from analysis.study import analyse
+
+    table = simulate.simulate("mushra", {"a": 0.0, "b": 0.0}, participants=20, trials=6,
+                              actions=("x",), clips_per_source=2, clip_sd=1.5, seed=5)
+    result = analyse(table, config(bootstrap=40))
+    differences = result.analysis.tests["differences"]
+    assert differences["df"].tolist() == [2.0] * len(differences)
+    assert any("a difference rests on as few as 2 degrees of freedom" in note
+               for note in result.notes)
