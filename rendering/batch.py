@@ -34,7 +34,7 @@ from rendering.video import (
 SIDECAR = "renders.json"
 # Changes whenever the same motions and settings would give other pixels or bytes (the
 # camera rule, the encoder, the padding): caches of rendered clips should key on it.
-VERSION = 7
+VERSION = 8
 
 
 class RenderError(ValueError):

@@ -72,7 +72,8 @@ class MeshStyle(Style):
     def __init__(self, framing: Framing, width: int, height: int):
         super().__init__(framing, width, height)
         self._backdrop = Backdrop(framing, width, height)
-        self._still = None
+        self._backdrops = {(framing, (0, 0)): self._backdrop}
+        self._stills = {}
         self._stage: Stage | None = None
         self._shown = None
 
@@ -83,7 +84,6 @@ class MeshStyle(Style):
                 f"the mesh style draws 3D skeletons; {skeleton.name!r} is {skeleton.dims}D"
             )
         placed = self.framing.place(motion)
-        targets = self.framing.targets(motion, placed)
         if motion.has_body:
             body = SurfaceBody(skeleton, motion, placed)
         else:
@@ -91,16 +91,20 @@ class MeshStyle(Style):
         lift = self._lift(body, placed)
         placed = placed + [0.0, 0.0, lift]
         body.lift(lift)
+        shot = self.framing.shot(motion, self.width, self.height, self.reach(motion.skeleton),
+                                 placed)
+        framing, targets = shot.framing, shot.targets
+        canvas = shot.canvas(self.width, self.height)
         for number, (pose, target) in enumerate(zip(placed, targets)):
             stage = self._stage_for(body)  # per frame: clips of a grid take turns
             vertices, normals, centres, radii = body.pose_at(number, pose)
-            camera = self.framing.camera(self.width, self.height, target)
-            frame = self._scenery(target)
-            self._cast_shadow(frame, camera, centres, radii)
-            box = stage.window(camera.project(vertices)[0], self.width, self.height)
+            camera = shot.camera(self.width, self.height, target)
+            frame = self._scenery(shot, target)
+            self._cast_shadow(frame, camera, centres, radii, framing)
+            box = stage.window(camera.project(vertices)[0], *canvas)
             if box is not None:
                 composite(frame, stage.draw(vertices, normals, camera, box), box)
-            yield frame
+            yield shot.cut(frame, number, self.width, self.height)
 
     def close(self) -> None:
         if self._stage is not None:
@@ -138,35 +142,45 @@ class MeshStyle(Style):
             self._shown = key
         return self._stage
 
-    def _scenery(self, target) -> np.ndarray:
-        """Return a fresh copy of the backdrop with the look-at at ``target``."""
+    def _scenery(self, shot, target) -> np.ndarray:
+        """Return a fresh copy of a shot's backdrop with the look-at at ``target``."""
+        key = (shot.framing, shot.margin)
+        if key not in self._backdrops:
+            if len(self._backdrops) > 4:  # a clip needing a larger canvas is rare
+                for old in list(self._backdrops)[1:]:
+                    del self._backdrops[old]
+                    self._stills.pop(old, None)
+            self._backdrops[key] = Backdrop(shot.framing, self.width, self.height, shot.margin)
+        backdrop = self._backdrops[key]
         if self.framing.follow:
-            return self._backdrop.image(target)
-        if self._still is None:
-            self._still = self._backdrop.image()
-        return self._still.copy()
+            return backdrop.image(target)
+        if key not in self._stills:
+            self._stills[key] = backdrop.image()
+        return self._stills[key].copy()
 
-    def _cast_shadow(self, frame: np.ndarray, camera, centres, radii) -> None:
+    def _cast_shadow(self, frame: np.ndarray, camera, centres, radii,
+                     framing: Framing | None = None) -> None:
         """Darken the floor under the body: a soft shadow plus a darker one at contacts.
 
         Every ring of the body is a disc in the shadow, drawn small, blurred and stretched;
         parts near the floor add a tighter, darker layer, as the stick figures' do.
         """
-        height = self.framing.height
-        seen = camera.project(self.framing.shadows(centres))[1] > NEAR * self.framing.distance
+        framing = framing or self.framing
+        height = framing.height
+        seen = camera.project(framing.shadows(centres))[1] > NEAR * framing.distance
         if not seen.any():
             return
         centres, radii = centres[seen], radii[seen]  # none of what lies at or behind the eye
-        pixels, depth = camera.project(self.framing.shadows(centres))
+        pixels, depth = camera.project(framing.shadows(centres))
         pixels = pixels / SHADOW_SHRINK
         reach = camera.pixel_size(depth) * radii / SHADOW_SHRINK
-        unit = height * float(camera.pixel_size(self.framing.distance)) / SHADOW_SHRINK
+        unit = height * float(camera.pixel_size(framing.distance)) / SHADOW_SHRINK
         bottom = centres[:, 2] - radii
         closeness = 1.0 - np.clip(bottom / (0.15 * height), 0.0, 1.0)
         layers = ((np.full(len(centres), 90.0), 1.0, 0.02), (closeness**2 * 140, 0.9, 0.008))
 
         border = reach + 3 * 0.02 * unit + 2
-        size = np.array([self.width, self.height]) // SHADOW_SHRINK
+        size = np.array([camera.width, camera.height]) // SHADOW_SHRINK
         low = np.maximum(np.floor((pixels - border[:, None]).min(axis=0)), 0).astype(int)
         high = np.minimum(np.ceil((pixels + border[:, None]).max(axis=0)), size).astype(int)
         if (high <= low).any():
