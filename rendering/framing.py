@@ -41,6 +41,7 @@ REAL = "real"
 # A figure's box (its joints, plus a style's pad around each) is kept this share of the
 # frame's height inside every edge; the window that keeps it there moves smoothly.
 MARGIN = 0.015
+EDGE, EDGE_SHARE = 2.0, 0.005  # pixels, share of the height: kept free at the least
 SETTLE = 24  # rounds of smoothing and clamping the window's path (Framing.shot)
 CANVAS_STEP = 16  # the canvas beyond the frame grows in these steps of pixels (even)
 NEAR_SHARE = 0.05  # joints nearer the eye than this share of the distance are not drawn
@@ -265,7 +266,8 @@ class Framing:
         """
         placed = self.place(motion) if placed is None else placed
         size = np.array([width, height], dtype=np.float64)
-        room = size - 1
+        least_keep = max(EDGE, EDGE_SHARE * height)  # free on each side at the least
+        room = size - 2 * least_keep
         framing = self
         if not self.follow:
             low, high = self._boxes(placed, self.targets(motion, placed), width, height, pad)
@@ -282,11 +284,12 @@ class Framing:
             # Zoomed out (the look-at keeps its place): a last resort, see the docstring.
             framing = framing._with(distance=framing.distance * max(1.02, float((spread / room).max())))
         # The window's corner, per frame: keeping MARGIN free where the box leaves room,
-        # else the frame's edges; a frame larger still (never after zooming) is centred.
+        # else the least (EDGE); a frame larger still (never after zooming) is centred.
         keep = MARGIN * height
         least, most = high - (size - keep), low - keep
         edges = least > most
-        least, most = np.where(edges, high - size, least), np.where(edges, low, most)
+        least = np.where(edges, high - (size - least_keep), least)
+        most = np.where(edges, low - least_keep, most)
         middle = (least + most) / 2
         tight = least > most
         least, most = np.where(tight, middle, least), np.where(tight, middle, most)

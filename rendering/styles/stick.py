@@ -23,6 +23,9 @@ from rendering.framing import Framing
 from rendering.styles.base import Style, register_style
 
 SHADOW_SHRINK = 2  # the shadow is drawn this much smaller, then blurred and stretched
+# The shadow's blur, at the least, in pixels of its half-size map: drawn anti-aliased and
+# blurred by at least this, it has no stair-stepped 2x2 blocks in small frames.
+SHADOW_BLUR_LEAST = 0.8
 LIGHT = np.array([-0.55, -0.83])  # on screen: from the upper left
 NEAR = 0.05  # parts nearer the eye than this share of the camera distance are not drawn
 CHUNK = 16  # frames whose geometry is worked out together
@@ -217,7 +220,7 @@ class StickStyle(Style):
         strength = np.where(seen, 100.0, 0.0)  # nothing of what lies at or behind the eye
         reach = np.where(seen, reach, 0.0)
 
-        border = (1.4 * figure.joint_radii * reach + 3 * 0.012 * unit + 2)[..., None]
+        border = (1.4 * figure.joint_radii * reach + 4 * max(SHADOW_BLUR_LEAST, 0.012 * unit) + 2)[..., None]
         size = (canvas[0] // SHADOW_SHRINK, canvas[1] // SHADOW_SHRINK)
         any_seen = seen.any(axis=1)
         low = np.where(seen[..., None], pixels - border, np.inf).min(axis=1)
@@ -235,7 +238,7 @@ class StickStyle(Style):
                 (strength, 1.4, 0.012), (np.where(seen, closeness**2 * 150, 0.0), 1.2, 0.006)):
             # Each layer is drawn and blurred only in its own box (its discs, the blur's
             # reach and a margin), as plain numbers per frame for OpenCV.
-            sigma = max(0.5, blur * unit)
+            sigma = max(SHADOW_BLUR_LEAST, blur * unit)
             order = np.argsort(layer_strength, axis=1, kind="stable")  # the strongest on top
             strength_ordered = np.take_along_axis(layer_strength, order, axis=1)
             discs = strength_ordered >= 1
@@ -285,12 +288,12 @@ class StickStyle(Style):
                     layer["lines"][number].tolist(), layer["levels"][number].tolist(),
                     layer["widths"][number].tolist(), layer["drawn"][number].tolist()):
                 if drawn:
-                    cv2.line(layer_image, start, end, level, width, cv2.LINE_8, SHIFT)
+                    cv2.line(layer_image, start, end, level, width, cv2.LINE_AA, SHIFT)
             for centre, radius, level, disc in zip(
                     layer["centres"][number].tolist(), layer["radii"][number].tolist(),
                     layer["strength"][number].tolist(), layer["discs"][number].tolist()):
                 if disc:
-                    cv2.circle(layer_image, centre, radius, level, -1, cv2.LINE_8, SHIFT)
+                    cv2.circle(layer_image, centre, radius, level, -1, cv2.LINE_AA, SHIFT)
             layer_image = cv2.GaussianBlur(layer_image, (0, 0), layer["sigma"])
             if mask is None:
                 mask = np.zeros(tuple(high - low)[::-1], np.uint8)
