@@ -282,7 +282,8 @@ class Framing:
             if (spread <= room).all():
                 break
             # Zoomed out (the look-at keeps its place): a last resort, see the docstring.
-            framing = framing._with(distance=framing.distance * max(1.02, float((spread / room).max())))
+            zoom = max(1.02, float((spread / room).max()))
+            framing = framing._with(distance=framing.distance * zoom)
         # The window's corner, per frame: keeping MARGIN free where the box leaves room,
         # else the least (EDGE); a frame larger still (never after zooming) is centred.
         keep = MARGIN * height
@@ -334,11 +335,12 @@ class Framing:
 
 
 def _smooth(path: np.ndarray, window: int) -> np.ndarray:
-    """Return a path ``(T, 2)`` averaged over ``window`` frames (its ends held)."""
+    """Return a path ``(T, 2)`` averaged over ``window`` frames (its ends continued in
+    their line, as :meth:`Framing.targets` does)."""
     if window <= 1 or len(path) < 2:
         return path
     padding = ((window // 2, window - 1 - window // 2), (0, 0))
-    padded = np.pad(path, padding, mode="edge")
+    padded = np.pad(path, padding, mode="reflect", reflect_type="odd")
     kernel = np.ones(window) / window
     return np.stack([np.convolve(padded[:, k], kernel, mode="valid")
                      for k in range(path.shape[1])], axis=1)

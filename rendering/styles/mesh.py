@@ -24,7 +24,7 @@ from rendering.surface import SurfaceBody
 from rendering.framing import Framing
 from rendering.stage import Stage
 from rendering.styles.base import Style, register_style
-from rendering.styles.stick import NEAR
+from rendering.styles.stick import NEAR, SHADOW_BLUR_LEAST
 
 BODY = np.array([168.0, 172.0, 182.0])  # a cool light grey, sRGB
 TINT = 0.16  # how far left and right limbs lean towards the palette's warm and cool
@@ -179,7 +179,7 @@ class MeshStyle(Style):
         closeness = 1.0 - np.clip(bottom / (0.15 * height), 0.0, 1.0)
         layers = ((np.full(len(centres), 90.0), 1.0, 0.02), (closeness**2 * 140, 0.9, 0.008))
 
-        border = reach + 3 * 0.02 * unit + 2
+        border = reach + 4 * max(SHADOW_BLUR_LEAST, 0.02 * unit) + 2
         size = np.array([camera.width, camera.height]) // SHADOW_SHRINK
         low = np.maximum(np.floor((pixels - border[:, None]).min(axis=0)), 0).astype(int)
         high = np.minimum(np.ceil((pixels + border[:, None]).max(axis=0)), size).astype(int)
@@ -194,7 +194,8 @@ class MeshStyle(Style):
                 (x, y), radius, level = pixels[ring], spread * reach[ring], int(strength[ring])
                 if level > 0:
                     draw.ellipse((x - radius, y - radius, x + radius, y + radius), fill=int(level))
-            masks.append(mask.filter(ImageFilter.GaussianBlur(max(0.5, blur * unit))))
+            sigma = max(SHADOW_BLUR_LEAST, blur * unit)
+            masks.append(mask.filter(ImageFilter.GaussianBlur(sigma)))
         mask = ImageChops.add(*masks)
         stretched = (mask.width * SHADOW_SHRINK, mask.height * SHADOW_SHRINK)
         mask = mask.resize(stretched, Image.BILINEAR)

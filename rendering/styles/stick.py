@@ -220,7 +220,8 @@ class StickStyle(Style):
         strength = np.where(seen, 100.0, 0.0)  # nothing of what lies at or behind the eye
         reach = np.where(seen, reach, 0.0)
 
-        border = (1.4 * figure.joint_radii * reach + 4 * max(SHADOW_BLUR_LEAST, 0.012 * unit) + 2)[..., None]
+        blurred = 4 * max(SHADOW_BLUR_LEAST, 0.012 * unit)  # the blur's reach
+        border = (1.4 * figure.joint_radii * reach + blurred + 2)[..., None]
         size = (canvas[0] // SHADOW_SHRINK, canvas[1] // SHADOW_SHRINK)
         any_seen = seen.any(axis=1)
         low = np.where(seen[..., None], pixels - border, np.inf).min(axis=1)
