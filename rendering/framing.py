@@ -41,7 +41,9 @@ REAL = "real"
 # A figure's box (its joints, plus a style's pad around each) is kept this share of the
 # frame's height inside every edge; the window that keeps it there moves smoothly.
 MARGIN = 0.015
-EDGE, EDGE_SHARE = 2.0, 0.005  # pixels, share of the height: kept free at the least
+# Free at the least beside a figure's box: in pixels (a video's colours bleed a pixel or
+# two at low resolutions) and as a share of the frame's height (a larger box is zoomed out).
+EDGE, EDGE_SHARE = 3.0, 0.005
 SETTLE = 24  # rounds of smoothing and clamping the window's path (Framing.shot)
 CANVAS_STEP = 16  # the canvas beyond the frame grows in these steps of pixels (even)
 NEAR_SHARE = 0.05  # joints nearer the eye than this share of the distance are not drawn
@@ -284,9 +286,10 @@ class Framing:
             # Zoomed out (the look-at keeps its place): a last resort, see the docstring.
             zoom = max(1.02, float((spread / room).max()))
             framing = framing._with(distance=framing.distance * zoom)
-        # The window's corner, per frame: keeping MARGIN free where the box leaves room,
-        # else the least (EDGE); a frame larger still (never after zooming) is centred.
-        keep = MARGIN * height
+        # The window's corner, per frame: keeping MARGIN (at least EDGE pixels) free where
+        # the box leaves room, else the least; a frame larger still (never after zooming)
+        # is centred.
+        keep = max(EDGE, MARGIN * height)
         least, most = high - (size - keep), low - keep
         edges = least > most
         least = np.where(edges, high - (size - least_keep), least)

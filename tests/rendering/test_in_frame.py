@@ -11,11 +11,10 @@ out of the top and bottom).
 import numpy as np
 import pytest
 
-from motion import perturb
 from rendering import Framing, get_style
 from rendering.backdrop import Backdrop
 from rendering.measure import bare_style, figure_rows
-from tests.rendering.conftest import make_figure
+from tests.rendering.conftest import drifting_walk, make_figure, rising_figure, shaken_anchor
 from tests.rendering.helpers import figure_box
 
 SIZE = 96
@@ -23,37 +22,11 @@ FRAMES = 50
 FPS = 25.0
 
 
-def drifting_walk():
-    """A walk that side-steps 2.4 m within 0.16 s after a second, as a generated one may:
-    to the camera's right (the rule's azimuth of -50 degrees: along (0.77, 0.64))."""
-    walk = make_figure(frames=FRAMES, speed=1.3, fps=FPS, source="cond_gru")
-    t = np.arange(FRAMES) / FPS
-    step = 2.4 * np.clip((t - 1.0) / 0.16, 0.0, 1.0)[:, None]
-    joints = walk.joints.copy()
-    joints[..., 0] += 0.77 * step
-    joints[..., 1] += 0.64 * step
-    return walk.with_joints(joints.astype(np.float32))
-
-
-def rising_catch():
-    """A catch clip broken upwards: from 0.6 s the body floats higher and higher."""
-    base = make_figure(frames=FRAMES, speed=1.0, fps=FPS, phase=1.0)
-    t = np.arange(FRAMES) / FPS
-    joints = base.joints.copy()
-    joints[..., 2] += (1.2 * np.maximum(0.0, t - 0.6) ** 2)[:, None]
-    return base.with_joints(joints.astype(np.float32), source="broken")
-
-
-def anchor():
-    base = make_figure(frames=FRAMES, speed=1.0, fps=FPS, phase=2.0)
-    return perturb.low_anchor(base, np.random.default_rng(3))
-
-
 @pytest.fixture(scope="module")
 def clip_set():
     real = make_figure(frames=FRAMES, speed=1.2, fps=FPS)
-    moved = {"drifting walk": drifting_walk(), "rising catch": rising_catch(),
-             "anchor": anchor()}
+    moved = {"drifting walk": drifting_walk(), "rising catch": rising_figure(),
+             "anchor": shaken_anchor()}
     return real, moved, Framing.from_motions([real, *moved.values()])
 
 
