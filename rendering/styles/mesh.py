@@ -77,6 +77,29 @@ class MeshStyle(Style):
         self._stage: Stage | None = None
         self._shown = None
 
+    def reach(self, skeleton: str):
+        """Return how far the body reaches beyond each joint, per figure height: the head
+        ``pad``, the feet (toe tips ahead of the ankles) as far, the hands 0.09, limbs
+        and trunk 0.05 (half-thicknesses are at most 0.04: :mod:`rendering.body`); a
+        skeleton without a body layout: ``pad`` everywhere."""
+        from rendering.body import LAYOUTS
+
+        found = get_skeleton(skeleton)
+        layout = LAYOUTS.get(found.family)
+        if layout is None:
+            return self.pad
+        index = {name: j for j, name in enumerate(found.joint_names)}
+        reach = np.full(found.n_joints, 0.05)
+        ends = [(layout.head, self.pad)]
+        ends += [(leg[-1], self.pad) for leg in layout.legs]
+        ends += [(toe, self.pad) for toe in layout.toes or ()]
+        ends += [(arm[-1], 0.09) for arm in layout.arms]
+        ends += [(hand, 0.09) for hand in layout.hands or ()]
+        for name, value in ends:
+            if name in index:
+                reach[index[name]] = value
+        return reach
+
     def frames(self, motion: Motion) -> Iterator[np.ndarray]:
         skeleton = get_skeleton(motion.skeleton)
         if skeleton.dims != 3:
