@@ -139,3 +139,34 @@ def test_shadows_are_smooth(clip_set):
                 if left + mask.shape[1] < canvas[0]:
                     inner.append(mask[:, -1])
                 assert max((side.max() for side in inner), default=0) <= 0.05 * peak
+
+
+def test_the_shot_reads_the_content_never_the_source(clip_set):
+    """The same motion labelled real, generated, catch or anchor is filmed alike."""
+    _, moved, framing = clip_set
+    reach = get_style("stick")(framing, SIZE, SIZE).reach("h36m17")
+    for motion in moved.values():
+        shots = [framing.shot(motion.with_joints(motion.joints, source=source), SIZE, SIZE,
+                              reach) for source in ("real", "cond_gru", "broken", "anchor")]
+        for shot in shots[1:]:
+            assert shot.framing == shots[0].framing and shot.margin == shots[0].margin
+            assert np.array_equal(shot.offsets, shots[0].offsets)
+
+
+def test_a_still_camera_follows_a_figure_that_outgrows_the_frame():
+    """A walker coming up to a still camera is followed (at the set's scale); one that
+    stays in view keeps the camera still."""
+    towards = make_figure(frames=60, speed=2.5, fps=FPS)  # 6 m, passing near the eye
+    standing = make_figure(frames=60, speed=0.0, fps=FPS)
+    framing = Framing.from_motions([standing], follow=False)
+    reach = get_style("stick")(framing, SIZE, SIZE).reach("h36m17")
+    still = framing.shot(standing, SIZE, SIZE, reach)
+    assert still.framing == framing and not still.offsets.any()
+    shot = framing.shot(towards, SIZE, SIZE, reach)
+    placed = framing.place(towards)
+    low, high = shot.framing._boxes(placed, shot.targets, SIZE, SIZE, reach)
+    low, high = low - shot.offsets, high - shot.offsets
+    assert (low >= 0).all() and (high <= SIZE).all()
+    assert shot.framing.follow and shot.framing.distance == framing.distance
+    low, high = framing._boxes(placed, framing.targets(towards, placed), SIZE, SIZE, reach)
+    assert ((high - low) > SIZE).any()  # it did outgrow the still camera's frame
