@@ -79,8 +79,8 @@ class MeshStyle(Style):
 
     def reach(self, skeleton: str):
         """Return how far the body reaches beyond each joint, per figure height: the head
-        ``pad``, the feet (toe tips ahead of the ankles) as far, the hands 0.09, limbs
-        and trunk 0.05 (half-thicknesses are at most 0.04: :mod:`rendering.body`); a
+        ``pad``, the feet (toe tips ahead of the ankles) and hands as far, limbs and
+        trunk 0.05 (half-thicknesses are at most 0.04: :mod:`rendering.body`); a
         skeleton without a body layout: ``pad`` everywhere."""
         from rendering.body import LAYOUTS
 
@@ -93,8 +93,8 @@ class MeshStyle(Style):
         ends = [(layout.head, self.pad)]
         ends += [(leg[-1], self.pad) for leg in layout.legs]
         ends += [(toe, self.pad) for toe in layout.toes or ()]
-        ends += [(arm[-1], 0.09) for arm in layout.arms]
-        ends += [(hand, 0.09) for hand in layout.hands or ()]
+        ends += [(arm[-1], self.pad) for arm in layout.arms]
+        ends += [(hand, self.pad) for hand in layout.hands or ()]
         for name, value in ends:
             if name in index:
                 reach[index[name]] = value
