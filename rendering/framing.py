@@ -7,6 +7,13 @@ camera then follows the rule: it looks at the smoothed body centre horizontally
 height fills ``FILL`` of the frame's height with the floor under it at ``FLOOR_AT``. Only that
 height comes from the motions, measured once on the set's real clips when it has any, so
 no clip's own content (a jump, a jittered catch clip, a long walk) changes the scale.
+
+Each clip is then filmed by a shot of the rule (``Framing.shot``) that keeps its figure
+inside the frame for its whole length: the frame's window moves, smoothly and at the
+same scale, over a canvas larger than the frame where the figure would reach an edge; a
+still camera the figure outgrows follows it; only a figure larger than the frame on some
+frame (a body flung apart) is filmed from farther away. Its content decides, never its
+source.
 """
 
 from __future__ import annotations
