@@ -170,3 +170,17 @@ def test_a_still_camera_follows_a_figure_that_outgrows_the_frame():
     assert shot.framing.follow and shot.framing.distance == framing.distance
     low, high = framing._boxes(placed, framing.targets(towards, placed), SIZE, SIZE, reach)
     assert ((high - low) > SIZE).any()  # it did outgrow the still camera's frame
+
+
+def test_the_sidecar_tells_the_researcher_how_each_clip_was_filmed(tmp_path):
+    import json
+
+    from rendering import render_set
+
+    real = make_figure(frames=20, speed=1.2, fps=FPS)
+    rising = rising_figure(frames=20, fps=FPS, at=0.2)
+    report = render_set([real, rising], tmp_path, size=64, progress=False)
+    clips = json.loads(report.sidecar.read_text())["clips"]
+    shots = {clip["source"]: clip["shot"] for clip in clips}
+    assert shots["real"] == {"zoom": 1.0, "window": [0, 0], "follows": False}
+    assert shots["broken"]["window"][1] > 0 and not shots["broken"]["follows"]
