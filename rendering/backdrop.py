@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import cv2
 import numpy as np
 
@@ -48,13 +50,20 @@ def _floor(camera, framing: Framing, tile: float):
 class Backdrop:
     """Draw the sky and floor for one framing and image size; ``image`` per frame."""
 
-    def __init__(self, framing: Framing, width: int, height: int):
+    def __init__(self, framing: Framing, width: int, height: int, margin=(0, 0)):
+        """``margin``: draw a canvas this many pixels (x, y; even) larger than the frame
+        on every side, the frame at its centre (what :class:`rendering.framing.Shot` cuts
+        a moving window from); the frame's own pixels are the same either way."""
         self.framing = framing
         self._tile = framing.height / 3
-        camera = framing.camera(width, height)
+        across, down = (int(m) for m in margin)
+        if across % 2 or down % 2:
+            raise ValueError(f"a backdrop's margin must be even; got {margin!r}")
+        camera = _grown(framing.camera(width, height), across, down)
         u, v, wu, wv, fade = _floor(camera, framing, self._tile)
         fade = fade[..., None]
-        rows = np.linspace(0.0, 1.0, height)[:, None, None]
+        # The sky's gradient runs over the frame's own rows, whatever the margin.
+        rows = np.pad(np.linspace(0.0, 1.0, height), down, mode="edge")[:, None, None]
         sky = palette.SKY_TOP * (1 - rows) + palette.SKY_HORIZON * rows
 
         # Only the rows where the tiles can change the picture by a quarter level are
@@ -73,7 +82,7 @@ class Backdrop:
         # 480x480). The band starts and ends on even rows.
         first, last = (int(rows.min()) // 2, (int(rows.max()) + 2) // 2) if len(rows) else (0, 0)
         self._rows = slice(2 * first, 2 * last)
-        half = framing.camera(width // 2, height // 2)
+        half = _grown(framing.camera(width // 2, height // 2), across // 2, down // 2)
         u, v, wu, wv, fade = _floor(half, framing, self._tile)
         band = np.s_[first:last]
         # Each floor pixel's place in the table: its footprint's row and its position's
@@ -113,6 +122,13 @@ class Backdrop:
             cv2.subtract(band, cv2.resize(darkening, band.shape[1::-1],
                                           interpolation=cv2.INTER_LINEAR), dst=band)
         return image
+
+
+def _grown(camera, across: int, down: int):
+    """Return ``camera`` drawing a canvas ``across``, ``down`` pixels larger on each side."""
+    if not across and not down:
+        return camera
+    return replace(camera, width=camera.width + 2 * across, height=camera.height + 2 * down)
 
 
 _SHADES = 255  # levels of the checker's darkening, each a row of a table

@@ -34,7 +34,7 @@ from rendering.video import (
 SIDECAR = "renders.json"
 # Changes whenever the same motions and settings would give other pixels or bytes (the
 # camera rule, the encoder, the padding): caches of rendered clips should key on it.
-VERSION = 7
+VERSION = 8
 
 
 class RenderError(ValueError):
@@ -370,10 +370,32 @@ def render_set(
     report.clips.sort(key=lambda clip: clip.index)
     report.failures = sorted(failed.items())
     if not folder_problem:
+        shots = _shots(style_class, report, motions, (width, height), fps)
         report.sidecar = _write_sidecar(
-            out_dir, report, given, style, (width, height), fps, formats
+            out_dir, report, given, style, (width, height), fps, formats, shots
         )
     return report
+
+
+def _shots(style_class, report: RenderReport, motions, size, fps) -> dict[int, dict]:
+    """Return, per rendered clip, how its shot filmed it (for the researcher's sidecar):
+    how much farther away than the rule (``zoom``), how far its window moved (pixels,
+    x and y) and whether a still camera followed it."""
+    if not report.clips:
+        return {}
+    out = {}
+    with style_class(report.framing, *size) as drawer:
+        for clip in report.clips:
+            motion = motions[clip.index]
+            motion = resample(motion, fps) if fps else motion
+            shot = report.framing.shot(motion, *size, drawer.reach(motion.skeleton))
+            moved = np.abs(shot.offsets).max(axis=0) if len(shot.offsets) else [0, 0]
+            out[clip.index] = {
+                "zoom": round(shot.framing.distance / report.framing.distance, 4),
+                "window": [int(v) for v in moved],
+                "follows": bool(shot.framing.follow and not report.framing.follow),
+            }
+    return out
 
 
 class _Progress:
@@ -477,7 +499,7 @@ def _unwritable(out_dir: Path) -> str | None:
 
 
 def _write_sidecar(out_dir: Path, report: RenderReport, motions, style, size, fps,
-                   formats=("mp4",)) -> Path:
+                   formats=("mp4",), shots=None) -> Path:
     """Record what was rendered from what; names the sources, so never serve it."""
     entries = [
         {
@@ -493,6 +515,7 @@ def _write_sidecar(out_dir: Path, report: RenderReport, motions, style, size, fp
             "fps": clip.fps,
             "duration": clip.duration,
             "extras": {kind: path.name for kind, path in clip.extras.items()},
+            "shot": (shots or {}).get(clip.index),
         }
         for clip in report.clips
     ]

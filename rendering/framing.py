@@ -7,12 +7,19 @@ camera then follows the rule: it looks at the smoothed body centre horizontally
 height fills ``FILL`` of the frame's height with the floor under it at ``FLOOR_AT``. Only that
 height comes from the motions, measured once on the set's real clips when it has any, so
 no clip's own content (a jump, a jittered catch clip, a long walk) changes the scale.
+
+Each clip is then filmed by a shot of the rule (``Framing.shot``) that keeps its figure
+inside the frame for its whole length: the frame's window moves, smoothly and at the
+same scale, over a canvas larger than the frame where the figure would reach an edge; a
+still camera the figure outgrows follows it; only a figure larger than the frame on some
+frame (a body flung apart) is filmed from farther away. Its content decides, never its
+source.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -38,6 +45,15 @@ FLOOR_AT = 0.88
 GROUND_PERCENTILE = 10  # of per-frame lowest points: where a clip meets the floor
 HEIGHT_PERCENTILE = 75  # of per-frame heights: a set's typical standing height
 REAL = "real"
+# A figure's box (its joints, plus a style's pad around each) is kept this share of the
+# frame's height inside every edge; the window that keeps it there moves smoothly.
+MARGIN = 0.015
+# Free at the least beside a figure's box: in pixels (a video's colours bleed a pixel or
+# two at low resolutions) and as a share of the frame's height (a larger box is zoomed out).
+EDGE, EDGE_SHARE = 3.0, 0.005
+SETTLE = 24  # rounds of smoothing and clamping the window's path (Framing.shot)
+CANVAS_STEP = 16  # the canvas beyond the frame grows in these steps of pixels (even)
+NEAR_SHARE = 0.05  # joints nearer the eye than this share of the distance are not drawn
 
 
 def to_z_up(joints: np.ndarray, skeleton: Skeleton) -> np.ndarray:
@@ -240,6 +256,82 @@ class Framing:
             targets[:, 1] += np.convolve(padded[:, 1], kernel, mode="valid")
         return targets
 
+    def shot(self, motion: Motion, width: int, height: int, pad=PAD,
+             placed: np.ndarray | None = None) -> "Shot":
+        """Return how a clip is filmed at ``width`` x ``height`` so that its figure stays
+        inside the frame on every frame.
+
+        The figure's box (its joints, ``pad`` of the figure height around each) is
+        measured as the rule films it (:meth:`targets`). Where it would reach within
+        ``MARGIN`` of an edge, the frame's window moves over a canvas larger than the
+        frame (a shift of the lens: the same camera, the same scale), along a path
+        smoothed over one second and clamped so the box never leaves. Only a clip whose
+        box on one frame is larger than the frame (a body flung apart, never a standing
+        or walking one) is filmed from farther away, just far enough: its content alone
+        decides, never its source. A still camera (``follow`` off) stays still unless
+        the figure on some frame is larger than the frame (it walks up to the eye); that
+        clip's camera follows it. ``pad`` is a share of the figure height, or one per
+        joint; ``placed`` is the motion as :meth:`place` returns it.
+        """
+        placed = self.place(motion) if placed is None else placed
+        size = np.array([width, height], dtype=np.float64)
+        least_keep = max(EDGE, EDGE_SHARE * height)  # free on each side at the least
+        room = size - 2 * least_keep
+        framing = self
+        if not self.follow:
+            low, high = self._boxes(placed, self.targets(motion, placed), width, height, pad)
+            if len(low) and ((high - low).max(axis=0) > room).any():
+                # A still camera the figure outgrows (it walks up to or past the eye):
+                # the camera follows this clip instead, at the same scale.
+                framing = self._with(follow=True, target=(0.0, 0.0, self.target[2]))
+        for _ in range(8):
+            targets = framing.targets(motion, placed)
+            low, high = framing._boxes(placed, targets, width, height, pad)
+            spread = (high - low).max(axis=0) if len(low) else np.zeros(2)
+            if (spread <= room).all():
+                break
+            # Zoomed out (the look-at keeps its place): a last resort, see the docstring.
+            zoom = max(1.02, float((spread / room).max()))
+            framing = framing._with(distance=framing.distance * zoom)
+        # The window's corner, per frame: keeping MARGIN (at least EDGE pixels) free where
+        # the box leaves room, else the least; a frame larger still (never after zooming)
+        # is centred.
+        keep = max(EDGE, MARGIN * height)
+        least, most = high - (size - keep), low - keep
+        edges = least > most
+        least = np.where(edges, high - (size - least_keep), least)
+        most = np.where(edges, low - least_keep, most)
+        middle = (least + most) / 2
+        tight = least > most
+        least, most = np.where(tight, middle, least), np.where(tight, middle, most)
+        path = np.clip(0.0, least, most)
+        window = max(1, int(round(motion.fps)))
+        for _ in range(SETTLE if path.any() else 0):
+            path = np.clip(_smooth(path, window), least, most)
+        low_int, high_int = np.ceil(least), np.floor(most)
+        stuck = low_int > high_int
+        low_int = np.where(stuck, np.rint(middle), low_int)
+        high_int = np.where(stuck, np.rint(middle), high_int)
+        offsets = np.clip(np.rint(path), low_int, high_int).astype(int).reshape(-1, 2)
+        reach = np.abs(offsets).max(axis=0) if len(offsets) else np.zeros(2, int)
+        margin = tuple(int(-(-r // CANVAS_STEP) * CANVAS_STEP) for r in reach)
+        return Shot(framing, targets, offsets, margin)
+
+    def _boxes(self, placed: np.ndarray, targets: np.ndarray, width: int, height: int,
+               pad: float) -> tuple[np.ndarray, np.ndarray]:
+        """Return each frame's figure box in pixels, its top-left and bottom-right ``(T, 2)``
+        (joints with ``pad`` of the figure height around each; a frame showing nothing:
+        the frame's centre)."""
+        camera = self.camera(width, height)
+        pixels, depth = camera.project_each(placed, targets - np.asarray(self.target))
+        seen = depth > NEAR_SHARE * self.distance
+        reach = (np.asarray(pad) * self.height * camera.pixel_size(depth))[..., None]
+        low = np.where(seen[..., None], pixels - reach, np.inf).min(axis=1)
+        high = np.where(seen[..., None], pixels + reach, -np.inf).max(axis=1)
+        centre = np.array([width / 2, height / 2])
+        shown = seen.any(axis=1)[:, None]
+        return np.where(shown, low, centre), np.where(shown, high, centre)
+
     def camera(self, width: int, height: int, target=None) -> Camera:
         """Return the camera for an image of this size looking at ``target`` (default: ours)."""
         camera = _base_camera(self, width, height)
@@ -250,6 +342,51 @@ class Framing:
     def as_dict(self) -> dict:
         """Return the framing as plain data (for the researcher's sidecar)."""
         return asdict(self)
+
+
+def _smooth(path: np.ndarray, window: int) -> np.ndarray:
+    """Return a path ``(T, 2)`` averaged over ``window`` frames (its ends continued in
+    their line, as :meth:`Framing.targets` does)."""
+    if window <= 1 or len(path) < 2:
+        return path
+    padding = ((window // 2, window - 1 - window // 2), (0, 0))
+    padded = np.pad(path, padding, mode="reflect", reflect_type="odd")
+    kernel = np.ones(window) / window
+    return np.stack([np.convolve(padded[:, k], kernel, mode="valid")
+                     for k in range(path.shape[1])], axis=1)
+
+
+@dataclass(frozen=True, eq=False)
+class Shot:
+    """How one clip is filmed (:meth:`Framing.shot`): its ``framing`` (the set's, or
+    farther away as a last resort), the look-at of each frame, and the frame's window on
+    each frame: ``offsets`` ``(T, 2)`` pixels moved right and down from where the rule
+    puts it, over a canvas ``margin`` (x, y) pixels larger than the frame on every side."""
+
+    framing: Framing
+    targets: np.ndarray
+    offsets: np.ndarray
+    margin: tuple[int, int] = (0, 0)
+
+    def canvas(self, width: int, height: int) -> tuple[int, int]:
+        """Return the size of the canvas a frame of ``width`` x ``height`` is cut from."""
+        return width + 2 * self.margin[0], height + 2 * self.margin[1]
+
+    def camera(self, width: int, height: int, target=None) -> Camera:
+        """Return the camera drawing the canvas of a frame of this size (at ``target``)."""
+        camera = self.framing.camera(width, height, target)
+        if self.margin == (0, 0):
+            return camera
+        return replace(camera, width=camera.width + 2 * self.margin[0],
+                       height=camera.height + 2 * self.margin[1])
+
+    def cut(self, canvas: np.ndarray, number: int, width: int, height: int) -> np.ndarray:
+        """Return frame ``number``: its window of the canvas drawn for it."""
+        if self.margin == (0, 0):
+            return canvas
+        left = self.margin[0] + int(self.offsets[number, 0])
+        top = self.margin[1] + int(self.offsets[number, 1])
+        return np.ascontiguousarray(canvas[top:top + height, left:left + width])
 
 
 @lru_cache(maxsize=64)

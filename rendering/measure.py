@@ -38,12 +38,12 @@ def figure_shares(style: str, framing: Framing, motion: Motion, size: int = 128,
     frames it touches the top and the bottom edge in."""
     if every > 1:
         motion = motion.with_joints(motion.joints[::every], fps=motion.fps / every)
-    backdrop = Backdrop(framing, size, size)
-    targets = framing.targets(motion, framing.place(motion))
     shares, top, bottom = [], 0, 0
     with bare_style(style)(framing, size, size) as drawer:
-        for frame, target in zip(drawer.frames(motion), targets):
-            rows = figure_rows(frame, backdrop.image(target))
+        shot = framing.shot(motion, size, size, drawer.reach(motion.skeleton))
+        backdrop = Backdrop(shot.framing, size, size, shot.margin)
+        for number, (frame, target) in enumerate(zip(drawer.frames(motion), shot.targets)):
+            rows = figure_rows(frame, shot.cut(backdrop.image(target), number, size, size))
             if rows is None:
                 shares.append(0.0)
                 continue

@@ -48,6 +48,12 @@ class Style:
         self.width = width
         self.height = height
 
+    def reach(self, skeleton: str):
+        """Return how far the style draws beyond each joint of ``skeleton``, per figure
+        height: one share for all (``pad``) or one per joint (what keeps the figure's
+        box inside the frame, :meth:`rendering.framing.Framing.shot`)."""
+        return self.pad
+
     def frames(self, motion: Motion) -> Iterator[np.ndarray]:
         """Yield each frame of a motion as ``(H, W, 3)`` uint8 RGB."""
         raise NotImplementedError

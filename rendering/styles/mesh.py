@@ -24,7 +24,7 @@ from rendering.surface import SurfaceBody
 from rendering.framing import Framing
 from rendering.stage import Stage
 from rendering.styles.base import Style, register_style
-from rendering.styles.stick import NEAR
+from rendering.styles.stick import NEAR, SHADOW_BLUR_LEAST
 
 BODY = np.array([168.0, 172.0, 182.0])  # a cool light grey, sRGB
 TINT = 0.16  # how far left and right limbs lean towards the palette's warm and cool
@@ -72,9 +72,33 @@ class MeshStyle(Style):
     def __init__(self, framing: Framing, width: int, height: int):
         super().__init__(framing, width, height)
         self._backdrop = Backdrop(framing, width, height)
-        self._still = None
+        self._backdrops = {(framing, (0, 0)): self._backdrop}
+        self._stills = {}
         self._stage: Stage | None = None
         self._shown = None
+
+    def reach(self, skeleton: str):
+        """Return how far the body reaches beyond each joint, per figure height: the head
+        ``pad``, the feet (toe tips ahead of the ankles) and hands as far, limbs and
+        trunk 0.05 (half-thicknesses are at most 0.04: :mod:`rendering.body`); a
+        skeleton without a body layout: ``pad`` everywhere."""
+        from rendering.body import LAYOUTS
+
+        found = get_skeleton(skeleton)
+        layout = LAYOUTS.get(found.family)
+        if layout is None:
+            return self.pad
+        index = {name: j for j, name in enumerate(found.joint_names)}
+        reach = np.full(found.n_joints, 0.05)
+        ends = [(layout.head, self.pad)]
+        ends += [(leg[-1], self.pad) for leg in layout.legs]
+        ends += [(toe, self.pad) for toe in layout.toes or ()]
+        ends += [(arm[-1], self.pad) for arm in layout.arms]
+        ends += [(hand, self.pad) for hand in layout.hands or ()]
+        for name, value in ends:
+            if name in index:
+                reach[index[name]] = value
+        return reach
 
     def frames(self, motion: Motion) -> Iterator[np.ndarray]:
         skeleton = get_skeleton(motion.skeleton)
@@ -83,7 +107,6 @@ class MeshStyle(Style):
                 f"the mesh style draws 3D skeletons; {skeleton.name!r} is {skeleton.dims}D"
             )
         placed = self.framing.place(motion)
-        targets = self.framing.targets(motion, placed)
         if motion.has_body:
             body = SurfaceBody(skeleton, motion, placed)
         else:
@@ -91,16 +114,20 @@ class MeshStyle(Style):
         lift = self._lift(body, placed)
         placed = placed + [0.0, 0.0, lift]
         body.lift(lift)
+        shot = self.framing.shot(motion, self.width, self.height, self.reach(motion.skeleton),
+                                 placed)
+        framing, targets = shot.framing, shot.targets
+        canvas = shot.canvas(self.width, self.height)
         for number, (pose, target) in enumerate(zip(placed, targets)):
             stage = self._stage_for(body)  # per frame: clips of a grid take turns
             vertices, normals, centres, radii = body.pose_at(number, pose)
-            camera = self.framing.camera(self.width, self.height, target)
-            frame = self._scenery(target)
-            self._cast_shadow(frame, camera, centres, radii)
-            box = stage.window(camera.project(vertices)[0], self.width, self.height)
+            camera = shot.camera(self.width, self.height, target)
+            frame = self._scenery(shot, target)
+            self._cast_shadow(frame, camera, centres, radii, framing)
+            box = stage.window(camera.project(vertices)[0], *canvas)
             if box is not None:
                 composite(frame, stage.draw(vertices, normals, camera, box), box)
-            yield frame
+            yield shot.cut(frame, number, self.width, self.height)
 
     def close(self) -> None:
         if self._stage is not None:
@@ -138,35 +165,45 @@ class MeshStyle(Style):
             self._shown = key
         return self._stage
 
-    def _scenery(self, target) -> np.ndarray:
-        """Return a fresh copy of the backdrop with the look-at at ``target``."""
+    def _scenery(self, shot, target) -> np.ndarray:
+        """Return a fresh copy of a shot's backdrop with the look-at at ``target``."""
+        key = (shot.framing, shot.margin)
+        if key not in self._backdrops:
+            if len(self._backdrops) > 4:  # a clip needing a larger canvas is rare
+                for old in list(self._backdrops)[1:]:
+                    del self._backdrops[old]
+                    self._stills.pop(old, None)
+            self._backdrops[key] = Backdrop(shot.framing, self.width, self.height, shot.margin)
+        backdrop = self._backdrops[key]
         if self.framing.follow:
-            return self._backdrop.image(target)
-        if self._still is None:
-            self._still = self._backdrop.image()
-        return self._still.copy()
+            return backdrop.image(target)
+        if key not in self._stills:
+            self._stills[key] = backdrop.image()
+        return self._stills[key].copy()
 
-    def _cast_shadow(self, frame: np.ndarray, camera, centres, radii) -> None:
+    def _cast_shadow(self, frame: np.ndarray, camera, centres, radii,
+                     framing: Framing | None = None) -> None:
         """Darken the floor under the body: a soft shadow plus a darker one at contacts.
 
         Every ring of the body is a disc in the shadow, drawn small, blurred and stretched;
         parts near the floor add a tighter, darker layer, as the stick figures' do.
         """
-        height = self.framing.height
-        seen = camera.project(self.framing.shadows(centres))[1] > NEAR * self.framing.distance
+        framing = framing or self.framing
+        height = framing.height
+        seen = camera.project(framing.shadows(centres))[1] > NEAR * framing.distance
         if not seen.any():
             return
         centres, radii = centres[seen], radii[seen]  # none of what lies at or behind the eye
-        pixels, depth = camera.project(self.framing.shadows(centres))
+        pixels, depth = camera.project(framing.shadows(centres))
         pixels = pixels / SHADOW_SHRINK
         reach = camera.pixel_size(depth) * radii / SHADOW_SHRINK
-        unit = height * float(camera.pixel_size(self.framing.distance)) / SHADOW_SHRINK
+        unit = height * float(camera.pixel_size(framing.distance)) / SHADOW_SHRINK
         bottom = centres[:, 2] - radii
         closeness = 1.0 - np.clip(bottom / (0.15 * height), 0.0, 1.0)
         layers = ((np.full(len(centres), 90.0), 1.0, 0.02), (closeness**2 * 140, 0.9, 0.008))
 
-        border = reach + 3 * 0.02 * unit + 2
-        size = np.array([self.width, self.height]) // SHADOW_SHRINK
+        border = reach + 4 * max(SHADOW_BLUR_LEAST, 0.02 * unit) + 2
+        size = np.array([camera.width, camera.height]) // SHADOW_SHRINK
         low = np.maximum(np.floor((pixels - border[:, None]).min(axis=0)), 0).astype(int)
         high = np.minimum(np.ceil((pixels + border[:, None]).max(axis=0)), size).astype(int)
         if (high <= low).any():
@@ -180,7 +217,8 @@ class MeshStyle(Style):
                 (x, y), radius, level = pixels[ring], spread * reach[ring], int(strength[ring])
                 if level > 0:
                     draw.ellipse((x - radius, y - radius, x + radius, y + radius), fill=int(level))
-            masks.append(mask.filter(ImageFilter.GaussianBlur(max(0.5, blur * unit))))
+            sigma = max(SHADOW_BLUR_LEAST, blur * unit)
+            masks.append(mask.filter(ImageFilter.GaussianBlur(sigma)))
         mask = ImageChops.add(*masks)
         stretched = (mask.width * SHADOW_SHRINK, mask.height * SHADOW_SHRINK)
         mask = mask.resize(stretched, Image.BILINEAR)

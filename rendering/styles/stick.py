@@ -23,6 +23,9 @@ from rendering.framing import Framing
 from rendering.styles.base import Style, register_style
 
 SHADOW_SHRINK = 2  # the shadow is drawn this much smaller, then blurred and stretched
+# The shadow's blur, at the least, in pixels of its half-size map: drawn anti-aliased and
+# blurred by at least this, it has no stair-stepped 2x2 blocks in small frames.
+SHADOW_BLUR_LEAST = 0.8
 LIGHT = np.array([-0.55, -0.83])  # on screen: from the upper left
 NEAR = 0.05  # parts nearer the eye than this share of the camera distance are not drawn
 CHUNK = 16  # frames whose geometry is worked out together
@@ -151,51 +154,75 @@ class StickStyle(Style):
     def __init__(self, framing: Framing, width: int, height: int):
         super().__init__(framing, width, height)
         self._backdrop = Backdrop(framing, width, height)
+        self._backdrops = {(framing, (0, 0)): self._backdrop}
         self._figures: dict[str, Figure] = {}
 
     def frames(self, motion: Motion) -> Iterator[np.ndarray]:
         figure = self._figure(motion.skeleton)
         placed = self.framing.place(motion)
-        targets = self.framing.targets(motion, placed)
+        shot = self.framing.shot(motion, self.width, self.height, self.reach(motion.skeleton),
+                                 placed)
+        backdrop = self._backdrop_of(shot)
         for begin in range(0, len(placed), CHUNK):
-            yield from self._chunk(figure, placed[begin:begin + CHUNK],
-                                   targets[begin:begin + CHUNK])
+            yield from self._chunk(figure, placed[begin:begin + CHUNK], shot, begin, backdrop)
 
-    def _chunk(self, figure: Figure, placed: np.ndarray, targets: np.ndarray):
-        """Yield the frames of consecutive poses ``(T, J, 3)`` with their look-at points."""
+    def _backdrop_of(self, shot) -> Backdrop:
+        """Return the backdrop of a shot's framing and canvas (the set's own is kept)."""
+        key = (shot.framing, shot.margin)
+        if key not in self._backdrops:
+            if len(self._backdrops) > 4:  # a clip needing a larger canvas is rare
+                for old in list(self._backdrops)[1:]:
+                    del self._backdrops[old]
+            self._backdrops[key] = Backdrop(shot.framing, self.width, self.height, shot.margin)
+        return self._backdrops[key]
+
+    def _chunk(self, figure: Figure, placed: np.ndarray, shot, begin: int, backdrop: Backdrop):
+        """Yield the frames of consecutive poses ``(T, J, 3)`` of a shot from frame ``begin``."""
         # The geometry of a chunk's frames at once: numpy's cost per call, not its
         # arithmetic, dominates arrays of a few joints, so only the drawing calls are
         # left per frame (and memory does not grow with the clip's length).
-        camera = self.framing.camera(self.width, self.height)  # at the framing's own look-at
-        shifts = targets - np.asarray(self.framing.target, dtype=np.float64)
+        framing = shot.framing
+        targets = shot.targets[begin:begin + len(placed)]
+        camera = shot.camera(self.width, self.height)  # at the framing's own look-at
+        size = (camera.width, camera.height)  # the canvas the frame is cut from
+        shifts = targets - np.asarray(framing.target, dtype=np.float64)
         pixels, depth = camera.project_each(placed, shifts)
-        drawing = self._figure_plan(pixels, depth, camera.pixel_size(depth), figure)
-        shadows = self._shadow_plan(camera, shifts, placed, figure) if self.shadow else None
+        drawing = self._figure_plan(pixels, depth, camera.pixel_size(depth), figure, framing,
+                                    size)
+        shadows = (self._shadow_plan(camera, shifts, placed, figure, framing, size)
+                   if self.shadow else None)
         for number, target in enumerate(targets):
-            frame = self._backdrop.image(target)
+            frame = backdrop.image(target)
             if shadows is not None:
                 _darken(frame, self._shadow(shadows, number))
             self._draw_figure(frame, drawing, number)
-            yield frame
+            yield shot.cut(frame, begin + number, self.width, self.height)
+
+    def reach(self, skeleton: str) -> np.ndarray:
+        """Return each joint's ball radius per figure height (bones are thinner)."""
+        return self._figure(skeleton).joint_radii / self.framing.height
 
     def _figure(self, skeleton: str) -> Figure:
         if skeleton not in self._figures:
             self._figures[skeleton] = Figure(get_skeleton(skeleton), self.framing.height)
         return self._figures[skeleton]
 
-    def _shadow_plan(self, camera: Camera, shifts, placed: np.ndarray, figure: Figure) -> dict:
-        """Return the shadow's geometry for every frame (see :meth:`_shadow`)."""
-        pixels, depth = camera.project_each(self.framing.shadows(placed), shifts)
-        seen = depth > NEAR * self.framing.distance
+    def _shadow_plan(self, camera: Camera, shifts, placed: np.ndarray, figure: Figure,
+                     framing: Framing, canvas: tuple[int, int]) -> dict:
+        """Return the shadow's geometry for every frame (see :meth:`_shadow`) on a canvas
+        of size ``canvas``."""
+        pixels, depth = camera.project_each(framing.shadows(placed), shifts)
+        seen = depth > NEAR * framing.distance
         pixels /= SHADOW_SHRINK
         reach = camera.pixel_size(depth) / SHADOW_SHRINK
-        unit = self.framing.height * float(camera.pixel_size(self.framing.distance)) / SHADOW_SHRINK
-        closeness = 1.0 - np.clip(placed[..., 2] / (0.2 * self.framing.height), 0.0, 1.0)
+        unit = framing.height * float(camera.pixel_size(framing.distance)) / SHADOW_SHRINK
+        closeness = 1.0 - np.clip(placed[..., 2] / (0.2 * framing.height), 0.0, 1.0)
         strength = np.where(seen, 100.0, 0.0)  # nothing of what lies at or behind the eye
         reach = np.where(seen, reach, 0.0)
 
-        border = (1.4 * figure.joint_radii * reach + 3 * 0.012 * unit + 2)[..., None]
-        size = (self.width // SHADOW_SHRINK, self.height // SHADOW_SHRINK)
+        blurred = 4 * max(SHADOW_BLUR_LEAST, 0.012 * unit)  # the blur's reach
+        border = (1.4 * figure.joint_radii * reach + blurred + 2)[..., None]
+        size = (canvas[0] // SHADOW_SHRINK, canvas[1] // SHADOW_SHRINK)
         any_seen = seen.any(axis=1)
         low = np.where(seen[..., None], pixels - border, np.inf).min(axis=1)
         high = np.where(seen[..., None], pixels + border, -np.inf).max(axis=1)
@@ -212,7 +239,7 @@ class StickStyle(Style):
                 (strength, 1.4, 0.012), (np.where(seen, closeness**2 * 150, 0.0), 1.2, 0.006)):
             # Each layer is drawn and blurred only in its own box (its discs, the blur's
             # reach and a margin), as plain numbers per frame for OpenCV.
-            sigma = max(0.5, blur * unit)
+            sigma = max(SHADOW_BLUR_LEAST, blur * unit)
             order = np.argsort(layer_strength, axis=1, kind="stable")  # the strongest on top
             strength_ordered = np.take_along_axis(layer_strength, order, axis=1)
             discs = strength_ordered >= 1
@@ -262,12 +289,12 @@ class StickStyle(Style):
                     layer["lines"][number].tolist(), layer["levels"][number].tolist(),
                     layer["widths"][number].tolist(), layer["drawn"][number].tolist()):
                 if drawn:
-                    cv2.line(layer_image, start, end, level, width, cv2.LINE_8, SHIFT)
+                    cv2.line(layer_image, start, end, level, width, cv2.LINE_AA, SHIFT)
             for centre, radius, level, disc in zip(
                     layer["centres"][number].tolist(), layer["radii"][number].tolist(),
                     layer["strength"][number].tolist(), layer["discs"][number].tolist()):
                 if disc:
-                    cv2.circle(layer_image, centre, radius, level, -1, cv2.LINE_8, SHIFT)
+                    cv2.circle(layer_image, centre, radius, level, -1, cv2.LINE_AA, SHIFT)
             layer_image = cv2.GaussianBlur(layer_image, (0, 0), layer["sigma"])
             if mask is None:
                 mask = np.zeros(tuple(high - low)[::-1], np.uint8)
@@ -279,10 +306,11 @@ class StickStyle(Style):
                           interpolation=cv2.INTER_LINEAR)
         return mask, tuple(int(v) * SHADOW_SHRINK for v in low)
 
-    def _figure_plan(self, pixels, depth, reach, figure: Figure) -> dict:
+    def _figure_plan(self, pixels, depth, reach, figure: Figure, framing: Framing,
+                     canvas: tuple[int, int]) -> dict:
         """Return every frame's bones and joints as tubes and balls lit from the upper
         left, far to near, as plain numbers for OpenCV's drawing (see
-        :meth:`_draw_figure`); ``pixels`` ``(T, J, 2)`` on the frame."""
+        :meth:`_draw_figure`); ``pixels`` ``(T, J, 2)`` on a canvas of size ``canvas``."""
         bones = figure.bones
         head, tail = bones[:, 0], bones[:, 1]
         start, end = pixels[:, head], pixels[:, tail]
@@ -291,8 +319,8 @@ class StickStyle(Style):
         joint_radii = figure.joint_radii * reach
 
         # Nearer parts a little brighter, farther ones fading towards the sky.
-        tone = np.concatenate([bone_depth, depth], axis=1) - self.framing.distance
-        tone = np.clip(tone / self.framing.height, -1.0, 1.0)
+        tone = np.concatenate([bone_depth, depth], axis=1) - framing.distance
+        tone = np.clip(tone / framing.height, -1.0, 1.0)
         base = np.concatenate([figure.bone_colours, figure.joint_colours])
         base = base * (1.0 - 0.1 * tone[..., None])
         base = base + (palette.SKY_HORIZON - base) * (0.25 * np.maximum(tone, 0.0))[..., None]
@@ -319,17 +347,17 @@ class StickStyle(Style):
         j = joint_radii[..., None]
         centres = np.stack([pixels, pixels + LIGHT * 0.2 * j, pixels + LIGHT * 0.45 * j], axis=-2)
 
-        near = NEAR * self.framing.distance
+        near = NEAR * framing.distance
         seen = np.concatenate([(depth[:, head] > near) & (depth[:, tail] > near), depth > near],
                               axis=1)
         # Balls sit a little nearer than the tubes meeting at them, so they cap the ends.
         order = np.argsort(-np.concatenate([bone_depth, depth - figure.joint_radii], axis=1),
                            axis=1, kind="stable")
-        quads, cut_quads = _shapes(quads, (self.width, self.height))
+        quads, cut_quads = _shapes(quads, canvas)
         # Balls become polygons frame by frame (a chunk's would be the style's largest array).
         return {"quads": quads, "cut_quads": cut_quads, "centres": centres,
                 "radii": np.maximum(j * DISCS - BLEED, 0.0), "tones": tones, "order": order,
-                "seen": seen, "bones": len(bones)}
+                "seen": seen, "bones": len(bones), "canvas": canvas}
 
     def _draw_figure(self, frame: np.ndarray, plan: dict, number: int):
         """Draw frame ``number``'s bones and joints far to near (:meth:`_figure_plan`)."""
@@ -338,7 +366,7 @@ class StickStyle(Style):
                      if key[0] == number}
         radii = plan["radii"][number][..., None, None]
         balls, cut_balls = _shapes(plan["centres"][number][..., None, :] + radii * _POLYGON,
-                                   (self.width, self.height))
+                                   plan["canvas"])
         tones = plan["tones"][number].tolist()
         order, seen, n_bones = plan["order"][number], plan["seen"][number], plan["bones"]
         for k in order[seen[order]].tolist():

@@ -50,3 +50,33 @@ def make_figure(
     else:  # facing +z with y up
         joints = np.stack([left, up, forward], axis=-1)
     return Motion(joints, skeleton, fps, action, source)
+
+
+def drifting_walk(frames=50, fps=25.0, at=1.0, source="cond_gru"):
+    """A walk that side-steps 2.4 m to the camera's right within 0.16 s from ``at``
+    seconds, as a generated walk may (the rule's azimuth of -50 degrees: along (0.77,
+    0.64)); the camera, smoothed over a second, lags behind it."""
+    walk = make_figure(frames=frames, speed=1.3, fps=fps, source=source)
+    t = np.arange(frames) / fps
+    step = 2.4 * np.clip((t - at) / 0.16, 0.0, 1.0)[:, None]
+    joints = walk.joints.copy()
+    joints[..., 0] += 0.77 * step
+    joints[..., 1] += 0.64 * step
+    return walk.with_joints(joints.astype(np.float32))
+
+
+def rising_figure(frames=50, fps=25.0, at=0.6, source="broken", action="walk", phase=1.0):
+    """A figure broken upwards: from ``at`` seconds it floats higher and higher."""
+    base = make_figure(frames=frames, speed=1.0, fps=fps, action=action, phase=phase)
+    t = np.arange(frames) / fps
+    joints = base.joints.copy()
+    joints[..., 2] += (1.2 * np.maximum(0.0, t - at) ** 2 * (50 / frames) ** 2)[:, None]
+    return base.with_joints(joints.astype(np.float32), source=source)
+
+
+def shaken_anchor(frames=50, fps=25.0, seed=3, action="walk"):
+    """A low anchor (:func:`motion.perturb.low_anchor`) of a walking figure."""
+    from motion import perturb
+
+    base = make_figure(frames=frames, speed=1.0, fps=fps, action=action, phase=2.0)
+    return perturb.low_anchor(base, np.random.default_rng(seed))
