@@ -184,7 +184,7 @@ def figure_clips(tmp_path_factory):
     generated wave whose figure floats up; the catch clips float up too."""
     from motion import perturb
     from rendering import Framing, render_set
-    from studyapp.survey.stimuli import Clip
+    from studyapp.stimuli.clips import Clip
 
     frames, fps = FIGURE_FRAMES, 25.0
     shown = []  # (motion, role, score)
