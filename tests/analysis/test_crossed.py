@@ -185,16 +185,3 @@ def test_few_clip_degrees_of_freedom_of_a_difference_are_named():
     assert "a difference rests on as few as 2 degrees of freedom" in crossed.one_clip_note(d, 2.0)
     assert crossed.one_clip_note(d, 14.0) is None
 
-
-def test_a_mushra_difference_rests_on_its_two_sources_clips():
-    # The hidden reference and the anchor are sources of their own: 8 clips in 4 groups
-    # (4 clip degrees of freedom), but a - b moves with a's and b's 4 clips only (2).
-    from analysis.study import analyse
-
-    table = simulate.simulate("mushra", {"a": 0.0, "b": 0.0}, participants=20, trials=6,
-                              actions=("x",), clips_per_source=2, clip_sd=1.5, seed=5)
-    result = analyse(table, config(bootstrap=40))
-    differences = result.analysis.tests["differences"]
-    assert differences["df"].tolist() == [2.0] * len(differences)
-    assert any("a difference rests on as few as 2 degrees of freedom" in note
-               for note in result.notes)

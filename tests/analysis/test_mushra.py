@@ -127,3 +127,15 @@ def test_a_table_without_roles_is_analysed_without_screening():
     result = analyse(table, config(bootstrap=0))
     assert "hidden_reference" not in result.analysis.sources.index
     assert any("no stimulus_role column" in note for note in result.notes)
+
+
+def test_a_mushra_difference_rests_on_its_two_sources_clips():
+    # The hidden reference and the anchor are sources of their own: 8 clips in 4 groups
+    # (4 clip degrees of freedom), but a - b moves with a's and b's 4 clips only (2).
+    table = simulate("mushra", {"a": 0.0, "b": 0.0}, participants=20, trials=6,
+                     actions=("x",), clips_per_source=2, clip_sd=1.5, seed=5)
+    result = analyse(table, config(bootstrap=40))
+    differences = result.analysis.tests["differences"]
+    assert differences["df"].tolist() == [2.0] * len(differences)
+    assert any("a difference rests on as few as 2 degrees of freedom" in note
+               for note in result.notes)
