@@ -228,14 +228,16 @@ def _draw(candidates, clips, shown, seen, rng, group_of=None):
                 index += 1
         (a, b), _ = candidates.pop(index)
 
-        def key(clip):
-            return (shown[clip], rng.random())
+        def by_use(ids):
+            return sorted(ids, key=lambda clip: (shown[clip], rng.random()))
 
-        options = [(x, y) for x in clips[a] for y in clips[b] if frozenset((x, y)) not in seen
-                   and (group_of is None or group_of(x) == group_of(y))]
-        if options:
-            return min(options, key=lambda pair: (max(key(pair[0]), key(pair[1])),
-                                                   key(pair[0])[0] + key(pair[1])[0]))
+        # The least-shown clip of either source first, then its least-shown partner.
+        first, second = (a, b) if rng.random() < 0.5 else (b, a)
+        partners = by_use(clips[second])
+        for x in by_use(clips[first]):
+            for y in partners:
+                if frozenset((x, y)) not in seen and (group_of is None or group_of(x) == group_of(y)):
+                    return (x, y) if first == a else (y, x)
     return None
 
 
