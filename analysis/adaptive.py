@@ -162,14 +162,19 @@ def pair_scores(post: Posterior, contrasts, weights, pairs=None) -> np.ndarray:
 
 
 def distribution(post: Posterior, target="order", floor: float = FLOOR, sharpness: float = 1.0,
-                 seed: int = 0) -> dict:
+                 focus: float = 0.0, seed: int = 0) -> dict:
     """Return the sampling distribution over pairs: ``{"pairs": [[i, j], ...], "p": [...]}``
     (JSON-ready), ``floor`` of it uniform and the rest proportional to the pairs' scores
-    raised to ``sharpness``."""
+    raised to ``sharpness``. ``focus`` > 0 weighs each target contrast also by its
+    variance relative to the largest, to that power (aiming at the widest interval, which
+    a stopping rule on the widest interval waits for)."""
     if not 0 < floor <= 1:
         raise ValueError("floor must be in (0, 1]: every pair keeps a chance")
     pairs = all_pairs(post.n_sources)
     contrasts, weights = target_contrasts(post, target, seed=seed)
+    if focus:
+        variance = post.sd(contrasts) ** 2
+        weights = weights * (variance / variance.max()) ** focus
     scores = np.maximum(pair_scores(post, contrasts, weights, pairs), 0.0) ** sharpness
     uniform = np.full(len(pairs), 1.0 / len(pairs))
     p = uniform if scores.sum() <= 0 else floor * uniform + (1 - floor) * scores / scores.sum()

@@ -157,7 +157,8 @@ def run_study(design, strength, clip_quality, args, seed):
         if design != "balanced":
             post = adaptive.posterior(k, data[0], data[1])
             dist = adaptive.distribution(post, design, floor=args.floor,
-                                         sharpness=args.sharpness, seed=seed + n)
+                                         sharpness=args.sharpness, focus=args.focus,
+                                         seed=seed + n)
     for target in ("top_two", "order"):
         done.setdefault(target, {"n": None, "covered": []})
     return done
@@ -176,6 +177,7 @@ def main(argv=None):
     parser.add_argument("--budget", type=int, default=20000)
     parser.add_argument("--floor", type=float, default=adaptive.FLOOR)
     parser.add_argument("--sharpness", type=float, default=1.0)
+    parser.add_argument("--focus", type=float, default=0.0)
     parser.add_argument("--designs", default="balanced,top_two,order")
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--stop-on", choices=("sandwich", "information"), default="information")
