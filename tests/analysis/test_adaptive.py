@@ -118,3 +118,32 @@ def test_plan_pairs_counterbalances_a_skewed_distribution():
     left = Counter(a[0] for a, _ in trials)
     right = Counter(b[0] for _, b in trials)
     assert abs(left[0] - right[0]) <= 1
+
+
+def worth_types():
+    from analysis.registry import StudyAnalysis, get_analysis, list_analyses
+
+    return [name for name in list_analyses()
+            if type(get_analysis(name)).worth_comparisons is not StudyAnalysis.worth_comparisons]
+
+
+def test_some_analyses_give_comparisons_for_the_posterior():
+    assert len(worth_types()) >= 1
+
+
+@pytest.mark.parametrize("study_type", worth_types())
+def test_worth_comparisons_of_simulated_raters_recover_the_order(study_type):
+    from analysis.registry import get_analysis
+    from analysis.simulate import simulate
+    from analysis.study import apply_exclusions
+
+    strengths = {"a": 1.0, "b": 0.0, "c": -1.0}
+    table = simulate(study_type, strengths, participants=60, trials=10, seed=3)
+    main, _, _ = apply_exclusions(table, study_type=study_type)
+    decided = get_analysis(study_type).worth_comparisons(main)
+    assert set(decided.columns) >= {"winner", "loser", "weight"} and len(decided)
+    names = sorted(strengths)
+    index = {name: i for i, name in enumerate(names)}
+    post = adaptive.posterior(3, decided["winner"].map(index), decided["loser"].map(index),
+                              decided["weight"])
+    assert list(np.argsort(-post.mean)) == [0, 1, 2]
