@@ -95,3 +95,15 @@ def test_the_command_stores_a_distribution_over_the_studys_sources(study_type):
     assert study.sampling["answers"] == 0
     plans = study.kind.plan_trials(study, random.Random(0))
     assert len(plans) == 6
+
+
+def test_the_config_takes_the_design_and_checks_it():
+    from studyapp.stimuli.config import ConfigError, _study
+
+    _, options, _, _ = _study({"type": ADAPTIVE[0], "design": "adaptive",
+                               "adaptive": {"every": 20, "min_showings": 3}})
+    assert options["design"] == "adaptive" and options["adaptive"]["every"] == 20
+    with pytest.raises(ConfigError, match="worth model"):
+        _study({"type": OTHERS[0], "design": "adaptive"})
+    with pytest.raises(ConfigError, match="adaptive.target"):
+        _study({"type": ADAPTIVE[0], "design": "adaptive", "adaptive": {"target": "best"}})
