@@ -107,3 +107,28 @@ def test_the_config_takes_the_design_and_checks_it():
         _study({"type": OTHERS[0], "design": "adaptive"})
     with pytest.raises(ConfigError, match="adaptive.target"):
         _study({"type": ADAPTIVE[0], "design": "adaptive", "adaptive": {"target": "best"}})
+
+
+@pytest.mark.parametrize("study_type", ADAPTIVE)
+def test_answers_through_the_pages_reach_the_posterior(study_type, media_root, clips,
+                                                       extra_clips, make_bot):
+    from django.core.management import call_command
+
+    from tests.studyapp.conftest import make_study
+
+    study = make_study(study_type, clips, extra_clips, design="adaptive",
+                       adaptive={"every": 2}, trials_per_participant=2)
+    for _ in range(3):
+        bot = make_bot(study)
+        bot.join()
+        bot.finish()
+    # Bots answer at once; the analysis's exclusions (which the posterior applies too)
+    # would leave out answers faster than the clips.
+    from studyapp.survey.models import Trial
+
+    Trial.objects.update(time_ms=60_000)
+    call_command("adaptive_design", study.slug, stdout=open("/dev/null", "w"))
+    study.refresh_from_db()
+    assert study.sampling["answers"] == 6
+    assert 0 < study.sampling["comparisons"] <= 6
+    assert len(study.sampling["worth"]) == len(study.sampling["sources"])
