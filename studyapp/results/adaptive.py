@@ -41,13 +41,18 @@ def recompute(study) -> dict:
             weight = decided["weight"].to_numpy(float)
     chosen = settings(study)
     post = adaptive.posterior(len(names), winner, loser, weight if len(weight) else None)
-    target = chosen["target"]
+    target, note = chosen["target"], ""
     if isinstance(target, dict):
-        target = adaptive.versus(len(names), names.index(target["versus"]))
+        if target["versus"] in names:
+            target = adaptive.versus(len(names), names.index(target["versus"]))
+        else:
+            note = f"no source {target['versus']!r} in the study: aimed at the order instead"
+            target = "order"
     dist = adaptive.distribution(post, target, floor=chosen["floor"], sharpness=chosen["sharpness"],
                                  focus=chosen["focus"], seed=answers)
     sampling = {"sources": names, **dist, "answers": answers, "comparisons": len(winner),
-                "worth": np.round(post.mean, 4).tolist(), "computed_at": timezone.now().isoformat()}
+                "worth": np.round(post.mean, 4).tolist(), "computed_at": timezone.now().isoformat(),
+                **({"note": note} if note else {})}
     Study.objects.filter(pk=study.pk).update(sampling=sampling)
     study.sampling = sampling
     return sampling

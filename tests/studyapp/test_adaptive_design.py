@@ -132,3 +132,18 @@ def test_answers_through_the_pages_reach_the_posterior(study_type, media_root, c
     assert study.sampling["answers"] == 6
     assert 0 < study.sampling["comparisons"] <= 6
     assert len(study.sampling["worth"]) == len(study.sampling["sources"])
+
+
+@pytest.mark.parametrize("study_type", ADAPTIVE)
+def test_a_versus_target_aims_at_that_source(study_type):
+    from studyapp.results.adaptive import recompute
+
+    study = adaptive_study(study_type, target={"versus": SOURCES[0]})
+    sampling = recompute(study)
+    names = sampling["sources"]
+    at = {tuple(names[i] for i in pair): p for pair, p in zip(sampling["pairs"], sampling["p"])}
+    mine = [p for pair, p in at.items() if SOURCES[0] in pair]
+    others = [p for pair, p in at.items() if SOURCES[0] not in pair]
+    assert min(mine) > max(others) and "note" not in sampling
+    study.adaptive = {"target": {"versus": "nobody"}}
+    assert "aimed at the order" in recompute(study)["note"]
