@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/bench_adaptive.py [--studies 20] [--every 100]
         [--top-width 0.6] [--order-width 0.7] [--budget 20000] [--targets top_two,order]
         [--designs balanced,top_two,order] [--interval larger|sandwich]
-        [--stop-on information|sandwich] [--json out.json]
+        [--stop-on larger|information|sandwich] [--json out.json]
 
 Each simulated study has 8 sources with a spread of Bradley-Terry strengths
 (:data:`STRENGTHS`), ``--clips`` clips per source whose qualities vary about their
@@ -32,11 +32,13 @@ instead; it is not what is measured here):
   clips (the sum of squared shares of its clips' showings); it barely depends on the
   luck of the answers.
 
-A study stops, per target, at the first look where the steady interval of the top-two
-difference (the two sources estimated best), or of every difference of neighbours in the
-estimated order, is at most the target width (``--stop-on sandwich``: the sandwich's, which
-selects looks where the sandwich happens to be small and so undercovers); the interval
-reported there is the larger of the two (``--interval``). Reported per design and target:
+A study stops, per target, at the first look where the interval reported there (the larger
+of the two, ``--interval``) of the top-two difference (the two sources estimated best), or
+of every difference of neighbours in the estimated order, is at most the target width: so
+every design stops at the same width. ``--stop-on information`` stops on the steady width
+alone (the reported interval may then be wider than the target), ``--stop-on sandwich`` on
+the sandwich's alone, which selects looks where the sandwich happens to be small and so
+undercovers. Reported per design and target:
 the judgements needed (median, mean, and the mean relative to balanced), the share of
 studies reaching the target within ``--budget``, the coverage of the true differences
 (those of infinitely many clips and judgements, balanced: :func:`truth`) by the reported
@@ -156,7 +158,7 @@ def run_study(design, strength, clip_quality, args, seed):
         if n % args.every:
             continue
         theta, half, steady = intervals(k, data, args.clips)
-        look = half if args.stop_on == "sandwich" else steady
+        look = {"sandwich": half, "information": steady, "larger": np.maximum(half, steady)}[args.stop_on]
         if args.interval == "larger":
             half = np.maximum(half, steady)
         order = np.argsort(-theta)
@@ -198,7 +200,8 @@ def main(argv=None):
     parser.add_argument("--focus", type=float, default=2.0)
     parser.add_argument("--designs", default="balanced,top_two,order")
     parser.add_argument("--first-seed", type=int, default=0)
-    parser.add_argument("--stop-on", choices=("sandwich", "information"), default="information")
+    parser.add_argument("--stop-on", choices=("sandwich", "information", "larger"),
+                        default="larger")
     parser.add_argument("--interval", choices=("sandwich", "larger"), default="larger",
                         help="the reported interval: the sandwich's, or the larger of it and "
                         "the steady one the stopping rule reads")
