@@ -74,6 +74,15 @@ class Pairwise(StudyAnalysis):
         value = np.where(choice >= 2, choice, np.where(first_is_left, choice, 1 - choice))
         return pd.DataFrame({"participant": trials["pcode"].to_numpy(), "unit": unit, "value": value})
 
+    def worth_comparisons(self, rows):
+        """Return the decided comparisons (ties left out, as the worths leave them)."""
+        names = np.array(sorted(rows["source"].unique()), dtype=object)
+        trials = comparisons(rows, list(names))
+        decided = trials.loc[trials["winner"] >= 0]
+        return pd.DataFrame({"winner": names[decided["winner"].to_numpy()],
+                             "loser": names[decided["loser"].to_numpy()],
+                             "weight": 1.0})
+
     def analyse(self, rows, config):
         names = sorted(rows["source"].unique())
         trials = comparisons(rows, names)

@@ -121,6 +121,21 @@ class PairwiseGraded(StudyAnalysis):
         value = np.where(left <= right, grade, -grade)
         return pd.DataFrame({"participant": trials["pcode"].to_numpy(), "unit": unit, "value": value})
 
+    def worth_comparisons(self, rows):
+        """Return the graded comparisons as wins of the clip graded better (a grade of 0
+        as half a win each way; "Both bad" left out), for the adaptive design's
+        Bradley-Terry posterior."""
+        names = np.array(sorted(rows["source"].unique()), dtype=object)
+        trials = comparisons(rows, list(names))
+        trials = trials.loc[trials["graded"]]
+        left, right = trials["left"].to_numpy(), trials["right"].to_numpy()
+        grade = trials["grade"].to_numpy()
+        tie = grade == 0
+        winner = np.concatenate([np.where(grade > 0, left, right), right[tie]])
+        loser = np.concatenate([np.where(grade > 0, right, left), left[tie]])
+        weight = np.concatenate([np.where(tie, 0.5, 1.0), np.full(int(tie.sum()), 0.5)])
+        return pd.DataFrame({"winner": names[winner], "loser": names[loser], "weight": weight})
+
     def analyse(self, rows, config):
         names = sorted(rows["source"].unique())
         k = len(names)

@@ -95,6 +95,13 @@ class StudyAnalysis:
     answer_options: dict = {}
     mixed_model = ""
 
+    def worth_comparisons(self, rows: pd.DataFrame) -> pd.DataFrame | None:
+        """Return the decided comparisons of answered main ``rows`` as ``winner`` and
+        ``loser`` source columns (and ``weight``), for a Bradley-Terry posterior; None when
+        this type has no worth model of pairs (then it offers no adaptive design,
+        :mod:`analysis.adaptive`)."""
+        return None
+
     def answered(self, rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
         """Return the rows with a valid answer and notes on those left out."""
         raise NotImplementedError

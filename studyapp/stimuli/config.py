@@ -25,6 +25,7 @@ from studyapp.participation import duration
 from studyapp.crowd.platform import make_platform, outcomes_of
 from studyapp.survey.models import Study
 from studyapp.survey.study_types import get_study_type, list_study_types
+from studyapp.participation import adaptive
 from studyapp.survey.study_types.base import COMMON_OPTIONS, check_criteria
 # The training and sources part (re-exported: callers import ConfigError and Source from here).
 from studyapp.stimuli.source_config import (  # noqa: F401
@@ -297,6 +298,9 @@ def _study(raw, conditions=None, clip_seconds=None) -> tuple[str, dict, dict, li
     except ValueError as exc:
         raise ConfigError(f"study.{exc}") from None
     problem = check_criteria(options.get("criteria"))
+    if problem:
+        raise ConfigError(f"study.{problem}")
+    problem = adaptive.check(options.get("design") or "balanced", options.get("adaptive"), study_type)
     if problem:
         raise ConfigError(f"study.{problem}")
     given = "catch_trials" in options or "instructed_checks" in options

@@ -86,6 +86,8 @@ class StudyAdmin(admin.ModelAdmin):
                     "instructed_checks",
                     "max_failed_catch",
                     "repeat_trials",
+                    "design",
+                    "adaptive",
                     "ask_demographics",
                     "options",
                     "criteria",

@@ -12,11 +12,13 @@ class SurveyConfig(AppConfig):
         from studyapp.participation.ratelimit import count_failed_login
 
         user_login_failed.connect(count_failed_login, dispatch_uid="survey-login-limit")
+        from studyapp.participation import adaptive
         from studyapp.survey import tasks
         from studyapp.stimuli import render_fanout
 
         tasks.queue = _celery_queue
         render_fanout.queue = _celery_queue
+        adaptive.run_job = tasks.run_job
 
 
 def _celery_queue(kind: str, params: dict):

@@ -133,6 +133,21 @@ class Study(models.Model):
     repeat_trials = models.PositiveSmallIntegerField(
         default=0, help_text="Main trials shown again later, to measure consistency."
     )
+    design = models.CharField(
+        max_length=16, choices=[("balanced", "Balanced"), ("adaptive", "Adaptive")],
+        default="balanced", help_text="How main trials choose their sources: balanced counts, or "
+        "adaptive (types with a worth model: pairs where the most is learnt about the order; "
+        "see README, 'Adaptive studies').",
+    )
+    adaptive = models.JSONField(
+        default=dict, blank=True, help_text='Settings of an adaptive design, e.g. {"every": 50, '
+        '"min_showings": 2, "target": "order"} (or "top_two", or {"versus": "mine"}).',
+    )
+    sampling = models.JSONField(
+        default=dict, blank=True, editable=False,
+        help_text="The adaptive design's sampling distribution over pairs of sources, "
+        "recomputed in the background every few answers.",
+    )
     ask_demographics = models.BooleanField(
         default=False, help_text="Ask age range, gender and comments (all optional) at the end."
     )

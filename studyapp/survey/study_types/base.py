@@ -33,7 +33,7 @@ import re
 from collections import Counter
 from dataclasses import dataclass, field
 
-from studyapp.participation import assignment
+from studyapp.participation import adaptive, assignment
 from studyapp.participation.answers import Criterion
 from studyapp.survey.models import Stimulus, Trial, TrialItem
 from studyapp.survey.study_type_registry import STUDY_TYPES
@@ -55,6 +55,7 @@ COMMON_OPTIONS = {
     "clips_per_trial": int, "trials_per_participant": int, "practice": bool,
     "catch_trials": int, "instructed_checks": int, "max_failed_catch": int, "repeat_trials": int,
     "ask_demographics": bool, "max_participants": int, "completion_url": str,
+    "design": str, "adaptive": dict,
     "instructions": str, "data_note": str, "criteria": list, "crowd": dict,
 }
 
@@ -204,6 +205,9 @@ class StudyType:
         problem = check_criteria(study.criteria)
         if problem:
             errors["criteria"] = problem
+        problem = adaptive.check(study.design, study.adaptive, self.name)
+        if problem:
+            errors["adaptive" if problem.startswith("adaptive") else "design"] = problem
         return errors
 
     def defaults(self, n_sources: int) -> dict:
@@ -271,7 +275,12 @@ class StudyType:
         return plans
 
     def plan_main(self, study, pool, rng) -> list[TrialPlan]:
-        """Return balanced main trials: the least-judged stimuli, sources over positions."""
+        """Return balanced main trials: the least-judged stimuli, sources over positions;
+        in an adaptive study, pairs drawn from its stored distribution when there is one."""
+        if study.design == "adaptive":
+            drawn = adaptive.plan_main(study, pool, rng)
+            if drawn is not None:
+                return [TrialPlan(action, seats) for action, seats in drawn]
         n = self.items_per_trial(study)
         actions = rng.sample(sorted(pool.table), len(pool.table))
         per_action = self.trials_per_action(study, pool.table)

@@ -1,0 +1,262 @@
+"""Judgements an adaptive pairwise design needs against a balanced one, side by side.
+
+    .venv/bin/python benchmarks/bench_adaptive.py [--studies 20] [--every 100]
+        [--top-width 0.6] [--order-width 0.7] [--budget 20000] [--targets top_two,order]
+        [--designs balanced,top_two,order] [--interval larger|sandwich]
+        [--stop-on larger|information|sandwich] [--json out.json]
+
+Each simulated study has 8 sources with a spread of Bradley-Terry strengths
+(:data:`STRENGTHS`), ``--clips`` clips per source whose qualities vary about their
+source's (``--clip-sd``, logit scale: clips are random), and participants who judge
+``--trials`` pairs each (left wins with probability ``sigmoid(q_left - q_right)``, as
+``analysis.pairwise`` simulates). Three designs draw the same studies (same strengths and
+clips, fresh answers):
+
+- ``balanced``: every pair of sources equally likely;
+- ``adaptive top_two`` and ``adaptive order``: :func:`analysis.adaptive.distribution`
+  aiming at the top two or at the whole order, recomputed every ``--every`` judgements
+  (every clip shown ``--min-showings`` times first, no participant seeing a pair of clips
+  twice, positions counterbalanced per participant: :func:`analysis.adaptive.plan_pairs`).
+
+Every ``--every`` judgements (a look) two 95 % intervals of each source difference are
+computed, both treating participants and clips as random but in closed form, so that
+they can be computed at every look (the study's analysis, ``analysis.crossed``, bootstraps
+instead; it is not what is measured here):
+
+- the sandwich: the Bradley-Terry fit (weak prior) with a sandwich variance clustered by
+  participant and by clip (a comparison belongs to both its clips; CR1 factors), a t
+  interval with the fewer of the participants' and the two sources' clips' degrees of
+  freedom;
+- the steady one: the model's variance plus one clip variance pooled over every pair of
+  sources (moments of the sandwich's excess) times how much each source leans on single
+  clips (the sum of squared shares of its clips' showings); it barely depends on the
+  luck of the answers.
+
+A study stops, per target, at the first look where the interval reported there (the larger
+of the two, ``--interval``) of the top-two difference (the two sources estimated best), or
+of every difference of neighbours in the estimated order, is at most the target width: so
+every design stops at the same width. ``--stop-on information`` stops on the steady width
+alone (the reported interval may then be wider than the target), ``--stop-on sandwich`` on
+the sandwich's alone, which selects looks where the sandwich happens to be small and so
+undercovers. Reported per design and target:
+the judgements needed (median, mean, and the mean relative to balanced), the share of
+studies reaching the target within ``--budget``, the coverage of the true differences
+(those of infinitely many clips and judgements, balanced: :func:`truth`) by the reported
+intervals at the stopping time, the share of studies whose intervals all covered, and the
+mean reported width at the stop.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import random
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+from scipy import stats
+from scipy.special import expit
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from analysis import adaptive, worth  # noqa: E402
+
+STRENGTHS = np.array([1.6, 1.3, 1.0, 0.8, 0.5, 0.2, -0.3, -1.0])
+
+
+def truth(strength, clip_sd):
+    """Return the centred Bradley-Terry worths of infinitely many judgements of infinitely
+    many clips per source (balanced over pairs): the estimand of every design."""
+    nodes, weights = np.polynomial.hermite_e.hermegauss(40)
+    weights = weights / weights.sum()
+    k = len(strength)
+    orders, counts = [], []
+    for i in range(k):
+        for j in range(k):
+            if i != j:
+                p = weights @ expit(strength[i] - strength[j] + np.sqrt(2) * clip_sd * nodes)
+                orders.append([i, j])
+                counts.append(p * 1e6)
+    return worth.fit(np.array(orders), np.array(counts), k, prior=0)
+
+
+def intervals(n_sources, data, clips_per_source, confidence=0.95):
+    """Return the fit, and the ``(K, K)`` matrix of interval half-widths of ``a - b``."""
+    winner, loser, clip_w, clip_l, who = (np.asarray(c) for c in data)
+    post = adaptive.posterior(n_sources, winner, loser)
+    theta = post.mean
+    p = expit(theta[winner] - theta[loser])
+    g = np.zeros((len(winner), n_sources))
+    rows = np.arange(len(winner))
+    g[rows, winner] = 1 - p
+    g[rows, loser] = -(1 - p)
+    n_clips = int(max(clip_w.max(), clip_l.max())) + 1
+
+    def meat(keys, n_keys):
+        sums = np.zeros((n_keys, n_sources))
+        for key in keys:
+            np.add.at(sums, key, g)
+        return sums.T @ sums
+
+    n_people = int(who.max()) + 1
+    clips_part = meat([clip_w, clip_l], n_clips)
+    both = meat([who * n_clips + clip_w, who * n_clips + clip_l], n_people * n_clips)
+    # Small-sample factors G / (G - 1) of each clustering (CR1).
+    middle = (meat([who], n_people) * n_people / max(n_people - 1, 1)
+              + (clips_part - both) * n_clips / max(n_clips - 1, 1))
+    bread = post.cov  # the centred inverse information (with the weak prior)
+    variance = bread @ middle @ bread
+    d = np.diag(variance)
+    var_diff = np.maximum(d[:, None] + d[None, :] - 2 * variance, 1e-12)
+    df = max(1, min(n_people - 1, 2 * clips_per_source - 2))
+    t = stats.t.ppf(0.5 + confidence / 2, df)
+    m = np.diag(post.cov)
+    model = m[:, None] + m[None, :] - 2 * post.cov
+    # For deciding when to stop, a steadier variance than each pair's own sandwich: the
+    # model's (judgements) plus clips' random effects, tau^2 times how much each source's
+    # estimate leans on single clips (sum of squared shares of its clips' showings), with
+    # one tau^2 over every pair of sources (moments of the sandwich's excess).
+    showings = np.bincount(np.concatenate([clip_w, clip_l]), minlength=n_clips).astype(float)
+    source_of = np.arange(n_clips) // clips_per_source
+    per_source = np.bincount(source_of, weights=showings, minlength=n_sources)
+    lean = np.bincount(source_of, weights=showings ** 2, minlength=n_sources) / np.maximum(per_source, 1) ** 2
+    factor = lean[:, None] + lean[None, :]
+    upper = np.triu_indices(n_sources, 1)
+    tau2 = max(0.0, (var_diff - model)[upper].sum() / factor[upper].sum())
+    steady = model + tau2 * factor
+    return theta, t * np.sqrt(var_diff), t * np.sqrt(steady)
+
+
+def run_study(design, strength, clip_quality, args, seed):
+    """Return per target the judgements at stopping and whether the intervals covered."""
+    k = len(strength)
+    rng = random.Random(seed)
+    answers = np.random.default_rng(seed + 10_000)
+    clips = {s: list(range(s * args.clips, (s + 1) * args.clips)) for s in range(k)}
+    source_of = np.repeat(np.arange(k), args.clips)
+    true = truth(strength, args.clip_sd)
+    dist = adaptive.balanced(k)
+    shown = Counter()
+    data = [[], [], [], [], []]
+    done = {}
+    participant, queue = -1, []
+    n = 0
+    while n < args.budget and len(done) < len(args.targets):
+        if not queue:
+            participant += 1
+            queue = adaptive.plan_pairs(dist, args.trials, clips, shown, rng,
+                                        min_showings=args.min_showings)
+        left, right = queue.pop(0)
+        left_wins = answers.random() < expit(clip_quality[left] - clip_quality[right])
+        w, l = (left, right) if left_wins else (right, left)
+        for column, value in zip(data, (source_of[w], source_of[l], w, l, participant)):
+            column.append(value)
+        n += 1
+        if n % args.every:
+            continue
+        theta, half, steady = intervals(k, data, args.clips)
+        look = {"sandwich": half, "information": steady, "larger": np.maximum(half, steady)}[args.stop_on]
+        if args.interval == "larger":
+            half = np.maximum(half, steady)
+        order = np.argsort(-theta)
+        pairs = {"top_two": [(order[0], order[1])],
+                 "order": list(zip(order[:-1], order[1:]))}
+        for target, which in pairs.items():
+            if target not in args.targets:
+                continue
+            widest = max(2 * look[a, b] for a, b in which)
+            limit = args.top_width if target == "top_two" else args.order_width
+            if target not in done and widest <= limit:
+                covered = [abs((theta[a] - theta[b]) - (true[a] - true[b])) <= half[a, b]
+                           for a, b in which]
+                done[target] = {"n": n, "covered": covered,
+                                "width": max(2 * half[a, b] for a, b in which)}
+        if design != "balanced":
+            post = adaptive.posterior(k, data[0], data[1])
+            dist = adaptive.distribution(post, design, floor=args.floor,
+                                         sharpness=args.sharpness, focus=args.focus,
+                                         seed=seed + n)
+    for target in ("top_two", "order"):
+        done.setdefault(target, {"n": None, "covered": []})
+    return done
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--studies", type=int, default=20)
+    parser.add_argument("--every", type=int, default=100)
+    parser.add_argument("--trials", type=int, default=20)
+    parser.add_argument("--clips", type=int, default=20)
+    parser.add_argument("--clip-sd", type=float, default=0.3)
+    parser.add_argument("--min-showings", type=int, default=2)
+    parser.add_argument("--top-width", type=float, default=0.6)
+    parser.add_argument("--order-width", type=float, default=0.7)
+    parser.add_argument("--budget", type=int, default=20000)
+    parser.add_argument("--floor", type=float, default=adaptive.FLOOR)
+    parser.add_argument("--sharpness", type=float, default=2.0)
+    parser.add_argument("--focus", type=float, default=2.0)
+    parser.add_argument("--designs", default="balanced,top_two,order")
+    parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument("--stop-on", choices=("sandwich", "information", "larger"),
+                        default="larger")
+    parser.add_argument("--interval", choices=("sandwich", "larger"), default="larger",
+                        help="the reported interval: the sandwich's, or the larger of it and "
+                        "the steady one the stopping rule reads")
+    parser.add_argument("--targets", default="top_two,order")
+    parser.add_argument("--json", type=Path)
+    args = parser.parse_args(argv)
+    designs = args.designs.split(",")
+    args.targets = args.targets.split(",")
+    results = {d: [] for d in designs}
+    started = time.perf_counter()
+    for study in range(args.studies):
+        seed = args.first_seed + study
+        clip_rng = np.random.default_rng(seed)
+        quality = np.repeat(STRENGTHS, args.clips) + clip_rng.normal(0, args.clip_sd, len(STRENGTHS) * args.clips)
+        for design in designs:
+            results[design].append(run_study(design, STRENGTHS, quality, args, seed))
+    seconds = time.perf_counter() - started
+    rows = []
+    for target in args.targets:
+        base = None
+        for design in designs:
+            ns = [r[target]["n"] for r in results[design]]
+            reached = [x for x in ns if x is not None]
+            covered = [c for r in results[design] for c in r[target]["covered"]]
+            widths = [r[target]["width"] for r in results[design] if r[target]["n"]]
+            all_covered = [all(r[target]["covered"]) for r in results[design] if r[target]["n"]]
+            mean = float(np.mean(reached)) if reached else float("nan")
+            if design == "balanced":
+                base = mean
+            rows.append({
+                "target": target, "design": design if design == "balanced" else f"adaptive {design}",
+                "reached": f"{len(reached)}/{len(ns)}",
+                "median": float(np.median(reached)) if reached else float("nan"),
+                "mean": mean,
+                "vs_balanced": mean / base - 1 if base else float("nan"),
+                "coverage": float(np.mean(covered)) if covered else float("nan"),
+                "all_covered": float(np.mean(all_covered)) if all_covered else float("nan"),
+                "intervals": len(covered),
+                "width": float(np.mean(widths)) if widths else float("nan"),
+            })
+    width = {"top_two": args.top_width, "order": args.order_width}
+    print(f"{args.studies} studies per design, 8 sources, {args.clips} clips per source "
+          f"(clip SD {args.clip_sd}), {args.trials} pairs per participant, looks every "
+          f"{args.every} judgements; {seconds:.0f} s")
+    print("| target (width) | design | reached | median judgements | mean | vs balanced | "
+          "coverage (intervals) | all covered | width at stop |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for row in rows:
+        print(f"| {row['target']} ({width[row['target']]}) | {row['design']} | {row['reached']} | "
+              f"{row['median']:.0f} | {row['mean']:.0f} | {row['vs_balanced']:+.0%} | "
+              f"{row['coverage']:.3f} ({row['intervals']}) | {row['all_covered']:.2f} | {row['width']:.2f} |")
+    if args.json:
+        args.json.write_text(json.dumps({"args": {k: str(v) for k, v in vars(args).items()},
+                                         "rows": rows}, indent=1))
+
+
+if __name__ == "__main__":
+    main()

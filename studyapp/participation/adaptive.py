@@ -1,0 +1,117 @@
+"""Adaptive designs in the app: the stored sampling distribution, its recomputation in
+the background, and main trials planned from it.
+
+A study with ``design: adaptive`` (of a type whose analysis has a worth model of pairs,
+:meth:`analysis.registry.StudyAnalysis.worth_comparisons`) keeps in ``Study.sampling`` a
+distribution over pairs of its sources (:func:`analysis.adaptive.distribution`). It is
+recomputed by the ``adaptive_design`` command, run as a background job when a new
+participant starts and at least ``every`` main trials were answered since it was last
+computed or asked for: never in the answer path. Until one is stored the study plans
+balanced trials, as a balanced study does.
+"""
+
+from __future__ import annotations
+
+from django.db import transaction
+
+from analysis import adaptive
+from analysis.registry import StudyAnalysis, get_analysis
+from studyapp.survey.models import Study, Trial
+
+# How the recomputation starts in the background: ``run_job(kind, **params)``, set to
+# ``survey.tasks.run_job`` by the survey app's ``ready`` (passed in, so that this module,
+# which the study types' planning imports, imports no job runner).
+run_job = None
+
+DEFAULTS = {"every": 50, "min_showings": 2, "target": "order", "floor": adaptive.FLOOR,
+            "sharpness": 2.0, "focus": 2.0}
+DESIGNS = ("balanced", "adaptive")
+
+
+def supports(study_type: str) -> bool:
+    """Return whether a study type's analysis has the worth model an adaptive design needs."""
+    return type(get_analysis(study_type)).worth_comparisons is not StudyAnalysis.worth_comparisons
+
+
+def settings(study) -> dict:
+    return {**DEFAULTS, **(study.adaptive or {})}
+
+
+def check(design, given, study_type: str) -> str | None:
+    """Return what is wrong with a design and its settings for a study type, or None."""
+    if design not in DESIGNS:
+        return f"design: {design!r} is not one of {', '.join(DESIGNS)}"
+    if design == "balanced":
+        return None
+    if not supports(study_type):
+        return f"design: adaptive needs a type with a worth model of pairs; {study_type} has none"
+    if not isinstance(given or {}, dict):
+        return f"adaptive: {given!r} must be a mapping like {{every: 50, min_showings: 2}}"
+    for name, value in (given or {}).items():
+        if name not in DEFAULTS:
+            return f"adaptive.{name}: not a setting (settings: {', '.join(DEFAULTS)})"
+        if name in ("every", "min_showings") and (not isinstance(value, int) or isinstance(value, bool)
+                                                  or value < (1 if name == "every" else 0)):
+            return f"adaptive.{name}: {value!r} must be a whole number of at least {1 if name == 'every' else 0}"
+        if name == "floor" and not (isinstance(value, (int, float)) and 0 < value <= 1):
+            return f"adaptive.floor: {value!r} must be in (0, 1]"
+        if name in ("sharpness", "focus") and not (isinstance(value, (int, float)) and value >= 0):
+            return f"adaptive.{name}: {value!r} must be 0 or more"
+        if name == "target" and value not in ("order", "top_two") and not (
+                isinstance(value, dict) and set(value) == {"versus"} and isinstance(value["versus"], str)):
+            return (f"adaptive.target: {value!r} must be order, top_two or {{versus: <source>}} "
+                    f"(that source against each other)")
+    return None
+
+
+def answered_main(study) -> int:
+    return Trial.objects.filter(participant__study=study, kind=Trial.Kind.MAIN,
+                                answered_at__isnull=False).count()
+
+
+def request_recompute(study) -> bool:
+    """Start the recomputation in the background when ``every`` main trials were answered
+    since the last one (computed or asked for); called with the study row locked."""
+    stored = study.sampling or {}
+    last = max(stored.get("answers", -1), stored.get("requested", -1))
+    answers = answered_main(study)
+    if last >= 0 and answers - last < settings(study)["every"]:
+        return False
+    stored = {**stored, "requested": answers}
+    Study.objects.filter(pk=study.pk).update(sampling=stored)
+    study.sampling = stored
+    if run_job is not None:
+        transaction.on_commit(lambda: run_job("call_command", name="adaptive_design",
+                                              args=[study.slug]))
+    return True
+
+
+def plan_main(study, pool, rng):
+    """Return main trials ``(action, [left, right])`` drawn from the stored distribution,
+    or None when none is stored (the caller then plans balanced trials)."""
+    request_recompute(study)
+    stored = study.sampling or {}
+    if not stored.get("pairs"):
+        return None
+    names = stored["sources"]
+    clips, action_of = {}, {}
+    for action, by_source in pool.table.items():
+        for source, stimuli in by_source.items():
+            if source in names:
+                for stimulus in stimuli:
+                    clips.setdefault(names.index(source), []).append(stimulus.pk)
+                    action_of[stimulus.pk] = action
+    if not clips:
+        return None
+    stimuli = {s.pk: s for by_source in pool.table.values() for ss in by_source.values() for s in ss}
+    wanted = study.trials_per_participant or len(pool.table)
+    trials = adaptive.plan_pairs(stored, wanted, clips, pool.items, rng,
+                                 min_showings=settings(study)["min_showings"],
+                                 group_of=action_of.__getitem__)
+    plans = []
+    for left, right in trials:
+        seats = [stimuli[left], stimuli[right]]
+        for position, stimulus in enumerate(seats):
+            pool.positions[(stimulus.source, position)] += 1
+        plans.append((action_of[left], seats))
+    return plans

@@ -1,0 +1,149 @@
+"""The adaptive chooser of pairs: its posterior, its scores and the constraints it keeps."""
+
+import random
+from collections import Counter
+
+import numpy as np
+import pytest
+
+from analysis import adaptive, worth
+
+
+def comparisons(strength, n, seed=0):
+    rng = np.random.default_rng(seed)
+    k = len(strength)
+    pairs = adaptive.all_pairs(k)[rng.integers(0, k * (k - 1) // 2, n)]
+    first_wins = rng.random(n) < 1 / (1 + np.exp(-(strength[pairs[:, 0]] - strength[pairs[:, 1]])))
+    winner = np.where(first_wins, pairs[:, 0], pairs[:, 1])
+    loser = np.where(first_wins, pairs[:, 1], pairs[:, 0])
+    return winner, loser
+
+
+def test_posterior_mean_is_the_bradley_terry_fit_without_prior():
+    winner, loser = comparisons(np.array([1.0, 0.5, 0.0, -1.0]), 4000)
+    post = adaptive.posterior(4, winner, loser, prior_sd=1e6)
+    fitted = worth.fit(np.stack([winner, loser], axis=1), np.ones(len(winner)), 4, prior=0)
+    np.testing.assert_allclose(post.mean, fitted, atol=1e-5)
+    # The Laplace covariance of centred worths: rows sum to 0, variances shrink like 1/n.
+    np.testing.assert_allclose(post.cov.sum(axis=1), 0, atol=1e-9)
+    assert 0.001 < post.cov[0, 0] < 0.01
+
+
+def test_posterior_without_data_is_the_prior():
+    post = adaptive.posterior(3, [], [], prior_sd=2.0)
+    np.testing.assert_allclose(post.mean, 0)
+    assert post.sd([1, -1, 0])[0] == pytest.approx(np.sqrt(8.0))
+
+
+def test_scores_favour_the_close_uncertain_pair_at_the_top():
+    strength = np.array([2.0, 1.8, 0.0, -2.0])
+    winner, loser = comparisons(strength, 300)
+    post = adaptive.posterior(4, winner, loser)
+    contrasts, weights = adaptive.target_contrasts(post, "top_two")
+    scores = adaptive.pair_scores(post, contrasts, weights)
+    pairs = [tuple(p) for p in adaptive.all_pairs(4)]
+    assert pairs[int(np.argmax(scores))] == (0, 1)
+    # A given contrast (source 3 against each other) puts weight on pairs with 3.
+    scores = adaptive.pair_scores(post, adaptive.versus(4, 3), np.ones(3))
+    assert 3 in pairs[int(np.argmax(scores))]
+
+
+def test_distribution_keeps_a_floor_for_every_pair():
+    winner, loser = comparisons(np.array([2.0, 1.8, 0.0, -2.0, -2.5]), 500)
+    post = adaptive.posterior(5, winner, loser)
+    dist = adaptive.distribution(post, "order", floor=0.2)
+    p = np.array(dist["p"])
+    assert p.sum() == pytest.approx(1.0)
+    assert len(p) == 10 and p.min() >= 0.2 / 10 - 1e-12
+    # Neighbours in the order are preferred to sources far apart.
+    at = {tuple(pair): q for pair, q in zip(dist["pairs"], p)}
+    assert min(at[(0, 1)], at[(1, 2)], at[(3, 4)]) > 3 * at[(0, 4)]
+    with pytest.raises(ValueError):
+        adaptive.distribution(post, floor=0)
+
+
+def clip_table(n_sources, per_source):
+    return {s: [(s, c) for c in range(per_source)] for s in range(n_sources)}
+
+
+def test_plan_pairs_shows_every_clip_at_least_m_times_first():
+    clips = clip_table(6, 4)
+    # All weight on one pair: the minimum still reaches every clip of every source.
+    dist = {"pairs": [[0, 1], [2, 3], [4, 5], [0, 5]], "p": [1.0, 0.0, 0.0, 0.0]}
+    shown = Counter()
+    rng = random.Random(1)
+    trials = []
+    for participant in range(6):
+        trials += adaptive.plan_pairs(dist, 8, clips, shown, rng, min_showings=2)
+    assert min(shown[c] for ids in clips.values() for c in ids) >= 2
+    # Once every clip has its showings the distribution decides.
+    assert sum(1 for a, b in trials[-8:] if {a[0], b[0]} == {0, 1}) == 8
+
+
+def test_plan_pairs_never_repeats_a_pair_of_clips_for_one_participant():
+    clips = clip_table(3, 2)
+    dist = adaptive.balanced(3)
+    shown = Counter()
+    trials = adaptive.plan_pairs(dist, 50, clips, shown, random.Random(0))
+    keys = [frozenset(t) for t in trials]
+    assert len(keys) == len(set(keys)) == 12  # 3 pairs of sources x 2 x 2 clips, then none left
+    again = adaptive.plan_pairs(dist, 5, clips, shown, random.Random(0), seen=trials[:10])
+    assert {frozenset(t) for t in again} == set(keys[10:])
+
+
+def test_plan_pairs_keeps_conditions_apart():
+    clips = {s: [(s, c, action) for c in range(2) for action in "ab"] for s in range(3)}
+    trials = adaptive.plan_pairs(adaptive.balanced(3), 12, clips, Counter(), random.Random(0),
+                                 group_of=lambda clip: clip[2])
+    assert trials and all(a[2] == b[2] for a, b in trials)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_positions_are_counterbalanced_per_participant(seed):
+    rng = random.Random(seed)
+    n_sources = rng.randint(2, 8)
+    trials = [tuple((s, rng.random()) for s in rng.sample(range(n_sources), 2))
+              for _ in range(rng.randint(1, 30))]
+    seated = adaptive.counterbalance(trials, rng)
+    assert sorted(map(frozenset, seated)) == sorted(map(frozenset, trials))
+    left = Counter(a[0] for a, _ in seated)
+    right = Counter(b[0] for _, b in seated)
+    assert all(abs(left[s] - right[s]) <= 1 for s in range(n_sources))
+
+
+def test_plan_pairs_counterbalances_a_skewed_distribution():
+    clips = clip_table(4, 10)
+    dist = {"pairs": [[0, 1], [0, 2], [0, 3]], "p": [0.6, 0.3, 0.1]}
+    trials = adaptive.plan_pairs(dist, 20, clips, Counter(), random.Random(3))
+    left = Counter(a[0] for a, _ in trials)
+    right = Counter(b[0] for _, b in trials)
+    assert abs(left[0] - right[0]) <= 1
+
+
+def worth_types():
+    from analysis.registry import StudyAnalysis, get_analysis, list_analyses
+
+    return [name for name in list_analyses()
+            if type(get_analysis(name)).worth_comparisons is not StudyAnalysis.worth_comparisons]
+
+
+def test_some_analyses_give_comparisons_for_the_posterior():
+    assert len(worth_types()) >= 1
+
+
+@pytest.mark.parametrize("study_type", worth_types())
+def test_worth_comparisons_of_simulated_raters_recover_the_order(study_type):
+    from analysis.registry import get_analysis
+    from analysis.simulate import simulate
+    from analysis.study import apply_exclusions
+
+    strengths = {"a": 1.0, "b": 0.0, "c": -1.0}
+    table = simulate(study_type, strengths, participants=60, trials=10, seed=3)
+    main, _, _ = apply_exclusions(table, study_type=study_type)
+    decided = get_analysis(study_type).worth_comparisons(main)
+    assert set(decided.columns) >= {"winner", "loser", "weight"} and len(decided)
+    names = sorted(strengths)
+    index = {name: i for i, name in enumerate(names)}
+    post = adaptive.posterior(3, decided["winner"].map(index), decided["loser"].map(index),
+                              decided["weight"])
+    assert list(np.argsort(-post.mean)) == [0, 1, 2]

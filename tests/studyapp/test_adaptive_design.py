@@ -1,0 +1,149 @@
+"""Adaptive designs in the app: main trials planned from the stored distribution, balanced
+until one is stored, its recomputation started in the background, its settings checked."""
+
+import random
+from collections import Counter
+
+import pytest
+from django.core.exceptions import ValidationError
+
+from studyapp.participation import adaptive
+from studyapp.survey.models import Study
+from studyapp.survey.study_types import list_study_types
+from tests.studyapp.conftest import SOURCES, make_stimuli
+
+pytestmark = pytest.mark.django_db
+
+ADAPTIVE = [name for name in list_study_types() if adaptive.supports(name)]
+OTHERS = [name for name in list_study_types() if not adaptive.supports(name)]
+
+
+def adaptive_study(study_type, **settings):
+    study = Study.objects.create_study(study_type, "adaptive", "Adaptive", design="adaptive",
+                                       adaptive=settings, trials_per_participant=6)
+    make_stimuli(study, per_cell=2)
+    return study
+
+
+def test_some_types_offer_it_and_the_others_refuse_it():
+    assert ADAPTIVE and OTHERS
+    assert "worth model" in adaptive.check("adaptive", {}, OTHERS[0])
+    assert adaptive.check("adaptive", {"every": 20, "target": "top_two"}, ADAPTIVE[0]) is None
+    assert "every" in adaptive.check("adaptive", {"every": 0}, ADAPTIVE[0])
+    assert "not a setting" in adaptive.check("adaptive", {"speed": 1}, ADAPTIVE[0])
+    assert "not one of" in adaptive.check("greedy", {}, ADAPTIVE[0])
+    with pytest.raises(ValidationError, match="worth model"):
+        Study.objects.create_study(OTHERS[0], "other", "Other", design="adaptive")
+
+
+@pytest.mark.parametrize("study_type", ADAPTIVE)
+def test_balanced_until_a_distribution_is_stored_and_a_recompute_is_asked_for(
+        study_type, monkeypatch, django_capture_on_commit_callbacks):
+    started = []
+    monkeypatch.setattr(adaptive, "run_job", lambda kind, **params: started.append(params))
+    study = adaptive_study(study_type)
+    with django_capture_on_commit_callbacks(execute=True):
+        plans = study.kind.plan_trials(study, random.Random(0))
+    assert len(plans) == 6 and all(len(p.stimuli) == 2 for p in plans)
+    assert started == [{"name": "adaptive_design", "args": [study.slug]}]
+    assert study.sampling["requested"] == 0 and "pairs" not in study.sampling
+    # No new answers: no second request.
+    with django_capture_on_commit_callbacks(execute=True):
+        study.kind.plan_trials(study, random.Random(1))
+    assert len(started) == 1
+
+
+@pytest.mark.parametrize("study_type", ADAPTIVE)
+def test_trials_follow_the_stored_distribution_under_the_constraints(study_type):
+    study = adaptive_study(study_type, min_showings=0)
+    names = sorted(SOURCES)
+    study.sampling = {"sources": names, "pairs": [[0, 1], [0, 2], [1, 2]], "p": [1.0, 0.0, 0.0],
+                      "answers": 0}
+    study.save()
+    plans = study.kind.plan_trials(study, random.Random(0))
+    assert len(plans) == 6
+    shown = [tuple(s.source for s in plan.stimuli) for plan in plans]
+    assert all(set(pair) == {names[0], names[1]} for pair in shown)
+    assert all(plan.stimuli[0].action == plan.stimuli[1].action for plan in plans)
+    # No pair of clips twice for one participant; each source as often left as right.
+    keys = [frozenset(s.pk for s in plan.stimuli) for plan in plans]
+    assert len(set(keys)) == len(keys)
+    left = Counter(pair[0] for pair in shown)
+    assert left[names[0]] == left[names[1]] == 3
+
+
+@pytest.mark.parametrize("study_type", ADAPTIVE)
+def test_every_clip_gets_its_minimum_before_the_distribution_decides(study_type):
+    study = adaptive_study(study_type, min_showings=1)
+    names = sorted(SOURCES)
+    study.sampling = {"sources": names, "pairs": [[0, 1], [0, 2], [1, 2]], "p": [1.0, 0.0, 0.0],
+                      "answers": 0}
+    study.save()
+    plans = study.kind.plan_trials(study, random.Random(0))
+    assert {s.source for plan in plans for s in plan.stimuli} == set(SOURCES)
+
+
+@pytest.mark.parametrize("study_type", ADAPTIVE)
+def test_the_command_stores_a_distribution_over_the_studys_sources(study_type):
+    from django.core.management import call_command
+
+    study = adaptive_study(study_type)
+    call_command("adaptive_design", study.slug, stdout=open("/dev/null", "w"))
+    study.refresh_from_db()
+    assert study.sampling["sources"] == sorted(SOURCES)
+    assert len(study.sampling["pairs"]) == 3 and sum(study.sampling["p"]) == pytest.approx(1)
+    assert study.sampling["answers"] == 0
+    plans = study.kind.plan_trials(study, random.Random(0))
+    assert len(plans) == 6
+
+
+def test_the_config_takes_the_design_and_checks_it():
+    from studyapp.stimuli.config import ConfigError, _study
+
+    _, options, _, _ = _study({"type": ADAPTIVE[0], "design": "adaptive",
+                               "adaptive": {"every": 20, "min_showings": 3}})
+    assert options["design"] == "adaptive" and options["adaptive"]["every"] == 20
+    with pytest.raises(ConfigError, match="worth model"):
+        _study({"type": OTHERS[0], "design": "adaptive"})
+    with pytest.raises(ConfigError, match="adaptive.target"):
+        _study({"type": ADAPTIVE[0], "design": "adaptive", "adaptive": {"target": "best"}})
+
+
+@pytest.mark.parametrize("study_type", ADAPTIVE)
+def test_answers_through_the_pages_reach_the_posterior(study_type, media_root, clips,
+                                                       extra_clips, make_bot):
+    from django.core.management import call_command
+
+    from tests.studyapp.conftest import make_study
+
+    study = make_study(study_type, clips, extra_clips, design="adaptive",
+                       adaptive={"every": 2}, trials_per_participant=2)
+    for _ in range(3):
+        bot = make_bot(study)
+        bot.join()
+        bot.finish()
+    # Bots answer at once; the analysis's exclusions (which the posterior applies too)
+    # would leave out answers faster than the clips.
+    from studyapp.survey.models import Trial
+
+    Trial.objects.update(time_ms=60_000)
+    call_command("adaptive_design", study.slug, stdout=open("/dev/null", "w"))
+    study.refresh_from_db()
+    assert study.sampling["answers"] == 6
+    assert 0 < study.sampling["comparisons"] <= 6
+    assert len(study.sampling["worth"]) == len(study.sampling["sources"])
+
+
+@pytest.mark.parametrize("study_type", ADAPTIVE)
+def test_a_versus_target_aims_at_that_source(study_type):
+    from studyapp.results.adaptive import recompute
+
+    study = adaptive_study(study_type, target={"versus": SOURCES[0]})
+    sampling = recompute(study)
+    names = sampling["sources"]
+    at = {tuple(names[i] for i in pair): p for pair, p in zip(sampling["pairs"], sampling["p"])}
+    mine = [p for pair, p in at.items() if SOURCES[0] in pair]
+    others = [p for pair, p in at.items() if SOURCES[0] not in pair]
+    assert min(mine) > max(others) and "note" not in sampling
+    study.adaptive = {"target": {"versus": "nobody"}}
+    assert "aimed at the order" in recompute(study)["note"]
