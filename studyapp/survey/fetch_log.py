@@ -290,6 +290,7 @@ def note(item_pk: int, token: str, ext: str, start: int, end: int, size: int) ->
     except DatabaseError as error:
         log.warning("fetch of item %s not written yet (%s): its witness stands in for it",
                     item_pk, error)
+        start_flusher()  # the witness reaches the database without an answer too
         return
     store.remove(token, [line])
 
@@ -331,7 +332,8 @@ def settle(items) -> None:
     # Under the write lock: merge again with what was committed meanwhile (a queued
     # record_fetch), so nothing committed is written over.
     current = {pk: (fetched, at) for pk, fetched, at in TrialItem.objects.select_for_update()
-               .filter(pk__in=[i.pk for i in read]).values_list("pk", "fetched", "fetched_at")}
+               .filter(pk__in=[i.pk for i in read]).order_by("pk")
+               .values_list("pk", "fetched", "fetched_at")}
     dirty = []
     for item in read:
         fetched, at = current.get(item.pk, (None, None))
@@ -375,8 +377,10 @@ def flush(limit: int | None = None) -> int:
         for at in range(0, len(tokens), BATCH):
             batch = tokens[at:at + BATCH]
             with transaction.atomic():
+                # Rows an answer holds are left to it (skip_locked: no deadlock with it).
                 rows = {token: (pk, fetched, fetched_at) for pk, token, fetched, fetched_at in
-                        TrialItem.objects.select_for_update().filter(token__in=batch)
+                        TrialItem.objects.select_for_update(skip_locked=True)
+                        .filter(token__in=batch).order_by("pk")
                         .values_list("pk", "token", "fetched", "fetched_at")}
                 lines = store.read(batch)
                 dirty, done = [], []
@@ -404,12 +408,15 @@ _flusher = None
 _flusher_pid = None
 
 
+def flush_every() -> float:
+    return float(getattr(settings, "STUDY_FETCH_FLUSH_S", 0) or 0)
+
+
 def start_flusher() -> None:
     """Start this process's thread that calls :func:`flush` every ``STUDY_FETCH_FLUSH_S``
     seconds (0: none), once (again after a fork)."""
     global _flusher, _flusher_pid
-    every = float(getattr(settings, "STUDY_FETCH_FLUSH_S", 0) or 0)
-    if every <= 0 or (_flusher is not None and _flusher_pid == os.getpid()):
+    if flush_every() <= 0 or (_flusher is not None and _flusher_pid == os.getpid()):
         return
     with _lock:
         if _flusher is not None and _flusher_pid == os.getpid():
@@ -417,7 +424,9 @@ def start_flusher() -> None:
 
         def loop():
             while True:
-                time.sleep(every)
+                time.sleep(max(flush_every(), 1.0))
+                if flush_every() <= 0:
+                    continue
                 try:
                     flush()
                 except Exception:

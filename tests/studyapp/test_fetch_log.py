@@ -46,8 +46,9 @@ def watching(settings):
 
 
 @pytest.fixture
-def locked(monkeypatch):
+def locked(monkeypatch, settings):
     """The database write of a fetch never gets the lock (SQLite's queue, timed out)."""
+    settings.STUDY_FETCH_FLUSH_S = 0  # no flushing thread: the test looks at the witnesses
 
     def record_fetch(*args, **kwargs):
         raise OperationalError("database is locked")
@@ -179,3 +180,21 @@ def test_when_redis_does_not_answer_the_spool_and_database_do(ranking_study, mak
     bot.trial_page()
     assert not TrialItem.objects.filter(trial=trial, fetched_at=None).exists()
     assert bot.answer(bot.answer_data(trial)).status_code == 302
+
+
+def test_flush_fetches_writes_the_witnesses_no_answer_came_for(ranking_study, make_bot, spool,
+                                                                locked, monkeypatch):
+    from io import StringIO
+
+    from django.core.management import call_command
+
+    bot = make_bot(ranking_study)
+    bot.join()
+    trial = bot.participant().current_trial()
+    bot.trial_page()  # fetched whole, the database writes failed, no answer
+    monkeypatch.undo()  # the database takes writes again
+    out = StringIO()
+    call_command("flush_fetches", stdout=out)
+    assert out.getvalue().startswith(f"{trial.items.count()} trial items updated")
+    assert not TrialItem.objects.filter(trial=trial, fetched_at=None).exists()
+    assert fetch_log.backend().tokens() == []
