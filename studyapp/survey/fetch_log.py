@@ -14,9 +14,11 @@ So :func:`note` first writes the fact as a *witness* that no database lock holds
   them) and every ``STUDY_FETCH_FLUSH_S`` seconds by a thread of each worker (or
   ``manage.py flush_fetches``);
 - otherwise a small append-only file per item token under ``STUDY_FETCH_SPOOL`` (on this
-  machine; it outlives the process too), followed by the database write as before. The
+  machine; it outlives the process too), followed by the database write as before,
+  except that on SQLite it waits at most ``STUDY_FETCH_WRITE_WAIT_S`` (0.05 s) for the
+  write lock: under load the write is left to the answer and to a flushing thread. The
   file is dropped once the write is done, so it only holds what the database has not
-  caught up with yet (a write still queued, or one that failed).
+  caught up with yet.
 
 An answer's check reads the database *and* the witnesses: a clip counts as fetched
 whole when its byte ranges, from both, cover the file. A witness exists only after the
@@ -38,11 +40,12 @@ import re
 import secrets
 import threading
 import time
+from contextlib import contextmanager
 from datetime import datetime, timezone as dt_timezone
 from pathlib import Path
 
 from django.conf import settings
-from django.db import DatabaseError, close_old_connections, transaction
+from django.db import DatabaseError, close_old_connections, connection, transaction
 
 log = logging.getLogger(__name__)
 
@@ -286,13 +289,33 @@ def note(item_pk: int, token: str, ext: str, start: int, end: int, size: int) ->
         start_flusher()
         return
     try:
-        TrialItem.objects.record_fetch(item_pk, ext, start, end, size)
+        with waiting_at_most(getattr(settings, "STUDY_FETCH_WRITE_WAIT_S", 0.05)):
+            TrialItem.objects.record_fetch(item_pk, ext, start, end, size)
     except DatabaseError as error:
         log.warning("fetch of item %s not written yet (%s): its witness stands in for it",
                     item_pk, error)
         start_flusher()  # the witness reaches the database without an answer too
         return
     store.remove(token, [line])
+
+
+@contextmanager
+def waiting_at_most(seconds: float):
+    """On SQLite, wait at most ``seconds`` for the write lock (not the connection's 30 s):
+    a fetch whose witness is written need not queue behind every participant's answer,
+    and its place in the queue is what holds the answers up. Elsewhere, do nothing."""
+    if connection.vendor != "sqlite" or connection.in_atomic_block:
+        yield
+        return
+    connection.ensure_connection()
+    with connection.cursor() as cursor:
+        before = cursor.execute("PRAGMA busy_timeout").fetchone()[0]
+        cursor.execute(f"PRAGMA busy_timeout = {max(0, int(seconds * 1000))}")
+    try:
+        yield
+    finally:
+        with connection.cursor() as cursor:
+            cursor.execute(f"PRAGMA busy_timeout = {int(before)}")
 
 
 # --- the answer's side -------------------------------------------------------------------

@@ -198,3 +198,36 @@ def test_flush_fetches_writes_the_witnesses_no_answer_came_for(ranking_study, ma
     assert out.getvalue().startswith(f"{trial.items.count()} trial items updated")
     assert not TrialItem.objects.filter(trial=trial, fetched_at=None).exists()
     assert fetch_log.backend().tokens() == []
+
+
+@pytest.mark.django_db(transaction=True)
+def test_on_sqlite_a_fetch_does_not_queue_for_the_write_lock(ranking_study, make_bot, spool,
+                                                             settings):
+    import sqlite3
+
+    from django.db import connection
+
+    if connection.vendor != "sqlite":
+        pytest.skip("SQLite's one write lock")
+    settings.STUDY_FETCH_FLUSH_S = 0
+    bot = make_bot(ranking_study)
+    bot.join()
+    trial = bot.participant().current_trial()
+    bot.trial_page(watch=False)
+    other = sqlite3.connect(connection.settings_dict["NAME"], isolation_level=None)
+    other.execute("BEGIN IMMEDIATE")  # another participant's long write
+    try:
+        begun = time.monotonic()
+        bot.watch(trial)
+        took = time.monotonic() - begun
+    finally:
+        other.execute("ROLLBACK")
+        other.close()
+    assert took < 5  # not the connection's 30 s a fetch, per clip
+    assert not TrialItem.objects.filter(trial=trial, fetched_at__isnull=False).exists()
+    assert len(fetch_log.backend().tokens()) == trial.items.count()
+    assert bot.answer(bot.answer_data(trial)).status_code == 302
+    assert not TrialItem.objects.filter(trial=trial, fetched_at=None).exists()
+    assert fetch_log.backend().tokens() == []
+    with connection.cursor() as cursor:  # the connection's own wait is back
+        assert cursor.execute("PRAGMA busy_timeout").fetchone()[0] == 30000
