@@ -1,8 +1,9 @@
 """The record that a clip was sent to its last byte, kept first where no lock holds it up.
 
-The clip view learns that a delivery's last byte was handed to the server
-(``media.file_response``'s ``on_sent``). That fact decides whether an answer is taken
-(:meth:`studyapp.survey.flow.DatabaseStore.watch_problems`), so it must be on record
+The clip view learns that a delivery's last byte is being handed to the server
+(``media.file_response``'s ``on_sent``, called just before the last chunk goes out, and
+told afterwards whether the server took it). That fact decides whether an answer is
+taken (:meth:`studyapp.survey.flow.DatabaseStore.watch_problems`), so it must be on record
 before the participant can answer, and a database write is not: on SQLite every write
 queues for the one write lock, and under load the queue is longer than a clip plays.
 So :func:`note` first writes the fact as a *witness* that no database lock holds up:
@@ -26,6 +27,11 @@ server sent the last byte, under a token the clip view looked up; a bot that ski
 fetch has none and is refused as before. Folding is idempotent (byte ranges merge), so
 a witness that is read twice, or folded by two workers, does no harm; it is removed only
 after the transaction that folded it committed.
+
+A witness is written before the last chunk is handed over, so neither the database nor
+this thread's wait to run again (dozens of threads share one interpreter) can put it
+behind the participant's answer; when the server does not take that chunk (the client
+went away) it is withdrawn.
 
 A witness line is ``ext start end size time nonce``: the file's byte range sent (inclusive),
 its size, and when the last byte went (Unix seconds).
@@ -265,17 +271,17 @@ def spool():
 # --- the clip view's side ----------------------------------------------------------------
 
 
-def note(item_pk: int, token: str, ext: str, start: int, end: int, size: int) -> None:
-    """Record that bytes ``start..end`` of an item's ``ext`` file were all sent.
+def note(item_pk: int, token: str, ext: str, start: int, end: int, size: int):
+    """Record that bytes ``start..end`` of an item's ``ext`` file are being sent: called
+    as the last chunk goes to the server (``media.file_response``'s ``on_sent``).
 
-    The witness comes first (Redis, or the spool file when there is no Redis or it does
-    not answer); with the spool the database write follows, and the witness is dropped
-    once it is done. A database write that fails leaves the witness for the answer.
+    The witness is written now (Redis, or the spool file when there is no Redis or it
+    does not answer); return what to do once the server took that chunk (``done``:
+    with the spool, the database write, then the witness is dropped) or did not
+    (``undo``: the client went away, the witness is withdrawn).
     """
-    from studyapp.survey.models import TrialItem
-
     if not TOKEN.match(token):
-        return
+        return None
     line = make_line(ext, start, end, size)
     store = backend()
     try:
@@ -285,18 +291,35 @@ def note(item_pk: int, token: str, ext: str, start: int, end: int, size: int) ->
                     token, type(store).__name__, error)
         store = spool()
         store.append(token, line)
-    if not store.writes_database:
-        start_flusher()
-        return
-    try:
-        with waiting_at_most(getattr(settings, "STUDY_FETCH_WRITE_WAIT_S", 0.05)):
-            TrialItem.objects.record_fetch(item_pk, ext, start, end, size)
-    except DatabaseError as error:
-        log.warning("fetch of item %s not written yet (%s): its witness stands in for it",
-                    item_pk, error)
-        start_flusher()  # the witness reaches the database without an answer too
-        return
-    store.remove(token, [line])
+    return _Sending(store, item_pk, token, line, (ext, start, end, size))
+
+
+class _Sending:
+    def __init__(self, store, item_pk, token, line, fetch):
+        self.store, self.item_pk, self.token, self.line, self.fetch = (
+            store, item_pk, token, line, fetch)
+
+    def done(self) -> None:
+        from studyapp.survey.models import TrialItem
+
+        if not self.store.writes_database:
+            start_flusher()
+            return
+        try:
+            with waiting_at_most(getattr(settings, "STUDY_FETCH_WRITE_WAIT_S", 0.05)):
+                TrialItem.objects.record_fetch(self.item_pk, *self.fetch)
+        except DatabaseError as error:
+            log.warning("fetch of item %s not written yet (%s): its witness stands in for it",
+                        self.item_pk, error)
+            start_flusher()  # the witness reaches the database without an answer too
+            return
+        self.store.remove(self.token, [self.line])
+
+    def undo(self) -> None:
+        try:
+            self.store.remove(self.token, [self.line])
+        except Exception as error:
+            log.warning("fetch witness of %s not withdrawn: %s", self.token, error)
 
 
 @contextmanager
@@ -334,6 +357,16 @@ def witness(items) -> list:
                 found.setdefault(token, []).extend(lines)
         except Exception as error:
             log.warning("fetch witnesses not read from %s: %s", type(store).__name__, error)
+    if set(found) != set(waiting):
+        # A witness is dropped only after its database write committed: read again
+        # what the database has of the items whose witness was not found.
+        from studyapp.survey.models import TrialItem
+
+        missing = [item for token, item in waiting.items() if token not in found]
+        rows = dict(TrialItem.objects.filter(pk__in=[i.pk for i in missing])
+                    .values_list("pk", "fetched_at"))
+        for item in missing:
+            item.fetched_at = item.fetched_at or rows.get(item.pk)
     changed = []
     for token, lines in found.items():
         item = waiting[token]

@@ -76,7 +76,7 @@ def clip(request, token, ext):
     on_sent = None
     if ext in ("mp4", "motion") and request.method == "GET":
         def on_sent(start, end, size, pk=item.pk, token=item.token):
-            fetch_log.note(pk, token, ext, start, end, size)
+            return fetch_log.note(pk, token, ext, start, end, size)
     return _serve(request, item.stimulus, ext, item.token, on_sent)
 
 

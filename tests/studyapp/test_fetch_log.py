@@ -231,3 +231,18 @@ def test_on_sqlite_a_fetch_does_not_queue_for_the_write_lock(ranking_study, make
     assert fetch_log.backend().tokens() == []
     with connection.cursor() as cursor:  # the connection's own wait is back
         assert cursor.execute("PRAGMA busy_timeout").fetchone()[0] == 30000
+
+
+def test_the_witness_is_written_before_the_last_chunk_and_withdrawn_if_it_is_not_taken(
+        ranking_study, make_bot, spool, locked):
+    bot = make_bot(ranking_study)
+    bot.join()
+    trial = bot.participant().current_trial()
+    bot.trial_page(watch=False)
+    item = trial.items.first()
+    response = bot.client.get(item.clip_url())
+    chunks = iter(response.streaming_content)
+    next(chunks)  # the test clips are one chunk: the last one, not taken yet
+    assert fetch_log.backend().tokens() == [item.token]  # on record before the client has it
+    response.close()  # the client went away: the server never took it
+    assert fetch_log.backend().tokens() == []
