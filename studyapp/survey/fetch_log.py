@@ -59,7 +59,7 @@ TOKEN = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 EXTS = ("mp4", "motion")
 STALE_S = 7 * 24 * 3600  # witnesses of tokens no longer in the database are dropped after this
 REDIS_TTL_S = 30 * 24 * 3600
-BATCH = 400  # items folded per statement by flush()
+BATCH = 100  # items folded per statement by flush()
 
 
 # --- witness lines ------------------------------------------------------------------
@@ -432,13 +432,16 @@ def flush(limit: int | None = None) -> int:
         tokens = store.tokens()[:limit]
         for at in range(0, len(tokens), BATCH):
             batch = tokens[at:at + BATCH]
+            lines = store.read(batch)  # before the write lock: it is held for the fold only
+            if not lines:
+                continue
+            batch = list(lines)
             with transaction.atomic():
                 # Rows an answer holds are left to it (skip_locked: no deadlock with it).
                 rows = {token: (pk, fetched, fetched_at) for pk, token, fetched, fetched_at in
                         TrialItem.objects.select_for_update(skip_locked=True)
                         .filter(token__in=batch).order_by("pk")
                         .values_list("pk", "token", "fetched", "fetched_at")}
-                lines = store.read(batch)
                 dirty, done = [], []
                 for token, witnessed in lines.items():
                     if token not in rows:
