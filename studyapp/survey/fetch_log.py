@@ -151,7 +151,7 @@ class SpoolLog:
         for token in tokens:
             try:
                 text = self.path(token).read_text()
-            except (FileNotFoundError, IsADirectoryError):
+            except OSError:  # none (the usual case), or no spool folder at all
                 continue
             lines = [line for line in text.split("\n") if line]
             if lines:
@@ -186,7 +186,7 @@ class SpoolLog:
     def tokens(self) -> list[str]:
         try:
             return [p.name for p in self.folder.iterdir() if TOKEN.match(p.name)]
-        except FileNotFoundError:
+        except OSError:
             return []
 
 
@@ -290,7 +290,11 @@ def note(item_pk: int, token: str, ext: str, start: int, end: int, size: int):
         log.warning("fetch witness of %s not in %s (%s): the spool and the database instead",
                     token, type(store).__name__, error)
         store = spool()
-        store.append(token, line)
+        try:
+            store.append(token, line)
+        except OSError as error:  # no writable spool either: the database write alone
+            log.warning("fetch witness of %s not in the spool (%s)", token, error)
+            store = None
     return _Sending(store, item_pk, token, line, (ext, start, end, size))
 
 
@@ -302,8 +306,11 @@ class _Sending:
     def done(self) -> None:
         from studyapp.survey.models import TrialItem
 
-        if not self.store.writes_database:
+        if self.store is not None and not self.store.writes_database:
             start_flusher()
+            return
+        if self.store is None:  # no witness: the write must wait its turn
+            TrialItem.objects.record_fetch(self.item_pk, *self.fetch)
             return
         try:
             with waiting_at_most(getattr(settings, "STUDY_FETCH_WRITE_WAIT_S", 0.05)):
@@ -316,6 +323,8 @@ class _Sending:
         self.store.remove(self.token, [self.line])
 
     def undo(self) -> None:
+        if self.store is None:
+            return
         try:
             self.store.remove(self.token, [self.line])
         except Exception as error:

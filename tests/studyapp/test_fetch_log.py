@@ -246,3 +246,16 @@ def test_the_witness_is_written_before_the_last_chunk_and_withdrawn_if_it_is_not
     assert fetch_log.backend().tokens() == [item.token]  # on record before the client has it
     response.close()  # the client went away: the server never took it
     assert fetch_log.backend().tokens() == []
+
+
+def test_without_a_writable_spool_the_database_write_alone_records_the_fetch(
+        ranking_study, make_bot, settings, tmp_path):
+    (tmp_path / "a-file").write_text("")
+    settings.STUDY_FETCH_LOG_URL = ""
+    settings.STUDY_FETCH_SPOOL = tmp_path / "a-file" / "fetches"  # cannot be made
+    bot = make_bot(ranking_study)
+    bot.join()
+    trial = bot.participant().current_trial()
+    bot.trial_page()
+    assert not TrialItem.objects.filter(trial=trial, fetched_at=None).exists()
+    assert bot.answer(bot.answer_data(trial)).status_code == 302
