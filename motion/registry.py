@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+import threading
 from collections.abc import Iterator
 
 
@@ -29,6 +30,8 @@ class Registry:
         self.package = package
         self._items: dict[str, object] = {}
         self._discovered = package is None
+        self._done = package is None  # discovered, and every import finished
+        self._lock = threading.RLock()
 
     def register(self, name: str):
         """Return a decorator adding a class (or function) under ``name``; a class gets
@@ -74,17 +77,23 @@ class Registry:
 
     def discover(self) -> None:
         """Import every module of ``package`` not starting with ``_`` (once)."""
-        if self._discovered:
+        if self._done:
             return
-        self._discovered = True  # before importing: a module may look names up
-        try:
-            package = importlib.import_module(self.package)
-            for info in sorted(pkgutil.iter_modules(package.__path__), key=lambda i: i.name):
-                if not info.name.startswith("_"):
-                    importlib.import_module(f"{self.package}.{info.name}")
-        except BaseException:
-            self._discovered = False
-            raise
+        # Another thread waits here until the imports are done (it would find the names
+        # missing otherwise); the importing thread itself may look names up meanwhile.
+        with self._lock:
+            if self._discovered:
+                return
+            self._discovered = True  # before importing: a module may look names up
+            try:
+                package = importlib.import_module(self.package)
+                for info in sorted(pkgutil.iter_modules(package.__path__), key=lambda i: i.name):
+                    if not info.name.startswith("_"):
+                        importlib.import_module(f"{self.package}.{info.name}")
+            except BaseException:
+                self._discovered = False
+                raise
+            self._done = True
 
     def __contains__(self, name: object) -> bool:
         self.discover()

@@ -116,6 +116,17 @@ def cache_from_url(url: str) -> dict:
 # redis://127.0.0.1:6379/1) so that every gunicorn worker shares it.
 CACHES = cache_from_url(os.environ.get("STUDY_CACHE_URL", ""))
 
+# Where the clip view first records that a clip was sent to its last byte (see
+# studyapp/participation/fetch_log.py): Redis (batched into the database on the answer and every
+# STUDY_FETCH_FLUSH_S seconds), or without it a spool folder on this machine followed
+# by a direct database write (on SQLite one that does not queue for the lock).
+STUDY_FETCH_LOG_URL = os.environ.get("STUDY_FETCH_LOG_URL", os.environ.get("STUDY_CACHE_URL", ""))
+STUDY_FETCH_SPOOL = Path(os.environ.get("STUDY_FETCH_SPOOL", VAR_DIR / "fetches"))
+STUDY_FETCH_FLUSH_S = float(os.environ.get("STUDY_FETCH_FLUSH_S", "30"))
+# On SQLite, how long the clip view waits for the write lock before leaving a fetch to
+# its witness (the answer, or the flushing thread, writes it then).
+STUDY_FETCH_WRITE_WAIT_S = float(os.environ.get("STUDY_FETCH_WRITE_WAIT_S", "0.05"))
+
 ROOT_URLCONF = "studyapp.urls"
 
 TEMPLATES = [

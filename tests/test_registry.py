@@ -67,3 +67,34 @@ def test_every_registry_is_one_registry(module, attribute):
     assert registry.names(), f"{module}.{attribute} holds nothing"
     for name in registry.names():
         assert registry.get(name) is registry.get(name)
+
+
+def test_threads_that_look_up_at_once_all_wait_for_the_discovery(monkeypatch):
+    """simulate_participants' threads (and a threaded server's) ask a registry at once:
+    none may see it empty while another thread is still importing its modules."""
+    import threading
+    import time
+
+    things = Registry("thing", package="json")  # any package: the imports are faked
+    started = threading.Event()
+
+    def slow_import(name):
+        started.set()
+        time.sleep(0.2)
+        things._items.setdefault("late", object())
+        return importlib.__import__("json")
+
+    import pkgutil
+
+    monkeypatch.setattr(pkgutil, "iter_modules", lambda path: [])
+    monkeypatch.setattr(importlib, "import_module", slow_import)
+    seen = []
+    first = threading.Thread(target=lambda: seen.append(things.names()))
+    first.start()
+    started.wait()
+    others = [threading.Thread(target=lambda: seen.append(things.names())) for _ in range(4)]
+    for thread in others:
+        thread.start()
+    for thread in [first, *others]:
+        thread.join()
+    assert seen == [["late"]] * 5

@@ -366,13 +366,15 @@ class Bot:
             raise SimulationError(f"{url}: HTTP {error.code} {'; '.join(problems)}") from None
         except urllib.error.URLError as error:
             raise SimulationError(f"{url}: {error.reason}") from None
+        except OSError as error:  # a timeout or a dropped connection: this bot stops
+            raise SimulationError(f"{url}: {type(error).__name__}: {error}") from None
 
     def fetch_clip(self, url: str) -> int:
         """GET a clip whole, as a browser's media player does; return its size."""
         try:
             with self.opener.open(urllib.parse.urljoin(self.base, url), timeout=TIMEOUT) as r:
                 return len(r.read())
-        except urllib.error.URLError as error:
+        except (urllib.error.URLError, OSError) as error:
             raise SimulationError(f"{url}: {getattr(error, 'reason', error)}") from None
 
     def run(self, entry_url: str) -> Outcome:

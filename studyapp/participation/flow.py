@@ -22,11 +22,13 @@ import logging
 from django.conf import settings
 from django.core import signing
 from django.shortcuts import redirect, render
+from django.db import transaction
 from django.urls import reverse
 from django.utils import timezone
 
-from studyapp.participation.answers import TrialForm, field_name
 from studyapp.crowd.platform import EntryRefused
+from studyapp.participation import fetch_log
+from studyapp.participation.answers import TrialForm, field_name
 from studyapp.participation.forms import ConsentForm, DemographicsForm
 from studyapp.survey.models import Participant, Study, Trial, TrialItem, Unavailable
 
@@ -187,6 +189,8 @@ class DatabaseStore:
         end, or the clips' playing time not yet passed since the page was served."""
         if trial.shown_at is None:
             return ["This question's page was never opened; open it and watch its clips."]
+        # A fetch whose database record still waits for the write lock has a witness.
+        fetch_log.witness([item for item in items if item.required])
         problems = [f"{labels[item.pk]} has not been loaded to its end yet: let it play "
                     f"through, then answer."
                     for item in items if item.required and item.fetched_at is None]
@@ -201,7 +205,9 @@ class DatabaseStore:
         return problems
 
     def record_answer(self, request, trial, answer, items) -> bool:
-        won = Trial.objects.record_answer(trial, answer, items)
+        with transaction.atomic():  # the fetches the check read from witnesses, with it
+            won = Trial.objects.record_answer(trial, answer, items)
+            fetch_log.settle(items)
         if not won:  # a simultaneous copy stored it, and may have completed the study
             trial.participant.refresh_from_db(fields=["completed_at", "outcome",
                                                       "completion_code"])

@@ -69,12 +69,44 @@ def is_stimulus_name(name) -> bool:
     )
 
 
-class _Span:
+class _LastChunk:
+    """Calls ``on_sent`` of a response body as its last chunk goes to the server.
+
+    ``on_sent()`` runs *before* the last chunk is handed over, so what it records is on
+    record before the client can have the last byte, however long this thread then waits
+    to run again. It may return an object with ``done()`` (called once the server took
+    the chunk and asked for more) and ``undo()`` (called instead when it did not: the
+    client went away, and the response was closed at that chunk).
+    """
+
+    on_sent = None
+    _pending = None
+
+    def _send_last(self, chunk):
+        if self.on_sent is None:
+            yield chunk
+            return
+        self._pending = self.on_sent()
+        try:
+            yield chunk
+        except GeneratorExit:
+            self._settle(False)
+            raise
+        self._settle(True)
+
+    def _settle(self, taken: bool) -> None:
+        pending, self._pending = self._pending, None
+        action = getattr(pending, "done" if taken else "undo", None)
+        if action is not None:
+            action()
+
+
+class _Span(_LastChunk):
     """``length`` bytes of an open storage file from ``start``; ``close`` closes the file.
 
     A file of django-storages' S3 backend (it has the boto3 ``obj``) is read with a
     ranged GET, so a seek in a long clip does not download all of it. ``on_sent`` is
-    called once the last byte was handed to the server (not when the client went away).
+    called as the last byte goes to the server (:class:`_LastChunk`).
     """
 
     def __init__(self, f, start: int, length: int, on_sent=None):
@@ -98,11 +130,13 @@ class _Span:
             if not chunk:
                 return
             length -= len(chunk)
-            yield chunk
-        if self.on_sent is not None:
-            self.on_sent()
+            if length > 0:
+                yield chunk
+            else:
+                yield from self._send_last(chunk)
 
     def close(self):
+        self._settle(False)  # closed at the last chunk: the server did not take it
         try:
             if self.body is not None:
                 self.body.close()
@@ -110,7 +144,7 @@ class _Span:
             self.f.close()
 
 
-class _Bytes:
+class _Bytes(_LastChunk):
     """``length`` bytes of ``data`` from ``start``, in chunks; ``on_sent`` as for _Span."""
 
     def __init__(self, data: bytes, start: int, length: int, on_sent=None):
@@ -120,9 +154,14 @@ class _Bytes:
     def __iter__(self):
         view = memoryview(self.data)[self.start:self.start + self.length]
         for at in range(0, len(view), CHUNK):
-            yield bytes(view[at:at + CHUNK])
-        if self.length > 0 and self.on_sent is not None:
-            self.on_sent()
+            chunk = bytes(view[at:at + CHUNK])
+            if at + CHUNK < len(view):
+                yield chunk
+            else:
+                yield from self._send_last(chunk)
+
+    def close(self):
+        self._settle(False)
 
 
 def _read_all(f) -> bytes:
@@ -163,8 +202,9 @@ def file_response(request, name: str, content_type: str, etag: str, on_sent=None
 
     ``name`` must be a stimulus name under ``stimuli/``, opened through
     ``default_storage``. Raise FileNotFoundError when it is not one, or nothing is
-    stored under it. ``on_sent(start, end, size)`` is called when the bytes ``start``
-    to ``end`` (inclusive) of a GET were all sent. ``delivery`` is ``(kind, seed)``:
+    stored under it. ``on_sent(start, end, size)`` is called as the last of the bytes
+    ``start`` to ``end`` (inclusive) of a GET goes to the server (:class:`_LastChunk`: it
+    may return what to do once that chunk was taken, or was not). ``delivery`` is ``(kind, seed)``:
     send that delivery's bytes (:func:`delivered_bytes`, the same size) instead of the
     stored ones.
     """

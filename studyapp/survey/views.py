@@ -7,11 +7,8 @@ from django.shortcuts import get_object_or_404
 from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_http_methods, require_safe
 
-from studyapp.participation import flow
-
+from studyapp.participation import fetch_log, flow, preview
 from studyapp.stimuli import media
-
-from studyapp.participation import preview
 from studyapp.survey.models import Stimulus, Study, TrialItem
 
 CONTENT_TYPES = {"mp4": "video/mp4", "png": "image/png", "motion": "application/octet-stream"}
@@ -72,14 +69,15 @@ def clip(request, token, ext):
     Every item (the same clip in a repeated trial too) has its own token, ETag and bytes
     (:mod:`rendering.delivery`), so nothing in the URL, the headers or a hash of the file
     tells two showings of a clip apart from two clips. Sending the last byte of a video (or of the in-browser player's payload) records the
-    range sent (``TrialItem.fetched``): the server, not the page, knows whether a clip
+    range sent (``TrialItem.fetched``, first as a witness no database lock holds up:
+    :mod:`~studyapp.participation.fetch_log`): the server, not the page, knows whether a clip
     was fetched to its end.
     """
     item = get_object_or_404(TrialItem.objects.select_related("stimulus"), token=token)
     on_sent = None
     if ext in ("mp4", "motion") and request.method == "GET":
-        def on_sent(start, end, size, pk=item.pk):
-            TrialItem.objects.record_fetch(pk, ext, start, end, size)
+        def on_sent(start, end, size, pk=item.pk, token=item.token):
+            return fetch_log.note(pk, token, ext, start, end, size)
     return _serve(request, item.stimulus, ext, item.token, on_sent)
 
 

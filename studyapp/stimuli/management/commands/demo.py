@@ -8,6 +8,7 @@ from django.conf import settings
 from django.contrib.auth import get_user_model
 from django.core.management import call_command
 from django.core.management.base import BaseCommand, CommandError
+from django.core.servers import basehttp
 from django.db import transaction
 from django.urls import reverse
 
@@ -25,6 +26,7 @@ from studyapp.stimuli.build import BuildError, build_stimuli, default_folders
 from studyapp.stimuli.config import ConfigError, load_config
 
 DEMO_CONFIGS = Path(settings.BASE_DIR) / "studies" / "demo"
+LISTEN_BACKLOG = 1024  # connections the demo server's socket queues (Django's default: 10)
 
 
 def is_loopback(host: str) -> bool:
@@ -173,5 +175,9 @@ class Command(BaseCommand):
                 f"demo: listening on {host}, so DEBUG is off (no debug pages with settings and "
                 f"paths); other machines reach it by the names in DJANGO_ALLOWED_HOSTS (now "
                 f"{','.join(settings.ALLOWED_HOSTS)})")
+        # Django's development server listens with a queue of 10 connections: with dozens
+        # of participants (or simulate_participants' bots) at once the rest are dropped and
+        # retried 1, 2, 4, 8... s later, long enough for a request to time out.
+        basehttp.WSGIServer.request_queue_size = LISTEN_BACKLOG
         # DEBUG off: runserver serves the static files only when asked (insecure_serving).
         call_command("runserver", addr, use_reloader=False, insecure_serving=not settings.DEBUG)
