@@ -388,3 +388,12 @@ def test_rankings_only_where_intervals_separate_and_both_real_definitions_are_na
     assert "12× that of two draws of the held-out clips (0.5, the definition of Action2Motion's" in text
     setting["methods"]["a2m"] = entry(0.60, 0.05, 6.0)
     assert "most recognisable samples on h36m are `a2m`'s" in " ".join(_setting_facts(setting))
+
+
+def test_the_old_command_name_runs_compare_methods():
+    """``benchmark_methods`` (the former name) is ``compare_methods`` with a note."""
+    from django.core.management import load_command_class
+
+    old = load_command_class("studyapp.offline", "benchmark_methods")
+    new = load_command_class("studyapp.offline", "compare_methods")
+    assert isinstance(old, type(new)) and old.help.startswith("Renamed: run `compare_methods`")
