@@ -166,7 +166,7 @@ def payload_header_features(data: bytes) -> dict[str, float]:
     except PayloadError:
         return out
     for name in ("frames", "joints", "fps", "step", "azimuth", "elevation", "fov", "distance",
-                 "target_z", "height", "shadow_slant", "stick_bone_radius"):
+                 "window_step", "height", "shadow_slant", "stick_bone_radius"):
         out[f"motion_{name}"] = float(fields[name])
     return out
 
@@ -241,6 +241,9 @@ def payload_features(files: dict) -> dict[str, float]:
     out["travel"] = float(np.linalg.norm(centre[-1, :2] - centre[0, :2]))
     out["path"] = float(np.linalg.norm(np.diff(centre, axis=0), axis=-1).sum())
     out["camera_path"] = float(np.linalg.norm(np.diff(fields["targets"], axis=0), axis=-1).sum())
+    # The frame's window over the canvas (how the clip's shot keeps its figure inside).
+    out["window_path"] = float(np.linalg.norm(np.diff(fields["windows"], axis=0), axis=-1).sum())
+    out["window_reach"] = float(np.abs(fields["windows"]).max()) if len(fields["windows"]) else 0.0
     return out
 
 

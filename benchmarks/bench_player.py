@@ -70,7 +70,7 @@ def build_site(folder: Path, size: int) -> tuple[list[Path], list[Path]]:
     """Render the clips as mp4s and payloads in one framing, and write both pages."""
     clips = [m for m in get_dataset("demo").clips() if m.action == "walk"][:CLIPS]
     report = render_set(clips, folder, size=size, progress=False)
-    payloads = [path for path, _ in write_payloads(clips, folder, report.framing)]
+    payloads = [path for path, _ in write_payloads(clips, folder, report.framing, size)]
     for name in ("player", "vendor"):
         (folder / name).symlink_to(STATIC / name, target_is_directory=True)
     videos = [clip.video for clip in report.clips]

@@ -605,7 +605,10 @@ class Build:
         from rendering.player import write_payloads
 
         placed = [ops.canonical(m, 3) for m in motions]  # as render_set draws them
-        return [path for path, _ in write_payloads(placed, folder / "payloads", framing)]
+        # Filmed as their videos are (the size and style's reach decide each clip's shot).
+        written = write_payloads(placed, folder / "payloads", framing, self.config.size,
+                                 self.config.style)
+        return [path for path, _ in written]
 
     # --- study and manifest ---------------------------------------------------------
 

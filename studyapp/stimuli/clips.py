@@ -145,7 +145,9 @@ def register_clips(study, clips: Iterable[Clip]) -> list[Stimulus]:
                         f"{existing.source} ({existing.role}), not {clip.action}/{clip.source} "
                         f"({clip.role})"
                     )
-                if clip.motion and not existing.motion:  # the study now plays in the page
+                # The study now plays in the page, or its payload was made anew (another
+                # payload version or framing: names are content hashes).
+                if clip.motion and existing.motion != f"stimuli/{Path(clip.motion).name}":
                     existing.motion = _store(Path(clip.motion), Path(clip.motion).name)
                     existing.save(update_fields=["motion"])
                 if clip.checkpoint and not existing.checkpoint:  # built before checkpoints were kept

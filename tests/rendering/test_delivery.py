@@ -164,6 +164,8 @@ def test_every_delivery_of_a_payload_moves_values_by_a_unit_at_most(rendered):
             assert change.max() == pytest.approx(1.0)
             assert 0.5 < (change > 0.5).mean() < 0.8  # about two thirds of the values
             assert np.abs(moved["targets"] - fields["targets"]).max() <= step * 1.0001
+            assert np.abs(moved["windows"] - fields["windows"]).max() <= 1.0001 / 8192
+            assert np.allclose(moved["distances"], fields["distances"], rtol=1.0001 / 2048)
             for name in ("parents", "sides", "stick_radii", "body_radii"):
                 assert np.array_equal(moved[name], fields[name])
             hashes.add(hashlib.sha256(data).digest())

@@ -1,11 +1,14 @@
-"""Player payloads: quantised joints in the set's framing, one size per clip length."""
+"""Player payloads: quantised joints in the set's framing, each frame filmed as the
+clip's video films it, one size per clip length."""
+
+import struct
 
 import numpy as np
 import pytest
 
-from rendering import Framing
-from rendering.player import PayloadError, payload, read, size, write_payloads
-from tests.rendering.conftest import make_figure
+from rendering import Framing, get_style
+from rendering.player import PayloadError, dither, payload, read, size, write_payloads
+from tests.rendering.conftest import drifting_walk, make_figure, rising_figure, shaken_anchor
 
 
 @pytest.fixture
@@ -21,7 +24,7 @@ def clips():
 def test_payloads_have_one_size_and_name_nothing(clips, tmp_path):
     framing = Framing.from_motions(clips)
     data = [payload(m, framing) for m in clips]
-    assert {len(d) for d in data} == {size(30, 17)}
+    assert {len(d) for d in data} == {size(30, 17)} == {3576}
     for blob in data:
         for secret in (b"secretmethod", b"zebracrossing", b"real", b"broken", b"h36m"):
             assert secret not in blob
@@ -37,10 +40,11 @@ def test_payload_round_trip_keeps_the_placed_joints_and_camera(clips):
     placed = framing.place(motion)
     assert fields["frames"] == 30 and fields["joints"] == 17 and fields["fps"] == 25.0
     assert np.abs(fields["positions"] - placed).max() <= fields["step"] / 2 + 1e-6
-    targets = framing.targets(motion, placed)[:, :2]
+    targets = framing.targets(motion, placed)
     assert np.abs(fields["targets"] - targets).max() <= fields["step"] / 2 + 1e-6
     assert fields["distance"] == pytest.approx(framing.distance)
-    assert fields["target_z"] == pytest.approx(framing.target[2])
+    assert np.allclose(fields["distances"], framing.distance)
+    assert not fields["windows"].any()  # a steady walk: the rule's own frame
     assert list(fields["parents"]) == [-1, 0, 1, 2, 0, 4, 5, 0, 7, 8, 9, 8, 11, 12, 8, 14, 15]
     assert set(fields["sides"]) == {-1, 0, 1}
     assert (fields["body_radii"] > fields["step"]).all()
@@ -52,3 +56,35 @@ def test_bad_payloads_are_refused_with_the_reason(clips):
         read(b"RIFF" + data[4:])
     with pytest.raises(PayloadError, match="need"):
         read(data[:-2])
+
+
+@pytest.mark.parametrize("style", ["stick", "mesh"])
+def test_each_frame_is_filmed_as_the_video_films_it(tmp_path, style):
+    """The payload carries the clip's shot (rendering.framing.Framing.shot) at the video's
+    size and the style's reach: each frame's look-at, window and distance, quantised."""
+    real = make_figure(frames=50, speed=1.2)
+    clips = {"drift": drifting_walk(), "rise": rising_figure(), "anchor": shaken_anchor()}
+    framing = Framing.from_motions([real, *clips.values()])
+    width, height = 96, 128  # not square: windows are shares of the height
+    written = write_payloads(list(clips.values()), tmp_path, framing, (width, height), style)
+    reach = get_style(style)(framing, width, height).reach("h36m17")
+    for (name, motion), (path, _) in zip(clips.items(), written):
+        fields = read(path.read_bytes())
+        shot = framing.shot(motion, width, height, reach)
+        assert np.abs(fields["targets"] - shot.targets).max() <= fields["step"] / 2 + 1e-6
+        pixels = fields["windows"] * height
+        assert np.abs(pixels - shot.offsets).max() <= height / 8192, name
+        assert np.allclose(fields["distances"], shot.framing.distance, rtol=1 / 4000), name
+    moved = read(written[0][0].read_bytes())["windows"]
+    assert np.abs(moved).max() > 0.05, "the drifting walk's window never moves"
+    zoomed = read(written[2][0].read_bytes())["distances"]
+    assert zoomed.min() > 1.05 * framing.distance, "the anchor's body, flung apart, is zoomed"
+
+
+def test_old_payloads_are_refused_with_the_fix(clips):
+    data = payload(clips[0], Framing.from_motions(clips))
+    old = data[:4] + struct.pack("<H", 1) + data[6:]
+    for reader in (read, lambda d: dither(d, np.random.default_rng(0))):
+        with pytest.raises(PayloadError, match="version 1; this reads version 2.*rebuild the "
+                                               "stimuli"):
+            reader(old)

@@ -39,7 +39,7 @@ def render_clips(root: Path, catch_per_action: int = 2) -> list:
     shown = motions(catch_per_action)
     framing = Framing.from_motions(shown)
     report = render_set(shown, root, size=SIZE, framing=framing, progress=False)
-    payloads = write_payloads(shown, root / "payloads", framing)
+    payloads = write_payloads(shown, root / "payloads", framing, SIZE)
     clips = []
     for done, motion, (path, _) in zip(sorted(report.clips, key=lambda c: c.index), shown,
                                        payloads):

@@ -33,6 +33,20 @@ def test_register_clips_copies_each_video_once(ranking_study, clips, media_root)
     assert len(list((Path(media_root) / "stimuli").iterdir())) == 12
 
 
+def test_a_rebuild_registers_a_clip_s_new_payload(ranking_study, clips, media_root, tmp_path):
+    """A payload made anew (another payload version, names are content hashes) replaces
+    the one a stimulus had, so rebuilding the stimuli brings old payloads up to date."""
+    old, new = tmp_path / "0123456789abcdef.motion", tmp_path / "fedcba9876543210.motion"
+    old.write_bytes(b"old payload")
+    new.write_bytes(b"new payload")
+    clip = clips[0]
+    register_clips(ranking_study, [Clip(**{**clip.__dict__, "motion": old})])
+    stimulus = register_clips(ranking_study, [Clip(**{**clip.__dict__, "motion": new})])[0]
+    stimulus.refresh_from_db()
+    assert stimulus.motion == f"stimuli/{new.name}"
+    assert (Path(media_root) / stimulus.motion).read_bytes() == b"new payload"
+
+
 def test_register_clips_refuses_a_video_under_another_source(ranking_study, clips):
     clip = clips[0]
     moved = Clip(clip.action, "other", clip.video, 0.4)

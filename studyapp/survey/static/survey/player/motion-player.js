@@ -1,8 +1,9 @@
 // <motion-player>: plays a motion payload (rendering/player.py) as a 3D figure in WebGL 2.
 //
-// The camera rule is the rendered clips': the payload carries the set's azimuth,
-// elevation, field of view, distance and each frame's look-at, so a clip looks the same
-// here as in its mp4. Every player of a page runs on one clock: they play, pause, seek
+// The camera is the rendered clips': the payload carries the set's azimuth, elevation and
+// field of view, and how the clip's video films each frame (rendering.framing.Framing.shot:
+// the look-at, the eye's distance and the frame's window over a larger canvas, which keeps
+// the figure inside the frame), so a clip is framed here as in its mp4. Every player of a page runs on one clock: they play, pause, seek
 // and loop together. Each element fires `play`, `pause`, `seek` and one `ended` per
 // completed loop (as a looping <video> would be counted), and `loadeddata` once its first
 // frame is drawn. Pages check `supported()` first and keep the mp4 otherwise.
@@ -10,8 +11,9 @@
 import * as THREE from '../vendor/three/three.module.js';
 
 const MAGIC = 'MPLY';
-const VERSION = 1;
+const VERSION = 2;
 const HEADER_BYTES = 52;
+const ZOOM_STEPS = 2048; // rendering/player.py: the eye's distance, per the set's distance
 
 // rendering/palette.py, sRGB; the renderer passes colours through unconverted.
 const PALETTE = {
@@ -51,14 +53,16 @@ export function parsePayload(buffer) {
     throw new Error('not a motion payload');
   }
   const version = view.getUint16(4, true);
-  if (version !== VERSION) throw new Error(`payload version ${version}, player reads ${VERSION}`);
+  if (version !== VERSION) {
+    throw new Error(`motion payload version ${version}, this player reads ${VERSION}: rebuild the stimuli`);
+  }
   const frames = view.getUint16(6, true);
   const joints = view.getUint16(8, true);
   const flags = view.getUint16(10, true);
   const f = (k) => view.getFloat32(12 + 4 * k, true);
   const header = {
     frames, joints, orthographic: Boolean(flags & 1), fps: f(0), step: f(1),
-    azimuth: f(2), elevation: f(3), fov: f(4), distance: f(5), targetZ: f(6), height: f(7),
+    azimuth: f(2), elevation: f(3), fov: f(4), distance: f(5), windowStep: f(6), height: f(7),
     shadowSlant: f(8), stickBone: f(9),
   };
   let at = HEADER_BYTES;
@@ -70,12 +74,18 @@ export function parsePayload(buffer) {
   const bodyRadii = units(at + 2 * joints).map((u) => u * header.step);
   at += 4 * joints;
   at += (4 - (at % 4)) % 4;
-  const positions = new Int16Array(buffer, at, frames * joints * 3);
-  const targets = new Int16Array(buffer, at + 6 * frames * joints, frames * 2);
-  if (at + 6 * frames * joints + 4 * frames !== buffer.byteLength) {
+  if (at + 6 * frames * joints + 12 * frames !== buffer.byteLength) {
     throw new Error('payload size does not match its header');
   }
-  return { ...header, parents: Array.from(parents), sides: Array.from(sides), stickRadii, bodyRadii, positions, targets };
+  const positions = new Int16Array(buffer, at, frames * joints * 3);
+  at += 6 * frames * joints;
+  const targets = new Int16Array(buffer, at, frames * 3); // look-at (x, y, z) in steps
+  const windows = new Int16Array(buffer, at + 6 * frames, frames * 2); // in window steps
+  const zooms = new Int16Array(buffer, at + 10 * frames, frames); // in ZOOM_STEPS
+  return {
+    ...header, parents: Array.from(parents), sides: Array.from(sides), stickRadii, bodyRadii,
+    positions, targets, windows, zooms,
+  };
 }
 
 // --- one clock for the page ---------------------------------------------------------
@@ -203,6 +213,7 @@ uniform vec2 target;
 uniform float tile;
 uniform float radius;
 uniform float viewHeight;
+uniform float rowShift;
 uniform vec3 skyTop;
 uniform vec3 skyHorizon;
 uniform vec3 floorLight;
@@ -217,7 +228,7 @@ void main() {
   vec2 near = (world - target) / tile;
   float fade = exp(-dot(near, near) / (radius * radius));
   fade *= clamp(1.5 - 2.5 * max(width.x, width.y), 0.0, 1.0);
-  float row = 1.0 - gl_FragCoord.y / viewHeight;
+  float row = clamp(1.0 - gl_FragCoord.y / viewHeight + rowShift, 0.0, 1.0);
   vec3 sky = mix(skyTop, skyHorizon, row);
   vec3 colour = mix(sky, floorLight, fade) + tiles * fade * (floorDark - floorLight);
   gl_FragColor = vec4(colour / 255.0, 1.0);
@@ -234,6 +245,7 @@ function floorMaterial(payload) {
       tile: { value: tile },
       radius: { value: (1.6 * payload.distance * Math.tan((payload.fov * Math.PI) / 360)) / tile },
       viewHeight: { value: 1 },
+      rowShift: { value: 0 },
       skyTop: { value: vector(PALETTE.skyTop) },
       skyHorizon: { value: vector(PALETTE.skyHorizon) },
       floorLight: { value: vector(PALETTE.floorLight) },
@@ -432,13 +444,11 @@ export class MotionPlayer extends HTMLElement {
     this.scene = new THREE.Scene();
     this.scene.background = skyTexture();
     const { back, right } = viewAxes(payload);
-    const far = 20 * payload.distance + 20 * payload.height;
+    // Near and far planes and the view's size follow each frame's distance (_aim).
     if (payload.orthographic) {
-      const half = payload.distance * Math.tan((payload.fov * Math.PI) / 360);
-      this.camera = new THREE.OrthographicCamera(-half, half, half, -half, 0.01, far);
-      this._half = half;
+      this.camera = new THREE.OrthographicCamera(-1, 1, 1, -1, 0.01, 1);
     } else {
-      this.camera = new THREE.PerspectiveCamera(payload.fov, 1, 0.02 * payload.distance, far);
+      this.camera = new THREE.PerspectiveCamera(payload.fov, 1, 0.01, 1);
     }
     this.camera.up.set(0, 0, 1);
     this._back = back;
@@ -506,27 +516,67 @@ export class MotionPlayer extends HTMLElement {
     return false;
   }
 
+  // Point the camera as the clip's video films this frame (rendering.framing.Shot): the
+  // look-at, the eye's distance, and the frame's window moved over the larger canvas (a
+  // shift of the lens: the same scale). The window is in shares of the frame's height,
+  // as the picture's scale is set by its height (the field of view is vertical).
+  _aim(frame, width, height) {
+    const payload = this.payload;
+    const { step } = payload;
+    const target = new THREE.Vector3(
+      payload.targets[3 * frame] * step,
+      payload.targets[3 * frame + 1] * step,
+      payload.targets[3 * frame + 2] * step,
+    );
+    const distance = (payload.zooms[frame] / ZOOM_STEPS) * payload.distance;
+    const aspect = width / height;
+    const camera = this.camera;
+    camera.near = 0.02 * distance;
+    camera.far = 20 * distance + 20 * payload.height;
+    if (payload.orthographic) {
+      const half = distance * Math.tan((payload.fov * Math.PI) / 360);
+      Object.assign(camera, { left: -half * aspect, right: half * aspect, top: half, bottom: -half });
+    } else {
+      camera.aspect = aspect;
+    }
+    const across = payload.windows[2 * frame] * payload.windowStep;
+    const down = payload.windows[2 * frame + 1] * payload.windowStep;
+    camera.setViewOffset(width, height, across * height, down * height, width, height);
+    camera.position.copy(target).addScaledVector(this._back, distance);
+    camera.lookAt(target);
+    camera.updateMatrixWorld();
+    return { target, distance, down };
+  }
+
+  /** Return where each joint of `frame` shows on the canvas, in its pixels ([x, y], y
+   * down), as the frame is drawn (for checks against the rendered clip). */
+  pixels(frame) {
+    const [width, height] = this._size;
+    if (!this.payload || !width) return null;
+    this._aim(frame, width, height);
+    const point = new THREE.Vector3();
+    return Array.from({ length: this.payload.joints }, (_, j) => {
+      this.figure.joint(frame, j, point).project(this.camera);
+      return [((point.x + 1) / 2) * width, ((1 - point.y) / 2) * height];
+    });
+  }
+
   _render(frame, width, height) {
     const payload = this.payload;
     const gl = renderer();
     gl.setSize(width, height, false);
-    const target = new THREE.Vector3(
-      payload.targets[2 * frame] * payload.step,
-      payload.targets[2 * frame + 1] * payload.step,
-      payload.targetZ,
-    );
-    const aspect = width / height;
-    if (payload.orthographic) {
-      Object.assign(this.camera, { left: -this._half * aspect, right: this._half * aspect });
-    } else {
-      this.camera.aspect = aspect;
-      this.floorMaterial.uniforms.target.value.set(target.x, target.y);
-      this.floorMaterial.uniforms.viewHeight.value = height;
+    const { target, distance, down } = this._aim(frame, width, height);
+    // The sky's gradient runs over the frame's own rows where the window rests, as the
+    // rendered backdrop's does (rendering/backdrop.py).
+    this.scene.background.offset.set(0, -down);
+    if (!payload.orthographic) {
+      const uniforms = this.floorMaterial.uniforms;
+      uniforms.target.value.set(target.x, target.y);
+      uniforms.viewHeight.value = height;
+      uniforms.rowShift.value = down;
+      uniforms.radius.value = (1.6 * distance * Math.tan((payload.fov * Math.PI) / 360)) / uniforms.tile.value;
       this.floor.position.set(target.x, target.y, 0);
     }
-    this.camera.updateProjectionMatrix();
-    this.camera.position.copy(target).addScaledVector(this._back, payload.distance);
-    this.camera.lookAt(target);
     this.figure.pose(frame);
     gl.render(this.scene, this.camera);
     this.context.drawImage(gl.domElement, 0, 0, width, height, 0, 0, width, height);
