@@ -41,7 +41,7 @@ def clips(size: int, folder: Path) -> list[dict]:
     framing = Framing.from_motions([ops.canonical(m, 3) for m in motions])
     report = render_set(motions, folder, size=size, framing=framing, progress=False)
     return [{"mp4": c.video.read_bytes(), "png": c.poster.read_bytes(),
-             "motion": payload(ops.canonical(m, 3), framing)}
+             "motion": payload(ops.canonical(m, 3), framing, size)}
             for c, m in zip(sorted(report.clips, key=lambda c: c.index), motions)]
 
 

@@ -2,6 +2,7 @@
 
     .venv/bin/python benchmarks/bench_in_frame.py              # projected boxes, 480 and 128
     .venv/bin/python benchmarks/bench_in_frame.py --rendered   # and stick frames at 128
+    .venv/bin/python benchmarks/bench_in_frame.py --player     # and the in-browser player
 
 A demo-like stimulus set: the first four real clips of each of the demo dataset's eight
 actions (``--per-action``; 60 frames at 25 fps), a
@@ -15,6 +16,11 @@ lies within the frame; "before" films each clip by the rule's follow camera alon
 (``Framing.targets``, rendering VERSION 7), "after" by ``Framing.shot`` (VERSION 8).
 ``--rendered`` also draws the stick clips at 128×128 and finds the coloured limbs'
 pixel box on every other frame (inside: not on the outermost rows or columns).
+``--player`` frames each clip as the in-browser player does, from its payload for a
+480×480 video as a participant receives it (dithered, quantised: ``rendering.player``),
+(the joints as the style films them: the mesh lifts its soles to the floor), its box
+projected onto the player's canvas at 480 and at 240 pixels: payload version 1
+filmed by the rule's look-at alone ("before"), version 2 by the payload's shot.
 """
 
 from __future__ import annotations
@@ -87,6 +93,38 @@ def projected(motions, style: str, size: int) -> dict:
     return counts
 
 
+def player(motions, style: str, size: int = 480, canvases=(480, 240)) -> dict:
+    """Return, per role: frames inside the player's canvas of ``size`` pixels as payload
+    version 1 framed them (the rule's look-at alone), inside its canvas of each size now
+    (payloads made for ``size``-pixel videos and dithered as delivered), and frames."""
+    from rendering.player import dither, payload, read
+
+    framing = Framing.from_motions(motions, pad=get_style(style).pad)
+    drawer = get_style(style)(framing, size, size)
+    rng = np.random.default_rng(1)
+    counts = defaultdict(lambda: np.zeros(len(canvases) + 2))
+    for motion in motions:
+        reach = drawer.reach(motion.skeleton)
+        fields = read(dither(payload(motion, framing, size, reach, drawer.filmed(motion)), rng))
+        placed = framing.place(motion)
+        low, high = framing._boxes(placed, framing.targets(motion, placed), size, size, reach)
+        row = [((low >= 0) & (high <= size)).all(axis=1).sum()]
+        for canvas in canvases:
+            inside = 0
+            for distance in np.unique(fields["distances"]):  # dithered: a unit either way
+                at = fields["distances"] == distance
+                filmed = framing._with(distance=float(distance))
+                low, high = filmed._boxes(fields["positions"][at], fields["targets"][at],
+                                          canvas, canvas, reach)
+                shift = fields["windows"][at] * canvas
+                low, high = low - shift, high - shift
+                inside += ((low >= 0) & (high <= canvas)).all(axis=1).sum()
+            row.append(inside)
+        counts[role(motion)] += [*row, len(fields["positions"])]
+    drawer.close()
+    return counts
+
+
 def rendered(motions, size: int = 128, every: int = 2) -> dict:
     from tests.rendering.helpers import figure_box
 
@@ -106,6 +144,7 @@ def rendered(motions, size: int = 128, every: int = 2) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rendered", action="store_true")
+    parser.add_argument("--player", action="store_true")
     parser.add_argument("--per-action", type=int, default=4, help="real clips per action")
     args = parser.parse_args()
     motions = demo_like(args.per_action)
@@ -120,6 +159,15 @@ def main() -> None:
                 print(f"| `{style}` | {size} | {name} | {clips:.0f} | {before / frames:.3f} | "
                       f"{after / frames:.3f} | {moved:.0f} | {zoomed:.0f} | {zoom:.2f} |",
                       flush=True)
+    if args.player:
+        print("\nthe in-browser player, payloads for 480x480 videos: share of frames inside")
+        print("| style | role | clips | version 1, canvas 480 | version 2, canvas 480 | "
+              "canvas 240 |")
+        print("|---|---|---:|---:|---:|---:|")
+        for style in ("stick", "mesh"):
+            for name, (old, at480, at240, frames) in sorted(player(motions, style).items()):
+                print(f"| `{style}` | {name} | {frames / 60:.0f} | {old / frames:.3f} | "
+                      f"{at480 / frames:.3f} | {at240 / frames:.3f} |", flush=True)
     if args.rendered:
         print("\nrendered, stick at 128x128, every other frame: share of frames inside")
         for name, (inside, frames) in sorted(rendered(motions).items()):

@@ -18,6 +18,7 @@ import argparse
 import functools
 import gzip
 import http.server
+import os
 import re
 import sys
 import tempfile
@@ -130,6 +131,7 @@ def measure(size: int, rounds: int) -> dict:
             "library_gzip": compressed,
             "payload_gzip": len(gzip.compress(payloads[0].read_bytes(), 6)),
             "frames": 60, "size": size, "times": times, "rounds": rounds,
+            "load": os.getloadavg()[0],
         }
 
 
@@ -141,8 +143,9 @@ def section(result: dict) -> str:
         f"`benchmarks/bench_player.py`: a page of {CLIPS} clips of 60 frames (demo walking, "
         f"stick style, {result['size']}×{result['size']} mp4s; the player draws at 240×240 CSS "
         "px) in Debian's Chromium, headless with software WebGL 2 (no GPU), from a local "
-        f"HTTP server; medians of {result['rounds']} rounds. Cold: a new browser context; "
-        "warm: the same page again.",
+        f"HTTP server; medians of {result['rounds']} rounds, on 2 CPU cores shared with other "
+        f"work (load average {result['load']:.1f}), so times vary with the load. Cold: a new "
+        "browser context; warm: the same page again.",
         "",
         "| clip as | bytes per clip | page's script (once) | first frame of all 4, cold (ms) "
         "| warm (ms) |",

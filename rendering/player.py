@@ -100,13 +100,16 @@ def figure_radii(skeleton_name: str, height: float) -> tuple[np.ndarray, np.ndar
     return stick, body
 
 
-def payload(motion: Motion, framing: Framing, size=SIZE, pad=PAD) -> bytes:
+def payload(motion: Motion, framing: Framing, size=SIZE, pad=PAD,
+            placed: np.ndarray | None = None) -> bytes:
     """Return the motion's payload in a set's framing (see the module's layout), filmed
     as its video of ``size`` pixels (one number for a square, or width and height) is:
-    ``pad`` is the style's reach (:meth:`rendering.styles.base.Style.reach`)."""
+    ``pad`` is the style's reach (:meth:`rendering.styles.base.Style.reach`), ``placed``
+    the joints as the style films them (:meth:`rendering.styles.base.Style.filmed`;
+    default: as the framing places them)."""
     skeleton = get_skeleton(motion.skeleton)
     width, height = (size, size) if np.isscalar(size) else size
-    placed = framing.place(motion)
+    placed = framing.place(motion) if placed is None else placed
     shot = framing.shot(motion, int(width), int(height), pad, placed)
     step = framing.height / STEPS_PER_HEIGHT
     stick, body = figure_radii(motion.skeleton, framing.height)
@@ -209,7 +212,8 @@ def write_payloads(motions: list[Motion], out_dir: str | Path, framing: Framing,
     written = []
     with get_style(style)(framing, int(width), int(height)) as drawer:
         for motion in motions:
-            data = payload(motion, framing, (width, height), drawer.reach(motion.skeleton))
+            data = payload(motion, framing, (width, height), drawer.reach(motion.skeleton),
+                           drawer.filmed(motion))
             digest = hashlib.sha256(data).hexdigest()[:16]
             path = out_dir / f"{digest}{SUFFIX}"
             path.write_bytes(data)

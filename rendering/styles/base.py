@@ -54,6 +54,11 @@ class Style:
         box inside the frame, :meth:`rendering.framing.Framing.shot`)."""
         return self.pad
 
+    def filmed(self, motion: Motion) -> np.ndarray:
+        """Return the joints ``(T, J, 3)`` as this style films them (its shot is worked
+        out on these, :meth:`rendering.framing.Framing.shot`): placed by the framing."""
+        return self.framing.place(motion)
+
     def frames(self, motion: Motion) -> Iterator[np.ndarray]:
         """Yield each frame of a motion as ``(H, W, 3)`` uint8 RGB."""
         raise NotImplementedError

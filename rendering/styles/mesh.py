@@ -100,17 +100,25 @@ class MeshStyle(Style):
                 reach[index[name]] = value
         return reach
 
-    def frames(self, motion: Motion) -> Iterator[np.ndarray]:
+    def _body(self, motion: Motion, placed: np.ndarray):
+        """Return the body drawn on the placed joints (its own surface, if it has one)."""
         skeleton = get_skeleton(motion.skeleton)
         if skeleton.dims != 3:
             raise ValueError(
                 f"the mesh style draws 3D skeletons; {skeleton.name!r} is {skeleton.dims}D"
             )
-        placed = self.framing.place(motion)
         if motion.has_body:
-            body = SurfaceBody(skeleton, motion, placed)
-        else:
-            body = Body(skeleton, placed)
+            return SurfaceBody(skeleton, motion, placed)
+        return Body(skeleton, placed)
+
+    def filmed(self, motion: Motion) -> np.ndarray:
+        """Return the placed joints lifted as the body is, its soles on the floor."""
+        placed = self.framing.place(motion)
+        return placed + [0.0, 0.0, self._lift(self._body(motion, placed), placed)]
+
+    def frames(self, motion: Motion) -> Iterator[np.ndarray]:
+        placed = self.framing.place(motion)
+        body = self._body(motion, placed)
         lift = self._lift(body, placed)
         placed = placed + [0.0, 0.0, lift]
         body.lift(lift)

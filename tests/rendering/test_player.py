@@ -61,16 +61,20 @@ def test_bad_payloads_are_refused_with_the_reason(clips):
 @pytest.mark.parametrize("style", ["stick", "mesh"])
 def test_each_frame_is_filmed_as_the_video_films_it(tmp_path, style):
     """The payload carries the clip's shot (rendering.framing.Framing.shot) at the video's
-    size and the style's reach: each frame's look-at, window and distance, quantised."""
+    size, on the joints as the style films them with its reach: each frame's look-at,
+    window and distance, quantised."""
     real = make_figure(frames=50, speed=1.2)
     clips = {"drift": drifting_walk(), "rise": rising_figure(), "anchor": shaken_anchor()}
     framing = Framing.from_motions([real, *clips.values()])
     width, height = 96, 128  # not square: windows are shares of the height
     written = write_payloads(list(clips.values()), tmp_path, framing, (width, height), style)
-    reach = get_style(style)(framing, width, height).reach("h36m17")
+    drawer = get_style(style)(framing, width, height)
+    reach = drawer.reach("h36m17")
     for (name, motion), (path, _) in zip(clips.items(), written):
         fields = read(path.read_bytes())
-        shot = framing.shot(motion, width, height, reach)
+        filmed = drawer.filmed(motion)  # the mesh's soles lifted to the floor
+        assert np.abs(fields["positions"] - filmed).max() <= fields["step"] / 2 + 1e-6
+        shot = framing.shot(motion, width, height, reach, filmed)
         assert np.abs(fields["targets"] - shot.targets).max() <= fields["step"] / 2 + 1e-6
         pixels = fields["windows"] * height
         assert np.abs(pixels - shot.offsets).max() <= height / 8192, name
