@@ -12,7 +12,7 @@ import pytest
 
 from rendering import Framing, get_style
 from rendering.player import write_payloads
-from tests.rendering.conftest import drifting_walk, make_figure, rising_figure
+from tests.rendering.conftest import drifting_walk, make_figure, rising_figure, shaken_anchor
 from tests.rendering.helpers import figure_box
 
 
@@ -55,11 +55,12 @@ def site(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def moving(tmp_path_factory):
-    """A walk that side-steps faster than the camera follows and a figure that rises
-    off the floor (each left the frame under the rule's follow camera alone), framed with
-    a real walk, their payloads made for the player's 240-pixel canvas."""
+    """A walk that side-steps faster than the camera follows, a figure that rises off the
+    floor and an anchor shaken apart (each left the frame under the rule's follow camera
+    alone; the anchor is filmed from farther away), framed with a real walk, their
+    payloads made for the player's 240-pixel canvas."""
     real = make_figure(frames=50, speed=1.2)
-    clips = [drifting_walk(), rising_figure()]
+    clips = [drifting_walk(), rising_figure(), shaken_anchor()]
     framing = Framing.from_motions([real, *clips])
     url = _serve(tmp_path_factory.mktemp("player-moving"), clips, framing, CANVAS)
     yield next(url), clips, framing
@@ -178,8 +179,9 @@ def test_a_drifting_or_rising_figure_is_framed_as_in_its_video(page, moving):
     url, clips, framing = moving
     _open(page, url, players=len(clips))
     videos = [_video_frames(motion, framing) for motion in clips]
-    for (_, _, shot), name in zip(videos, ("drift", "rise")):
+    for (_, _, shot), name in zip(videos[:2], ("drift", "rise")):
         assert np.abs(shot.offsets).max() > 0.05 * CANVAS, f"{name}: the window never moves"
+    assert videos[2][2].framing.distance > 1.05 * framing.distance, "the anchor is not zoomed"
     problems = []
     for frame in (0, 12, 24, 30, 36, 42, 49):
         page.evaluate(f"playback.seek({(frame + 0.5) / 25})")

@@ -240,6 +240,9 @@ function floorMaterial(payload) {
   return new THREE.ShaderMaterial({
     vertexShader: FLOOR_VERTEX,
     fragmentShader: FLOOR_FRAGMENT,
+    // Drawn first and hiding nothing, as the rendered clips lay the figure over their
+    // backdrop: a joint below the floor (a clip sinking, an anchor shaken apart) shows.
+    depthWrite: false,
     uniforms: {
       target: { value: new THREE.Vector2() },
       tile: { value: tile },
