@@ -111,6 +111,7 @@ def section(result: dict) -> str:
         f"after reading the whole stored file.",
         "- The mp4's cost is the walk over its frames' NAL units (Python) and a copy of the "
         "file; it grows with the number of frames, not with their content.",
+        "",
     ])
 
 
