@@ -75,6 +75,7 @@ class StudyResult:
     criterion: str = ""  # the question analysed, when a trial asked several
     blindness: dict | None = None  # the blindness audit of the served clips, when run
     appendix: list[Table] = field(default_factory=list)  # tables the caller adds (e.g. stimuli)
+    sources_text: list[str] = field(default_factory=list)  # where the clips come from (caller's)
 
     @property
     def tables(self) -> list[Table]:

@@ -16,7 +16,7 @@ from motion_metrics.comparison import H36M_TEST, H36M_TRAIN, recipe_for
 from studyapp.results.export import responses_frame
 from studyapp.stimuli.build import Build, build_stimuli
 from studyapp.stimuli.config import ConfigError, parse
-from studyapp.stimuli.sources import sources_table
+from studyapp.stimuli.sources import sources_sentences, sources_table
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -84,7 +84,9 @@ def test_clips_come_from_every_training_seed_in_turn_and_carry_it(tmp_path, medi
     for seed, entry in by_seed.items():
         checkpoint = load_checkpoint(folder / f"skeleton_gan-seed{seed}.pt")
         assert checkpoint.seed == seed and checkpoint.iteration == entry["iterations"] == 4
-        assert entry["recipe"] == "tiny" and manifest["sources"][1]["schedule"] == "benchmark"
+        assert entry["recipe"].startswith("tiny") and manifest["sources"][1]["schedule"] == "benchmark"
+        first, rest = entry["phases"]  # the benchmark schedule: half the budget pretrains
+        assert first["phase"] == "pretrain_iters" and first["iterations"] + rest["iterations"] == 4
         measured = entry["metrics"]["metrics"]
         assert {"fid", "accuracy", "diversity", "mmd_avg", "mmd_seq", "n_apd"} <= set(measured)
         assert measured["n_apd"]["real"]["mean"] > 0
@@ -97,7 +99,14 @@ def test_clips_come_from_every_training_seed_in_turn_and_carry_it(tmp_path, medi
     table = sources_table(manifest)
     assert list(table["source"]) == ["Real (held-out vs training clips)", "cond_gru", "cond_gru",
                                      "skeleton_gan", "skeleton_gan"]
-    assert {"FID", "MMD_avg", "n-APD", "checkpoint", "training seed"} <= set(table.columns)
+    assert {"FID", "MMD_avg", "n-APD", "checkpoint", "training seed", "phases"} <= set(table.columns)
+    said = sources_sentences(manifest)
+    assert said[1].startswith("Clips of skeleton_gan come from 2 checkpoints in turn (tiny preset, "
+                              "benchmark schedule): one trained 4 iterations with training seed 0 "
+                              f"(sha256 {by_seed[0]['checkpoint'][:12]}; it pretrains its single-pose GAN "
+                              f"for the first {by_seed[0]['phases'][0]['iterations']})")
+    assert "FID " in said[1] and "accuracy " in said[1] and "with training seed 1" in said[1]
+    assert manifest["sources"][0]["checkpoints"][0]["phases"] is None  # cond_gru has no phases
 
     again = build_stimuli(parse(config(), tmp_path), tmp_path / "build", cache=tmp_path / "cache")
     assert again.unchanged and again.sampled == []  # checkpoints and metrics are reused
@@ -124,6 +133,9 @@ def test_the_report_shows_the_checkpoints_beside_the_human_scores(tmp_path, medi
                  "--bootstrap", "0")
     page = (out / "report.html").read_text()
     assert "Stimulus sources" in page and "classifier held-out accuracy" in page
+    # The methods paragraph says which checkpoints the clips come from, with their metrics.
+    assert "Clips of cond_gru come from 2 checkpoints in turn (tiny preset, " in page
+    assert "with training seed 1 (sha256 " in page
     sources = pd.read_csv(out / "stimulus_sources.csv")
     assert list(sources["source"])[1:] == ["cond_gru", "cond_gru"]
     assert sorted(sources["training seed"].dropna()) == [0, 1]
