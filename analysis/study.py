@@ -325,7 +325,8 @@ def _prepare(table: pd.DataFrame, kind) -> tuple[pd.DataFrame, list[str]]:
         table = table.loc[~blank]
     wanted = ["participant", "action", "prompt", "stimulus", "source", "stimulus_role",
               "position", "n_items", kind.answer, *getattr(kind, "required", ()), "trial_kind",
-              "is_catch", "catch_passed", "time_ms", "duration", "completed", "simulated"]
+              "is_catch", "catch_passed", "time_ms", "duration", "completed", "simulated",
+              "training_seed"]
     rows = table[[name for name in dict.fromkeys(wanted) if name in table.columns]].copy()
     rows["pcode"] = pd.factorize(rows["participant"])[0]
     if "trial_id" in table.columns and table["trial_id"].notna().all():

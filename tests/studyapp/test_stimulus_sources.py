@@ -130,12 +130,14 @@ def test_the_report_shows_the_checkpoints_beside_the_human_scores(tmp_path, medi
     assert table.loc[table["source"] == "real", "training_seed"].isna().all()
     out = tmp_path / "report"
     call_command("analyze", "--study", "seeds-ranking", "--out", str(out), "--no-audit", "--no-exclusions",
-                 "--bootstrap", "0")
+                 "--bootstrap", "20")
     page = (out / "report.html").read_text()
     assert "Stimulus sources" in page and "classifier held-out accuracy" in page
     # The methods paragraph says which checkpoints the clips come from, with their metrics.
     assert "Clips of cond_gru come from 2 checkpoints in turn (tiny preset, " in page
     assert "with training seed 1 (sha256 " in page
+    # The export's training seeds reach the crossed inference: seeds are redrawn whole.
+    assert "for the source whose clips come from several training seeds (2 each)" in page
     sources = pd.read_csv(out / "stimulus_sources.csv")
     assert list(sources["source"])[1:] == ["cond_gru", "cond_gru"]
     assert sorted(sources["training seed"].dropna()) == [0, 1]
