@@ -83,7 +83,8 @@ def recipe_for(method: str, preset: str = "demo", iters: int | None = None,
     """Return the recipe of ``method`` with ``preset`` (and ``changes``) for ``iters`` iterations.
 
     Under the ``benchmark`` schedule a first phase longer than its share of ``iters`` is
-    shortened to that share (at least 1); under ``full`` the phases stay and a budget that
+    shortened to that share (at least 1, and a budget of 1 that leaves a first stage no
+    rest is a :class:`ScheduleError`); under ``full`` the phases stay and a budget that
     ends inside the first is a :class:`ScheduleError`. Without ``iters`` (a time budget)
     nothing changes.
     """
@@ -103,7 +104,14 @@ def recipe_for(method: str, preset: str = "demo", iters: int | None = None,
         check_budget(method, preset, iters, length)
         return recipe
     if iters * phase.share < length:
-        recipe = Recipe(preset, {**recipe.changes, phase.field: max(1, int(iters * phase.share))})
+        shortened = max(1, int(iters * phase.share))
+        if phase.stage and iters - shortened < 1:
+            raise ScheduleError(
+                f"{method} {phase.what} ({phase.field}) and needs at least 2 iterations under the "
+                f"benchmark schedule (its first phase takes {phase.share:.0%} of the budget, at "
+                f"least 1, and the rest trains the rest); {iters:,} leaves the rest untrained. "
+                f"Give 2 iterations or more")
+        recipe = Recipe(preset, {**recipe.changes, phase.field: shortened})
     return recipe
 
 
