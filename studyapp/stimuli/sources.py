@@ -110,7 +110,16 @@ class MethodSources:
     def recipe(self, source):
         from generation.methods.schedule import recipe_for
 
-        return recipe_for(source.method, source.preset, source.iters, source.schedule)
+        return recipe_for(source.method, source.preset, source.iters, source.schedule,
+                          source.changes)
+
+    def departures(self, source) -> dict:
+        """Return the switches of a trained source's config that differ from the paper's
+        (:func:`generation.methods.schedule.departures`: e.g. sa_gcn's ``init: he``)."""
+        from generation.methods import get_method
+        from generation.methods.schedule import departures
+
+        return departures(self.recipe(source).config(get_method(source.method)))
 
     def _finished(self, source, seed) -> dict | None:
         """Return the record of a finished checkpoint of ``seed`` for this budget, or None."""
@@ -322,6 +331,8 @@ class MethodSources:
                 "preset": None if source.checkpoint else source.preset,
                 "schedule": None if source.checkpoint else source.schedule,
                 "iters": None if source.checkpoint else source.iters,
+                "config": source.changes or None,
+                "departures": None if source.checkpoint else self.departures(source),
                 "checkpoints": [{**t.manifest(), "metrics": found}
                                 for t, found in zip(self.trained(source), measured)],
             })
@@ -397,6 +408,12 @@ def sources_sentences(manifest: dict) -> list[str]:
         given = all(c.get("given") for c in checkpoints)
         recipe = ("a given checkpoint" if given else
                   f"{entry.get('preset')} preset, {entry.get('schedule')} schedule")
+        changed = entry.get("config") or {}
+        if changed:
+            recipe += ", with " + ", ".join(f"{k}={v}" for k, v in changed.items())
+        if entry.get("departures"):
+            recipe += ("; departures from the paper: "
+                       + ", ".join(f"{k}={v}" for k, v in entry["departures"].items()))
         parts = [_checkpoint_text(c) for c in checkpoints]
         if len(parts) == 1:
             text, numbers = parts[0]

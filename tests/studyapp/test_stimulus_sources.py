@@ -47,6 +47,12 @@ def config(**changes) -> dict:
     ({"sources": [{"method": "a2m", "checkpoint": "x.pt", "seeds": [1, 2]}]},
      ["sources.0.seeds", "has that checkpoint's training seed"]),
     ({"metrics": {"n": 1}}, ["metrics.n", "at least 2"]),
+    ({"sources": [{"method": "sa_gcn", "config": {"he": True}}]},
+     ["sources.0.config", "sa_gcn has no config field 'he'", "qk_norm"]),
+    ({"sources": [{"method": "sa_gcn", "config": {"init": 1}}]},
+     ["sources.0.config", "init: 1 must be a str"]),
+    ({"sources": [{"method": "sa_gcn", "config": {"init": "he"}, "checkpoint": "x.pt"}]},
+     ["sources.0.config", "has that checkpoint's config"]),
     ({"metrics": {"mmd_protocol": "mine"}}, ["metrics.mmd_protocol", "'mine'", "heldout"]),
     ({"metrics": {"classifier_preset": "huge"}}, ["metrics.classifier_preset", "augmented"]),
     ({"metrics": "yes"}, ["metrics", "false to measure nothing"]),
@@ -56,6 +62,34 @@ def test_training_and_metrics_fields_are_checked(tmp_path, changes, words):
         parse(config(**changes), tmp_path)
     for word in words:
         assert word in str(error.value)
+
+
+def test_a_source_sets_config_fields_and_the_manifest_names_its_departures(tmp_path):
+    """sa_gcn as published (paper preset) with one departure turned on by the config; the
+    recipe, cache key, manifest and report sentence carry it."""
+    from studyapp.stimuli.sources import MethodSources
+
+    raw = config(sources=["real", {"method": "sa_gcn", "name": "sa_gcn_eq1", "preset": "tiny",
+                                   "config": {"init": "default", "mismatch_weight": 0}}])
+    source = parse(raw, tmp_path).sources[1]
+    assert source.changes == {"init": "default", "mismatch_weight": 0.0}
+    build = Build(parse(raw, tmp_path), tmp_path / "build", cache=tmp_path / "cache")
+    methods = MethodSources(build)
+    assert methods.recipe(source).describe() == "tiny (init=default, mismatch_weight=0.0)"
+    assert "mismatch_weight" not in methods.departures(source)
+    assert methods.departures(source)["qk_norm"] is True  # still on in the tiny preset
+    plain = parse(config(sources=["real", {"method": "sa_gcn", "name": "sa_gcn_eq1",
+                                           "preset": "tiny"}]), tmp_path).sources[1]
+    assert methods.folder(plain) != methods.folder(source)  # another config, another cache
+    said = sources_sentences({"sources": [{
+        "source": "sa_gcn_eq1", "preset": "tiny", "schedule": "benchmark",
+        "config": source.changes, "departures": methods.departures(source),
+        "checkpoints": [{"training_seed": 0, "checkpoint": "ab" * 32, "iterations": 4,
+                         "given": False, "phases": None, "metrics": None}]}]})
+    assert said == ["Clips of sa_gcn_eq1 come from a checkpoint trained 4 iterations with training "
+                    "seed 0 (sha256 abababababab; tiny preset, benchmark schedule, with "
+                    "init=default, mismatch_weight=0.0; departures from the paper: qk_norm=True, "
+                    "gated_residual=True, self_loop=True): no metrics measured at build time"]
 
 
 def test_a_budget_past_the_pretraining_stage_trains_in_full(tmp_path):
