@@ -30,6 +30,16 @@ is the t test of the same standard error; families of them are Holm-corrected.
 The variance of an estimate is split into what participants, clips and single answers
 (residual) contribute; when the clips' part is the larger, the report says that the
 difference may be about these clips rather than the sources.
+
+Training seeds: a method source whose clips come from several checkpoints (a column
+``training_seed`` with two or more seeds for the source) has its clips nested in those
+checkpoints, and the checkpoints are a sample of the method's trainings. For such a source
+the clips' bootstrap redraws whole training seeds (with all their clips, every action)
+within the source, instead of clips within source and condition: the variance of a seed's
+mean holds its clips' variance too, so the interval speaks of the method trained again,
+not of these checkpoints. Its ``m`` is then the seeds per source and its clip degrees of
+freedom ``seeds - 1``; sources with one checkpoint (and real clips) keep their clips as
+the resampled unit. :attr:`Design.units` maps each clip to its resampled unit.
 """
 
 from __future__ import annotations
@@ -66,6 +76,34 @@ class Design:
     clips: np.ndarray
     strata: np.ndarray
     cells: np.ndarray
+    # The resampled unit of each clip (C,) and the stratum of each unit (U,): by default
+    # the clip itself in its stratum; a source's training seed (all its clips) when the
+    # source has several (see the module).
+    units: np.ndarray | None = None
+    unit_strata: np.ndarray | None = None
+    seeded: np.ndarray | None = None  # (U,) whether a unit is a training seed
+
+    def __post_init__(self):
+        if self.units is None:
+            self.units = np.arange(len(self.strata), dtype=np.int64)
+            self.unit_strata = np.asarray(self.strata, dtype=np.int64)
+
+    @property
+    def n_resampled(self) -> int:
+        """Return the number of resampled units (clips, or training seeds for the sources
+        trained with several)."""
+        return len(self.unit_strata)
+
+    @property
+    def n_seeds(self) -> int:
+        """Return how many training seeds are resampled whole (0: clips only)."""
+        return 0 if self.seeded is None else int(np.sum(self.seeded))
+
+    @property
+    def units_per_stratum(self) -> np.ndarray:
+        """Return the number of resampled units in each unit stratum that has any."""
+        sizes = np.bincount(self.unit_strata)
+        return sizes[sizes > 0]
 
     @property
     def n_units(self) -> int:
@@ -96,22 +134,26 @@ class Design:
 
     @property
     def m(self) -> float:
-        """Return the harmonic mean of the clips per stratum over strata with two or more
-        (``nan`` when none has two: the clips' variance cannot be estimated)."""
-        sizes = self.clips_per_stratum
+        """Return the harmonic mean of the resampled units (clips, or training seeds) per
+        stratum over strata with two or more (``nan`` when none has two: the clips'
+        variance cannot be estimated)."""
+        sizes = self.units_per_stratum
         sizes = sizes[sizes >= 2]
         return float(len(sizes) / np.sum(1.0 / sizes)) if len(sizes) else float("nan")
 
 
 def design(rows: pd.DataFrame, unit: str | None = None, clip: str = "stimulus",
-           strata=("source", "action"), participant: str = "pcode") -> Design:
+           strata=("source", "action"), participant: str = "pcode",
+           seed: str = "training_seed") -> Design:
     """Return the :class:`Design` of ``rows``.
 
     With ``unit`` (e.g. ``"trial_key"``) the units are the groups of rows with one value
     of it, in order of first appearance (pairwise and ranking trials: a unit's weight
     involves all its clips); without, every row is a unit. A clip is one value of
     ``clip`` (a source's motion, whatever its renderings and repeats); its stratum is
-    its value of the ``strata`` columns that ``rows`` has.
+    its value of the ``strata`` columns that ``rows`` has. A source (``strata[0]``) whose
+    clips carry two or more values of ``seed`` has its training seeds resampled instead
+    of its clips (the module's "Training seeds").
     """
     clip_codes, _ = pd.factorize(rows[clip])
     columns = [c for c in strata if c in rows.columns]
@@ -135,7 +177,39 @@ def design(rows: pd.DataFrame, unit: str | None = None, clip: str = "stimulus",
     unit_people = pd.factorize(unit_people)[0]
     ordered = np.sort(unit_clips, axis=1)
     cells = np.unique(ordered, axis=0, return_inverse=True)[1].ravel()
-    return Design(unit_people.astype(np.int64), unit_clips, strata_codes, cells.astype(np.int64))
+    units, unit_strata, seeded = _seed_units(rows, clip_codes, strata_codes, n_clips,
+                                             strata[0] if strata else None, seed)
+    return Design(unit_people.astype(np.int64), unit_clips, strata_codes, cells.astype(np.int64),
+                  units, unit_strata, seeded)
+
+
+def _seed_units(rows, clip_codes, strata_codes, n_clips: int, source: str | None, seed: str):
+    """Return the resampled unit of each clip, each unit's stratum and whether it is a
+    seed: a clip in its own stratum, or, for a source with two or more training seeds,
+    its seed in the source (``None`` thrice when no source has several)."""
+    if (source is None or seed not in rows.columns or source not in rows.columns
+            or not rows[seed].notna().any()):
+        return None, None, None
+    per_clip = pd.DataFrame({"clip": clip_codes, "source": rows[source].to_numpy(),
+                             "seed": rows[seed].to_numpy()}).drop_duplicates("clip")
+    per_clip = per_clip.set_index("clip").reindex(range(n_clips))
+    seeds_of = per_clip.groupby("source", observed=True, dropna=False)["seed"].nunique()
+    several = per_clip["source"].map(seeds_of).fillna(0).to_numpy() >= 2
+    several &= per_clip["seed"].notna().to_numpy()
+    if not several.any():
+        return None, None, None
+    # Units: seeds of such sources (keyed by source and seed), clips of the rest.
+    key = np.where(several, "seed\x00" + per_clip["source"].astype(str) + "\x00"
+                   + per_clip["seed"].astype(str), "clip\x00" + pd.Series(range(n_clips)).astype(str))
+    units, _ = pd.factorize(pd.Series(key))
+    stratum_key = np.where(several, "source\x00" + per_clip["source"].astype(str),
+                           "stratum\x00" + pd.Series(strata_codes).astype(str))
+    stratum_codes = pd.factorize(pd.Series(stratum_key))[0]
+    unit_strata = np.zeros(int(units.max()) + 1, dtype=np.int64)
+    unit_strata[units] = stratum_codes
+    seeded = np.zeros(len(unit_strata), dtype=bool)
+    seeded[units] = several
+    return units.astype(np.int64), unit_strata, seeded
 
 
 def draws_within(groups: np.ndarray, repeats: int, rng) -> np.ndarray:
@@ -166,7 +240,7 @@ def unit_weights(design: Design, scheme: str, repeats: int, rng) -> np.ndarray:
         drawn = draws_within(np.zeros(design.n_participants, dtype=np.int64), repeats, rng)
         weights = drawn[:, design.participants]
     if scheme in ("clips", "both"):
-        drawn = draws_within(design.strata, repeats, rng)
+        drawn = draws_within(design.unit_strata, repeats, rng)[:, design.units]
         drawn = np.concatenate([drawn, np.ones((repeats, 1), dtype=np.float32)], axis=1)  # -1 pads
         for column in design.clips.T:
             weights = drawn[:, column] if weights is None else weights * drawn[:, column]
@@ -235,7 +309,7 @@ def _aggregated_replicates(design, statistic: Linear, scheme, repeats, rng):
         grouped = _indicator(np.searchsorted(cells, design.cells), len(cells)) @ matrix
 
         def sums(size):
-            drawn = draws_within(design.strata, size, rng)
+            drawn = draws_within(design.unit_strata, size, rng)[:, design.units]
             # Clips by replicates, so that a set's weights are contiguous rows to multiply.
             drawn = np.concatenate([drawn.T, np.ones((1, size), dtype=np.float32)], axis=0)
             weights = drawn[members[:, 0]]
@@ -331,13 +405,16 @@ class Crossed:
         strata whose clips move it (all strata, ``C - S``, without influences; 0 when no
         such stratum has two clips: the clips' variance cannot be estimated). A
         difference of two sources rests on those two sources' clips only, whatever
-        other sources (a hidden reference, an anchor) the study shows."""
-        sizes = np.bincount(self.design.strata)
-        every = float(self.design.n_clips - self.design.n_strata)
+        other sources (a hidden reference, an anchor) the study shows. A source trained
+        with several seeds counts its seeds, not its clips (``seeds - 1``)."""
+        d = self.design
+        sizes = np.bincount(d.unit_strata)
+        every = float(d.n_resampled - len(np.unique(d.unit_strata)))
         if self.influence is None or not len(self.influence):
             return np.full(len(self.estimate), every)
-        influence = np.nan_to_num(self.influence)
-        strata = self.design.strata
+        # A unit's influence: its clips' together (a seed's weight scales all its clips).
+        influence = np.asarray(_indicator(d.units, d.n_resampled) @ np.nan_to_num(self.influence))
+        strata = d.unit_strata
         centred = influence - _stratum_means(influence, strata, len(sizes))[strata]
         spread = _stratum_sums(centred ** 2, strata, len(sizes))  # (S, K)
         scale = np.maximum(spread.sum(axis=0), np.finfo(float).tiny)
@@ -546,14 +623,18 @@ def one_clip_note(design: Design, fewest: float | None = None) -> str | None:
     when the clips give fewer than :data:`FEW_CLIP_DF` degrees of freedom: in all
     (``C - S``), or ``fewest`` for some difference (the clips of the two sources it
     compares, :meth:`Crossed.clip_df`)."""
-    sizes = design.clips_per_stratum
+    sizes = design.units_per_stratum
     if np.all(sizes >= 2):
-        df = design.n_clips - design.n_strata
+        groups = len(sizes)
+        df = design.n_resampled - groups
         if df >= FEW_CLIP_DF and (fewest is None or fewest >= FEW_CLIP_DF):
             return None
+        what = (f"{design.n_clips} clips in {design.n_strata} source-and-condition groups"
+                if not design.n_seeds else
+                f"{design.n_resampled} resampled units in {groups} groups: "
+                f"{design.n_seeds} training seeds and {design.n_resampled - design.n_seeds} clips")
         rests = (f"the clips' variance rests on {df} {'degree' if df == 1 else 'degrees'} of "
-                 f"freedom ({design.n_clips} clips in {design.n_strata} source-and-condition "
-                 f"groups)" if df < FEW_CLIP_DF else
+                 f"freedom ({what})" if df < FEW_CLIP_DF else
                  f"the clips' variance of a difference rests on as few as {int(fewest)} "
                  f"{'degree' if int(fewest) == 1 else 'degrees'} of freedom (the clips of the two "
                  f"sources it compares)")
@@ -561,6 +642,11 @@ def one_clip_note(design: Design, fewest: float | None = None) -> str | None:
                 f"clips per source, 95 % intervals held as rarely as 0.90 of the time in simulations, "
                 f"docs/STATISTICS.md); add clips (at least 4 per source and condition) for "
                 f"firmer verdicts")
+    if design.n_seeds:
+        return (f"{int(np.sum(sizes < 2))} of {len(sizes)} groups of resampled clips or training "
+                f"seeds have a single one: how much they vary cannot be estimated there, so the "
+                f"intervals hold for these clips and checkpoints only; show at least 2 clips per "
+                f"source and condition, and train 3 or more seeds per method")
     return (f"{int(np.sum(sizes < 2))} of {len(sizes)} source-and-condition groups have a single "
             f"clip: how much clips vary cannot be estimated there, so the intervals hold for "
             f"these clips only; show at least 2 (better 8) clips per source and condition")
@@ -590,7 +676,26 @@ def methods_text(design: Design, config) -> str:
             f"among those to the same clips); the interval is a t interval of their sum with "
             f"the fewer of the participants' and the clips' degrees of freedom (of the clips of "
             f"the sources compared), and each "
-            f"difference's t test uses the same standard error, Holm-corrected across pairs")
+            f"difference's t test uses the same standard error, Holm-corrected across pairs"
+            + _seeds_text(design))
+
+
+def _seeds_text(design: Design) -> str:
+    """Return the methods clause on training seeds resampled whole, or ``""``."""
+    if not design.n_seeds:
+        return ""
+    strata = np.unique(design.unit_strata[design.seeded])
+    per = np.bincount(design.unit_strata[design.seeded])[strata]
+    fewest, most = int(per.min()), int(per.max())
+    count = f"{fewest}" if fewest == most else f"{fewest} to {most}"
+    return (f"; for the {plural_sources(len(strata))} whose clips come from several training "
+            f"seeds ({count} each), the clips' resamples redraw whole training seeds with all "
+            f"their clips instead, so those intervals include how much the method varies from "
+            f"one training to the next (the seeds' degrees of freedom, seeds less one per source)")
+
+
+def plural_sources(n: int) -> str:
+    return "source" if n == 1 else f"{n} sources"
 
 
 def worth_statistic(orders, n_items: int, prior: float | None = None):

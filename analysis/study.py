@@ -75,6 +75,7 @@ class StudyResult:
     criterion: str = ""  # the question analysed, when a trial asked several
     blindness: dict | None = None  # the blindness audit of the served clips, when run
     appendix: list[Table] = field(default_factory=list)  # tables the caller adds (e.g. stimuli)
+    sources_text: list[str] = field(default_factory=list)  # where the clips come from (caller's)
 
     @property
     def tables(self) -> list[Table]:
@@ -324,7 +325,8 @@ def _prepare(table: pd.DataFrame, kind) -> tuple[pd.DataFrame, list[str]]:
         table = table.loc[~blank]
     wanted = ["participant", "action", "prompt", "stimulus", "source", "stimulus_role",
               "position", "n_items", kind.answer, *getattr(kind, "required", ()), "trial_kind",
-              "is_catch", "catch_passed", "time_ms", "duration", "completed", "simulated"]
+              "is_catch", "catch_passed", "time_ms", "duration", "completed", "simulated",
+              "training_seed"]
     rows = table[[name for name in dict.fromkeys(wanted) if name in table.columns]].copy()
     rows["pcode"] = pd.factorize(rows["participant"])[0]
     if "trial_id" in table.columns and table["trial_id"].notna().all():

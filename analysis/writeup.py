@@ -4,8 +4,9 @@ Every sentence follows what the study did, never a study type's template alone: 
 choices the participants had (the type's options, through its ``describe`` hook), the
 checks and repeats the table holds, the outcomes of the people who took part, the
 exclusion rules that removed something, the units resampled and the models fitted (the
-type's ``methods`` sentences), and the agreement with one precision for the estimate and
-its interval. Simulated participants (bots) are named as such, first; their made-up
+type's ``methods`` sentences), where each method's clips come from (the caller's
+``sources_text``: checkpoints, budgets, seeds and their objective metrics), and the
+agreement with one precision for the estimate and its interval. Simulated participants (bots) are named as such, first; their made-up
 demographics are never summarised.
 """
 
@@ -50,6 +51,7 @@ def methods_paragraph(result) -> str:
     sentences = [simulated_banner(result)]
     sentences += _participants(result)
     sentences += _design(result)
+    sentences += list(getattr(result, "sources_text", None) or [])
     sentences += _exclusions(result)
     sentences.extend(result.analysis.methods)
     sentences += _attention(result)

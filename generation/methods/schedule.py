@@ -72,6 +72,35 @@ class Recipe:
         return replace(cls.Config.preset(self.preset), **self.changes)
 
 
+def check_changes(method: str, preset: str, changes: dict | None) -> dict:
+    """Return ``changes`` to ``method``'s ``preset`` config, checked: every name a field of
+    its config, each value of the field's type (a whole number where a float is asked is
+    taken), the changed config valid. Raise :class:`ScheduleError` naming the field."""
+    from dataclasses import fields
+
+    from generation.methods import get_method
+
+    changes = dict(changes or {})
+    cls = get_method(method)
+    known = {f.name: f for f in fields(cls.Config)}
+    base = cls.Config.preset(preset)
+    for name, value in changes.items():
+        if name not in known:
+            raise ScheduleError(f"{method} has no config field {name!r}; its fields are "
+                                f"{', '.join(sorted(known))}")
+        default = getattr(base, name)
+        if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
+            changes[name] = value = float(value)
+        if default is not None and type(value) is not type(default):
+            raise ScheduleError(f"{method} config {name}: {value!r} must be a "
+                                f"{type(default).__name__} like the preset's {default!r}")
+    try:
+        replace(base, **changes)
+    except (ValueError, TypeError) as exc:
+        raise ScheduleError(f"{method} config with {changes}: {exc}") from None
+    return changes
+
+
 def first_phase(method: str, config) -> tuple[Phase, int] | None:
     """Return the method's first phase and its length in ``config``, or ``None``."""
     phase = PHASES.get(method)
@@ -83,7 +112,8 @@ def recipe_for(method: str, preset: str = "demo", iters: int | None = None,
     """Return the recipe of ``method`` with ``preset`` (and ``changes``) for ``iters`` iterations.
 
     Under the ``benchmark`` schedule a first phase longer than its share of ``iters`` is
-    shortened to that share (at least 1); under ``full`` the phases stay and a budget that
+    shortened to that share (at least 1, and a budget of 1 that leaves a first stage no
+    rest is a :class:`ScheduleError`); under ``full`` the phases stay and a budget that
     ends inside the first is a :class:`ScheduleError`. Without ``iters`` (a time budget)
     nothing changes.
     """
@@ -103,7 +133,14 @@ def recipe_for(method: str, preset: str = "demo", iters: int | None = None,
         check_budget(method, preset, iters, length)
         return recipe
     if iters * phase.share < length:
-        recipe = Recipe(preset, {**recipe.changes, phase.field: max(1, int(iters * phase.share))})
+        shortened = max(1, int(iters * phase.share))
+        if phase.stage and iters - shortened < 1:
+            raise ScheduleError(
+                f"{method} {phase.what} ({phase.field}) and needs at least 2 iterations under the "
+                f"benchmark schedule (its first phase takes {phase.share:.0%} of the budget, at "
+                f"least 1, and the rest trains the rest); {iters:,} leaves the rest untrained. "
+                f"Give 2 iterations or more")
+        recipe = Recipe(preset, {**recipe.changes, phase.field: shortened})
     return recipe
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 from motion.datasets import DatasetError, get_dataset
 from generation.methods.base import Method, MethodError
 from generation.methods import get_method
-from generation.methods.schedule import recipe_for
+from generation.methods.schedule import check_changes, recipe_for
 from generation.sampling import choose, choose_subjects
 
 
@@ -20,13 +20,16 @@ def train_on_dataset(method: str, dataset: str, out: str | Path, *, data_root=No
                      subjects=None, actions=None, iters: int = 1000, preset: str = "paper",
                      seed: int = 0, frames: int | None = None, fps: float | None = None,
                      resume: bool = False, progress: bool = True,
-                     save_every: int = 500, schedule: str = "full") -> Method:
+                     save_every: int = 500, schedule: str = "full",
+                     changes: dict | None = None) -> Method:
     """Train ``method`` on clips of ``dataset`` up to ``iters`` iterations in all; save to ``out``.
 
     With ``resume`` and an existing ``out``, training continues from that checkpoint
     (its config, actions, frames and fps win). A checkpoint is also written every
     ``save_every`` iterations, so an interrupted run can resume. ``schedule`` is how the
-    preset's first phase meets the budget (:func:`generation.methods.schedule.recipe_for`).
+    preset's first phase meets the budget (:func:`generation.methods.schedule.recipe_for`);
+    ``changes`` set config fields of the preset (e.g. sa_gcn's ``{"init": "he"}``), saved
+    with the checkpoint's config.
     """
     cls = get_method(method)
     data = get_dataset(dataset, data_root)
@@ -53,7 +56,8 @@ def train_on_dataset(method: str, dataset: str, out: str | Path, *, data_root=No
             f"subjects; check --data-root, --subjects, --actions and --frames"
         )
     if model is None:
-        config = recipe_for(method, preset, iters, schedule).config(cls)
+        config = recipe_for(method, preset, iters, schedule,
+                            check_changes(method, preset, changes)).config(cls)
         model = cls(config, data.skeleton, actions, clips[0].fps, frames)
     model.fit(clips, max(iters - model.iteration, 0), seed=seed, progress=progress,
               save_to=out, save_every=save_every)

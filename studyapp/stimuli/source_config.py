@@ -36,6 +36,7 @@ class Source:
     preset: str = "paper"
     schedule: str = "full"  # generation.methods.schedule.SCHEDULES
     seeds: list[int] | None = None  # training seeds: one checkpoint each, clips in turn
+    changes: dict | None = None  # config fields changed from the preset (``config:``)
     # A file's motions to use, by the sample and repetition numbers its format records
     # (MDM's results.npy: motion i is sample i % num_samples of repetition i // num_samples).
     samples: list[int] | None = None
@@ -54,7 +55,7 @@ class Source:
         out = {k: v for k, v in vars(self).items() if k not in ("checkpoint", "file")}
         if out["schedule"] == "full":
             del out["schedule"]
-        for name in ("seeds", "samples", "repetitions"):
+        for name in ("seeds", "samples", "repetitions", "changes"):
             if out[name] is None:
                 del out[name]
         return out
@@ -178,7 +179,7 @@ def parse_sources(raw, seed, train) -> list[Source]:
                               f"file: PATH")
         kind = kinds[0]
         allowed = {"name", "seed", kind} | {
-            "real": set(), "method": {"checkpoint", "iters", "preset", "schedule", "seeds"},
+            "real": set(), "method": {"checkpoint", "iters", "preset", "schedule", "seeds", "config"},
             "file": {"format", "options", "samples", "repetitions"},
         }[kind]
         extra = sorted(set(entry) - allowed)
@@ -205,6 +206,15 @@ def parse_sources(raw, seed, train) -> list[Source]:
                                   f"seed")
             if source.checkpoint is not None:
                 source.seeds = None
+            if entry.get("config") is not None:
+                if not isinstance(entry["config"], dict) or not entry["config"]:
+                    raise ConfigError(f"{where}.config: {entry['config']!r} must be a mapping of "
+                                      f"the method's config fields, e.g. {{init: he}}")
+                if source.checkpoint is not None:
+                    raise ConfigError(f"{where}.config: a source with a checkpoint has that "
+                                      f"checkpoint's config; drop config, or drop checkpoint to "
+                                      f"train one with it")
+                source.changes = dict(entry["config"])
             _check_method(source, where)
         elif kind == "file":
             source.file = str(entry["file"])
@@ -236,13 +246,18 @@ def _check_method(source: Source, where: str) -> None:
     if source.preset not in cls.Config.PRESETS:
         raise ConfigError(f"{where}.preset (or train.preset): {source.preset!r} is not a preset "
                           f"of {source.method}; choose one of {', '.join(sorted(cls.Config.PRESETS))}")
-    from generation.methods.schedule import SCHEDULES, ScheduleError, recipe_for
+    from generation.methods.schedule import SCHEDULES, ScheduleError, check_changes, recipe_for
 
     if source.schedule not in SCHEDULES:
         raise ConfigError(f"{where}.schedule (or train.schedule): {source.schedule!r} is not a "
                           f"schedule; choose one of {', '.join(SCHEDULES)}")
+    if source.changes:
+        try:
+            source.changes = check_changes(source.method, source.preset, source.changes)
+        except ScheduleError as exc:
+            raise ConfigError(f"{where}.config: {exc}") from None
     try:
-        recipe_for(source.method, source.preset, source.iters, source.schedule)
+        recipe_for(source.method, source.preset, source.iters, source.schedule, source.changes)
     except ScheduleError as exc:
         raise ConfigError(f"{where}.iters (or train.iters): {exc}") from None
 

@@ -52,10 +52,30 @@ class Trained:
     iterations: int
     recipe: str | None  # preset and changes (None for a given checkpoint)
     given: bool
+    phases: list | None = None  # iterations per training phase (:func:`training_phases`)
 
     def manifest(self) -> dict:
         return {"training_seed": self.seed, "checkpoint": self.sha256, "iterations": self.iterations,
-                "recipe": self.recipe, "given": self.given}
+                "recipe": self.recipe, "given": self.given, "phases": self.phases}
+
+
+def training_phases(method: str, config, iterations: int) -> list[dict] | None:
+    """Return the iterations of each training phase of ``iterations`` in all, or None.
+
+    A method trained in phases (:data:`generation.methods.schedule.PHASES`) gives its
+    first phase (its config field, what it does, its iterations) and the rest, e.g.
+    ``[{"phase": "pretrain_iters", "what": "pretrains its frame decoder", "iterations": 500},
+    {"phase": "rest", "what": "the rest of the training", "iterations": 500}]``.
+    """
+    from generation.methods.schedule import first_phase
+
+    found = first_phase(method, config)
+    if found is None:
+        return None
+    phase, length = found
+    first = min(length, iterations)
+    return [{"phase": phase.field, "what": phase.what, "iterations": first},
+            {"phase": "rest", "what": "the rest of the training", "iterations": iterations - first}]
 
 
 class MethodSources:
@@ -90,7 +110,16 @@ class MethodSources:
     def recipe(self, source):
         from generation.methods.schedule import recipe_for
 
-        return recipe_for(source.method, source.preset, source.iters, source.schedule)
+        return recipe_for(source.method, source.preset, source.iters, source.schedule,
+                          source.changes)
+
+    def departures(self, source) -> dict:
+        """Return the switches of a trained source's config that differ from the paper's
+        (:func:`generation.methods.schedule.departures`: e.g. sa_gcn's ``init: he``)."""
+        from generation.methods import get_method
+        from generation.methods.schedule import departures
+
+        return departures(self.recipe(source).config(get_method(source.method)))
 
     def _finished(self, source, seed) -> dict | None:
         """Return the record of a finished checkpoint of ``seed`` for this budget, or None."""
@@ -127,7 +156,16 @@ class MethodSources:
                               f"is not there (looked in {path}); fix the path, or drop "
                               f"'checkpoint' to train one with train.iters")
         raw = read_checkpoint(path)
-        return [Trained(raw.get("seed"), path, file_hash(path), int(raw["iteration"]), None, True)]
+        phases = None
+        try:
+            from generation.methods import get_method
+
+            config = get_method(source.method).Config.from_dict(dict(raw["config"]))
+            phases = training_phases(source.method, config, int(raw["iteration"]))
+        except Exception:  # noqa: BLE001 - an older config: its phases are not known, the rest is
+            phases = None
+        return [Trained(raw.get("seed"), path, file_hash(path), int(raw["iteration"]), None, True,
+                        phases)]
 
     def _train(self, source, seed) -> Trained:
         from generation.methods.budget import train_within_budget
@@ -146,9 +184,13 @@ class MethodSources:
             with one_thread():
                 _, record = train_within_budget(source.method, clips, self.build.actions(), None,
                                                 folder, recipe, seed, iters=source.iters)
+        from generation.methods import get_method
+
         path = folder / f"{source.method}-seed{seed}.pt"
-        return Trained(seed, path, file_hash(path), int(record["iterations"]), recipe.describe(),
-                       False)
+        iterations = int(record["iterations"])
+        return Trained(seed, path, file_hash(path), iterations, recipe.describe(), False,
+                       training_phases(source.method, recipe.config(get_method(source.method)),
+                                       iterations))
 
     # --- samples -----------------------------------------------------------------------
 
@@ -289,6 +331,8 @@ class MethodSources:
                 "preset": None if source.checkpoint else source.preset,
                 "schedule": None if source.checkpoint else source.schedule,
                 "iters": None if source.checkpoint else source.iters,
+                "config": source.changes or None,
+                "departures": None if source.checkpoint else self.departures(source),
                 "checkpoints": [{**t.manifest(), "metrics": found}
                                 for t, found in zip(self.trained(source), measured)],
             })
@@ -311,7 +355,7 @@ def sources_table(manifest: dict) -> pd.DataFrame | None:
     """Return one row per method source and training seed of a build manifest, or None.
 
     Columns: source, training seed, checkpoint (its sha256's first 12 digits), preset,
-    schedule, iterations, then each metric of :data:`TABLE_METRICS` measured (the mean
+    schedule, iterations, phases (of a method trained in phases), then each metric of :data:`TABLE_METRICS` measured (the mean
     over the measurement's repeats), with a first row of the Real values.
     """
     rows, real = [], {}
@@ -320,7 +364,8 @@ def sources_table(manifest: dict) -> pd.DataFrame | None:
             row = {"source": entry["source"], "training seed": checkpoint.get("training_seed"),
                    "checkpoint": (checkpoint.get("checkpoint") or "")[:12],
                    "preset": checkpoint.get("recipe") or entry.get("preset") or "given",
-                   "schedule": entry.get("schedule") or "", "iterations": checkpoint.get("iterations")}
+                   "schedule": entry.get("schedule") or "", "iterations": checkpoint.get("iterations"),
+                   "phases": phases_text(checkpoint.get("phases"))}
             for name, header in TABLE_METRICS.items():
                 value = ((checkpoint.get("metrics") or {}).get("metrics") or {}).get(name)
                 row[header] = None if not value else value["mean"]
@@ -334,3 +379,69 @@ def sources_table(manifest: dict) -> pd.DataFrame | None:
                                                                    if k in TABLE_METRICS.values()}}
     table = pd.DataFrame([real_row, *rows], columns=columns)
     return table.dropna(axis=1, how="all")
+
+
+def phases_text(phases) -> str | None:
+    """Return ``"pretrain_iters 500 + rest 500"`` for a checkpoint's phases, or None."""
+    if not phases:
+        return None
+    return " + ".join(f"{p['phase']} {p['iterations']:,}" for p in phases)
+
+
+# Metrics the report's sentences name, in order, with their names and digits.
+SENTENCE_METRICS = {"fid": ("FID", 3), "accuracy": ("accuracy", 3), "diversity": ("diversity", 3),
+                    "mmd_avg": ("MMD_avg", 3), "n_apd": ("n-APD", 3)}
+
+
+def sources_sentences(manifest: dict) -> list[str]:
+    """Return one sentence per method source of a build manifest: which checkpoints its
+    clips come from (training budget, phases, seed, sha256 prefix) and their objective
+    metrics at build time (the mean over the measurement's repeats, per checkpoint), so the
+    report reads every human score beside what the checkpoint is, e.g. "Clips of a2m come
+    from a checkpoint trained 1,000 iterations with training seed 0 (sha256 0123456789ab;
+    demo preset, benchmark schedule): FID 12.1, accuracy 0.205, MMD_avg 0.57"."""
+    out = []
+    for entry in manifest.get("sources") or []:
+        checkpoints = entry.get("checkpoints") or []
+        if not checkpoints:
+            continue
+        given = all(c.get("given") for c in checkpoints)
+        recipe = ("a given checkpoint" if given else
+                  f"{entry.get('preset')} preset, {entry.get('schedule')} schedule")
+        changed = entry.get("config") or {}
+        if changed:
+            recipe += ", with " + ", ".join(f"{k}={v}" for k, v in changed.items())
+        if entry.get("departures"):
+            recipe += ("; departures from the paper: "
+                       + ", ".join(f"{k}={v}" for k, v in entry["departures"].items()))
+        parts = [_checkpoint_text(c) for c in checkpoints]
+        if len(parts) == 1:
+            text, numbers = parts[0]
+            out.append(f"Clips of {entry['source']} come from a checkpoint {text}; {recipe})"
+                       + (f": {numbers}" if numbers else ""))
+        else:
+            each = "; ".join(f"one {text})" + (f": {numbers}" if numbers else "")
+                             for text, numbers in parts)
+            out.append(f"Clips of {entry['source']} come from {len(parts)} checkpoints in turn "
+                       f"({recipe}): {each}")
+    return out
+
+
+def _checkpoint_text(checkpoint: dict) -> tuple[str, str]:
+    """Return what a manifest checkpoint is (budget, seed, hash and phases; the caller
+    closes its parenthesis) and its metrics' text."""
+    iterations = checkpoint.get("iterations")
+    text = f"trained {iterations:,} iterations" if iterations is not None else "of an unknown budget"
+    seed = checkpoint.get("training_seed")
+    text += (f" with training seed {seed}" if seed is not None else " with no recorded training seed")
+    text += f" (sha256 {(checkpoint.get('checkpoint') or '')[:12]}"
+    phases = checkpoint.get("phases")
+    if phases:
+        text += f"; it {phases[0]['what']} for the first {phases[0]['iterations']:,}"
+    measured = (checkpoint.get("metrics") or {}).get("metrics") or {}
+    numbers = ", ".join(f"{label} {value['mean']:.{digits}g}"
+                        for name, (label, digits) in SENTENCE_METRICS.items()
+                        if (value := measured.get(name)) and value.get("mean") is not None)
+    if not numbers and checkpoint.get("metrics") is None:
+        numbers = "no metrics measured at build time"
+    return text, numbers

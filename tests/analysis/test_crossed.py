@@ -185,3 +185,52 @@ def test_few_clip_degrees_of_freedom_of_a_difference_are_named():
     assert "a difference rests on as few as 2 degrees of freedom" in crossed.one_clip_note(d, 2.0)
     assert crossed.one_clip_note(d, 14.0) is None
 
+
+
+def _seeded_ratings(seed, seed_sd=1.0, seeds=3, clips=4, participants=30):
+    """Ratings of two equal sources whose clips come from ``seeds`` checkpoints each, the
+    checkpoints differing by ``seed_sd`` (a method's training varies) and clips little."""
+    rng = np.random.default_rng(seed)
+    clip_effects = []
+    for source in ("a", "b"):
+        for training_seed in range(seeds):
+            shift = rng.normal(0, seed_sd)
+            clip_effects += [(source, training_seed, shift + rng.normal(0, 0.2)) for _ in range(clips)]
+    person = rng.normal(0, 0.5, participants)
+    rows = [{"pcode": p, "stimulus": clip, "source": source, "action": "x",
+             "training_seed": training_seed, "rating": effect + person[p] + rng.normal(0, 0.5)}
+            for p in range(participants)
+            for clip, (source, training_seed, effect) in enumerate(clip_effects)]
+    return pd.DataFrame(rows)
+
+
+def test_training_seeds_are_a_random_unit_of_the_clips_bootstrap():
+    # Clips nest in their checkpoint; with several training seeds per source the clips'
+    # bootstrap redraws whole seeds, so a difference rests on 2 + 2 seed degrees of
+    # freedom and its interval covers where one over clips alone (which takes these
+    # checkpoints as the method) does not.
+    rows = _seeded_ratings(0)
+    d = crossed.design(rows)
+    assert d.n_seeds == 6 and d.n_resampled == 6 and list(d.units_per_stratum) == [3, 3]
+    assert len(set(d.units[:4])) == 1 and d.units[0] != d.units[4]  # a seed's clips together
+    assert crossed.design(rows.drop(columns="training_seed")).n_seeds == 0
+    assert crossed.design(rows.assign(training_seed=0)).n_seeds == 0  # one seed: clips resampled
+    covered = covered_without = 0
+    for seed in range(10):
+        rows = _seeded_ratings(seed)
+        result, groups = crossed.group_means(rows, "rating", config(bootstrap=200, seed=seed))
+        with_seeds = crossed.differences(result, list(groups))
+        assert with_seeds["df"][0] == 4.0
+        fixed, _ = crossed.group_means(rows.drop(columns="training_seed"), "rating",
+                                       config(bootstrap=200, seed=seed))
+        without = crossed.differences(fixed, list(groups))
+        covered += with_seeds["ci_low"][0] <= 0 <= with_seeds["ci_high"][0]
+        covered_without += without["ci_low"][0] <= 0 <= without["ci_high"][0]
+    assert covered >= 9 and covered_without <= 7
+    text = crossed.methods_text(result.design, config(bootstrap=200))
+    assert "for the 2 sources whose clips come from several training seeds (3 each)" in text
+    # A real source beside a seeded method keeps its clips as the resampled unit.
+    mixed = pd.concat([rows[rows["source"] == "a"],
+                       rows[rows["source"] == "b"].assign(training_seed=np.nan, source="real")])
+    d = crossed.design(mixed)
+    assert d.n_seeds == 3 and d.n_resampled == 3 + 12

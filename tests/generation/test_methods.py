@@ -273,3 +273,22 @@ def test_commands_name_what_is_valid(tmp_path):
     with pytest.raises(CommandError, match="does not exist"):
         call_command("sample", "a2m", "--checkpoint", str(tmp_path / "none.pt"),
                      "--action", "walk", "--out", str(tmp_path / "x.npz"))
+
+
+def test_train_sets_config_fields_of_the_preset(tmp_path):
+    """sa_gcn's departures are options: --set turns one on over the paper preset and the
+    checkpoint keeps it; a wrong field or value names the fix."""
+    out = tmp_path / "sa_gcn.pt"
+    common = ["--dataset", "demo", "--actions", "walk,wave", "--preset", "tiny", "--frames", "10",
+              "--iters", "1", "--out", str(out)]
+    call_command("train", "sa_gcn", *common, "--set", "init=default", "--set", "mismatch_weight=0",
+                 "--set", "qk_norm=false", verbosity=0)
+    config = load_checkpoint(out).config
+    assert (config.init, config.mismatch_weight, config.qk_norm, config.self_loop) == \
+        ("default", 0.0, False, True)
+    with pytest.raises(CommandError, match="sa_gcn has no config field 'he_init'; its fields are"):
+        call_command("train", "sa_gcn", *common, "--set", "he_init=true", verbosity=0)
+    with pytest.raises(CommandError, match="qk_norm: 'yes' must be a bool"):
+        call_command("train", "sa_gcn", *common, "--set", "qk_norm=yes", verbosity=0)
+    with pytest.raises(CommandError, match="give FIELD=VALUE"):
+        call_command("train", "sa_gcn", *common, "--set", "init", verbosity=0)

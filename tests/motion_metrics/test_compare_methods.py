@@ -272,6 +272,11 @@ def test_full_schedule_refuses_a_budget_inside_the_first_phase():
     assert schedule("a2m", "paper", 10, "full") == Recipe("paper")
     with pytest.raises(ScheduleError, match="unknown schedule 'fast'"):
         schedule("a2m", "paper", 10, "fast")
+    # Under the benchmark schedule the first stage is shortened, but never to the whole budget.
+    with pytest.raises(ScheduleError, match=r"two_stage_gan trains its pose GAN before the motion "
+                                            r"generator \(pose_iterations\) and needs at least 2"):
+        schedule("two_stage_gan", "tiny", 1, "benchmark")
+    assert schedule("two_stage_gan", "paper", 2, "benchmark").changes == {"pose_iterations": 1}
 
 
 def test_training_resumes_to_a_larger_budget(tmp_path):

@@ -16,7 +16,7 @@ from motion_metrics.comparison import H36M_TEST, H36M_TRAIN, recipe_for
 from studyapp.results.export import responses_frame
 from studyapp.stimuli.build import Build, build_stimuli
 from studyapp.stimuli.config import ConfigError, parse
-from studyapp.stimuli.sources import sources_table
+from studyapp.stimuli.sources import sources_sentences, sources_table
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -47,6 +47,12 @@ def config(**changes) -> dict:
     ({"sources": [{"method": "a2m", "checkpoint": "x.pt", "seeds": [1, 2]}]},
      ["sources.0.seeds", "has that checkpoint's training seed"]),
     ({"metrics": {"n": 1}}, ["metrics.n", "at least 2"]),
+    ({"sources": [{"method": "sa_gcn", "config": {"he": True}}]},
+     ["sources.0.config", "sa_gcn has no config field 'he'", "qk_norm"]),
+    ({"sources": [{"method": "sa_gcn", "config": {"init": 1}}]},
+     ["sources.0.config", "init: 1 must be a str"]),
+    ({"sources": [{"method": "sa_gcn", "config": {"init": "he"}, "checkpoint": "x.pt"}]},
+     ["sources.0.config", "has that checkpoint's config"]),
     ({"metrics": {"mmd_protocol": "mine"}}, ["metrics.mmd_protocol", "'mine'", "heldout"]),
     ({"metrics": {"classifier_preset": "huge"}}, ["metrics.classifier_preset", "augmented"]),
     ({"metrics": "yes"}, ["metrics", "false to measure nothing"]),
@@ -56,6 +62,34 @@ def test_training_and_metrics_fields_are_checked(tmp_path, changes, words):
         parse(config(**changes), tmp_path)
     for word in words:
         assert word in str(error.value)
+
+
+def test_a_source_sets_config_fields_and_the_manifest_names_its_departures(tmp_path):
+    """sa_gcn as published (paper preset) with one departure turned on by the config; the
+    recipe, cache key, manifest and report sentence carry it."""
+    from studyapp.stimuli.sources import MethodSources
+
+    raw = config(sources=["real", {"method": "sa_gcn", "name": "sa_gcn_eq1", "preset": "tiny",
+                                   "config": {"init": "default", "mismatch_weight": 0}}])
+    source = parse(raw, tmp_path).sources[1]
+    assert source.changes == {"init": "default", "mismatch_weight": 0.0}
+    build = Build(parse(raw, tmp_path), tmp_path / "build", cache=tmp_path / "cache")
+    methods = MethodSources(build)
+    assert methods.recipe(source).describe() == "tiny (init=default, mismatch_weight=0.0)"
+    assert "mismatch_weight" not in methods.departures(source)
+    assert methods.departures(source)["qk_norm"] is True  # still on in the tiny preset
+    plain = parse(config(sources=["real", {"method": "sa_gcn", "name": "sa_gcn_eq1",
+                                           "preset": "tiny"}]), tmp_path).sources[1]
+    assert methods.folder(plain) != methods.folder(source)  # another config, another cache
+    said = sources_sentences({"sources": [{
+        "source": "sa_gcn_eq1", "preset": "tiny", "schedule": "benchmark",
+        "config": source.changes, "departures": methods.departures(source),
+        "checkpoints": [{"training_seed": 0, "checkpoint": "ab" * 32, "iterations": 4,
+                         "given": False, "phases": None, "metrics": None}]}]})
+    assert said == ["Clips of sa_gcn_eq1 come from a checkpoint trained 4 iterations with training "
+                    "seed 0 (sha256 abababababab; tiny preset, benchmark schedule, with "
+                    "init=default, mismatch_weight=0.0; departures from the paper: qk_norm=True, "
+                    "gated_residual=True, self_loop=True): no metrics measured at build time"]
 
 
 def test_a_budget_past_the_pretraining_stage_trains_in_full(tmp_path):
@@ -84,7 +118,9 @@ def test_clips_come_from_every_training_seed_in_turn_and_carry_it(tmp_path, medi
     for seed, entry in by_seed.items():
         checkpoint = load_checkpoint(folder / f"skeleton_gan-seed{seed}.pt")
         assert checkpoint.seed == seed and checkpoint.iteration == entry["iterations"] == 4
-        assert entry["recipe"] == "tiny" and manifest["sources"][1]["schedule"] == "benchmark"
+        assert entry["recipe"].startswith("tiny") and manifest["sources"][1]["schedule"] == "benchmark"
+        first, rest = entry["phases"]  # the benchmark schedule: half the budget pretrains
+        assert first["phase"] == "pretrain_iters" and first["iterations"] + rest["iterations"] == 4
         measured = entry["metrics"]["metrics"]
         assert {"fid", "accuracy", "diversity", "mmd_avg", "mmd_seq", "n_apd"} <= set(measured)
         assert measured["n_apd"]["real"]["mean"] > 0
@@ -97,7 +133,14 @@ def test_clips_come_from_every_training_seed_in_turn_and_carry_it(tmp_path, medi
     table = sources_table(manifest)
     assert list(table["source"]) == ["Real (held-out vs training clips)", "cond_gru", "cond_gru",
                                      "skeleton_gan", "skeleton_gan"]
-    assert {"FID", "MMD_avg", "n-APD", "checkpoint", "training seed"} <= set(table.columns)
+    assert {"FID", "MMD_avg", "n-APD", "checkpoint", "training seed", "phases"} <= set(table.columns)
+    said = sources_sentences(manifest)
+    assert said[1].startswith("Clips of skeleton_gan come from 2 checkpoints in turn (tiny preset, "
+                              "benchmark schedule): one trained 4 iterations with training seed 0 "
+                              f"(sha256 {by_seed[0]['checkpoint'][:12]}; it pretrains its single-pose GAN "
+                              f"for the first {by_seed[0]['phases'][0]['iterations']})")
+    assert "FID " in said[1] and "accuracy " in said[1] and "with training seed 1" in said[1]
+    assert manifest["sources"][0]["checkpoints"][0]["phases"] is None  # cond_gru has no phases
 
     again = build_stimuli(parse(config(), tmp_path), tmp_path / "build", cache=tmp_path / "cache")
     assert again.unchanged and again.sampled == []  # checkpoints and metrics are reused
@@ -121,9 +164,14 @@ def test_the_report_shows_the_checkpoints_beside_the_human_scores(tmp_path, medi
     assert table.loc[table["source"] == "real", "training_seed"].isna().all()
     out = tmp_path / "report"
     call_command("analyze", "--study", "seeds-ranking", "--out", str(out), "--no-audit", "--no-exclusions",
-                 "--bootstrap", "0")
+                 "--bootstrap", "20")
     page = (out / "report.html").read_text()
     assert "Stimulus sources" in page and "classifier held-out accuracy" in page
+    # The methods paragraph says which checkpoints the clips come from, with their metrics.
+    assert "Clips of cond_gru come from 2 checkpoints in turn (tiny preset, " in page
+    assert "with training seed 1 (sha256 " in page
+    # The export's training seeds reach the crossed inference: seeds are redrawn whole.
+    assert "for the source whose clips come from several training seeds (2 each)" in page
     sources = pd.read_csv(out / "stimulus_sources.csv")
     assert list(sources["source"])[1:] == ["cond_gru", "cond_gru"]
     assert sorted(sources["training seed"].dropna()) == [0, 1]

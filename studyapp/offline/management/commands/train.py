@@ -28,6 +28,10 @@ class Command(BaseCommand):
                                  "ODMO's teacher forcing) meets --iters: full keeps the preset's "
                                  "phase and refuses fewer iterations; benchmark shortens it to its "
                                  "share of --iters, as compare_methods trains.")
+        parser.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
+                            help="Change a config field of the preset, e.g. --set init=he "
+                                 "--set mismatch_weight=1 (sa_gcn's departures from the paper); "
+                                 "kept in the checkpoint's config. Repeat for several.")
         parser.add_argument("--seed", type=int, default=0, help="Seed of initialisation and batches.")
         parser.add_argument("--frames", type=int, help="Clip length (default: the dataset's).")
         parser.add_argument("--fps", type=float, help="Frame rate (default: the dataset's).")
@@ -40,6 +44,7 @@ class Command(BaseCommand):
     def handle(self, *args, **options):
         if options["iters"] < 0:
             raise CommandError(f"--iters must be non-negative; got {options['iters']}")
+        changes = parse_settings(options["set"])
         try:
             model = train_on_dataset(
                 options["method"], options["dataset"], options["out"],
@@ -48,6 +53,7 @@ class Command(BaseCommand):
                 seed=options["seed"], frames=options["frames"], fps=options["fps"],
                 resume=options["resume"], progress=options["verbosity"] >= 1,
                 save_every=options["save_every"], schedule=options["schedule"],
+                changes=changes,
             )
         except KeyError as exc:
             raise CommandError(exc.args[0]) from None
@@ -58,3 +64,21 @@ class Command(BaseCommand):
             f"wrote {options['out']}: {model.name} on {model.skeleton}, {len(model.actions)} "
             f"actions, {model.iteration} iterations{f' ({losses})' if losses else ''}"
         )
+
+
+def parse_settings(items) -> dict:
+    """Return ``{field: value}`` of ``--set FIELD=VALUE`` items (values read as JSON: true,
+    1, 0.5; anything else is text)."""
+    import json
+
+    out = {}
+    for item in items:
+        name, sep, raw = item.partition("=")
+        if not sep or not name.strip():
+            raise CommandError(f"--set {item!r}: give FIELD=VALUE, e.g. --set init=he")
+        try:
+            value = json.loads(raw)
+        except ValueError:
+            value = raw
+        out[name.strip()] = value
+    return out

@@ -164,13 +164,14 @@ class Command(BaseCommand):
 
 
 def _add_stimulus_sources(results, manifest, study) -> None:
-    """Add the build manifest's table of method checkpoints and their metrics to each result."""
+    """Add the build manifest's table of method checkpoints and their metrics to each result,
+    and a sentence per method source to its methods paragraph."""
     import json
 
     from django.conf import settings
 
     from analysis.registry import Table
-    from studyapp.stimuli.sources import sources_table
+    from studyapp.stimuli.sources import sources_sentences, sources_table
 
     if manifest is None and study is not None:
         found = Path(settings.VAR_DIR) / "stimuli" / study.slug / "manifest.json"
@@ -192,8 +193,10 @@ def _add_stimulus_sources(results, manifest, study) -> None:
              f"{about.get('repeats')} repeats, MMD protocol {about.get('mmd_protocol')}"
              + (f"; classifier held-out accuracy {classifier['test_accuracy']:.3f}" if classifier
                 and classifier.get("test_accuracy") is not None else "") + ")")
+    sentences = sources_sentences(built)
     for result in results:
         result.appendix.append(Table("stimulus_sources", title, frame))
+        result.sources_text = list(sentences)
         result.notes.extend(about.get("notes") or [])
 
 
