@@ -198,14 +198,16 @@ frontend study
 backend nodes
     balance roundrobin
     option httpchk GET /admin/login/
-    default-server inter 200ms fall 1 rise 2
+    timeout check 5s
+    default-server inter 500ms fall 3 rise 2
 {servers}
 """
 
 
 def haproxy(folder: Path, upstreams: list[str], port: int | None = None) -> Proxy:
     """Return HAProxy (not started) balancing over ``upstreams`` (``host:port``) round
-    robin, health-checked every 200 ms (a dead node is out after one failed check)."""
+    robin, health-checked every 0.5 s (a dead node is out after three failed checks; requests
+    it refuses meanwhile are sent to another node)."""
     port = port or free_port()
     folder.mkdir(parents=True, exist_ok=True)
     servers = "\n".join(f"    server node{i} {address} check" for i, address in enumerate(upstreams))
