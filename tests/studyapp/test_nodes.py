@@ -30,7 +30,6 @@ def test_two_nodes_one_killed_lose_nothing_store_nothing_twice_and_share_limits(
     require_service(Path(HAPROXY).exists(), f"HAProxy ({HAPROXY})")
     result = nodes.run(database_url(), tmp_path / "var", participants=24, trials=4,
                        workers=2, kill_at=0.4, time_limit=120)
-    assert result["killed_at"] > 0 and result["cut_off"] > 0
     assert 0 < result["killed_at"] < 24 * 4  # killed mid-study
     assert result["stored_participants"] == result["completed"] == 24
     assert result["participants_twice"] == 0
