@@ -180,7 +180,7 @@ http {{
     server {{
         listen {listen};
         client_max_body_size 1m;
-        location / {{
+{real_ip}        location / {{
             proxy_pass http://study_app;
             proxy_http_version 1.1;
             proxy_set_header Connection "";
@@ -196,7 +196,6 @@ http {{
             etag off;
             types {{ video/mp4 mp4; image/png png; application/octet-stream motion; }}
             default_type application/octet-stream;
-            add_header Cache-Control "private, max-age=86400" always;
             access_log {fetch_log} study_fetch;
         }}
     }}
@@ -206,12 +205,18 @@ http {{
 
 def nginx_config(*, listen: str, upstream: str, media_root, fetch_log_path, run_dir,
                  location: str = "/protected-media/", workers: str = "auto",
-                 access_log: str = "off", proto: str = "$scheme", user: str = "") -> str:
+                 access_log: str = "off", proto: str = "$scheme", user: str = "",
+                 real_ip_from=()) -> str:
     """Return an nginx.conf that serves the app from ``upstream`` (gunicorn's
     ``host:port``) on ``listen`` and the deliveries' files under ``location``; ``user``:
-    the user of nginx's workers when it is started as root (they read the deliveries)."""
+    the user of nginx's workers when it is started as root (they read the deliveries);
+    ``real_ip_from``: addresses of a balancer in front (HAProxy) whose
+    ``X-Forwarded-For`` names the participant (the app's rate limits count that address)."""
+    real_ip = "".join(f"        set_real_ip_from {a};\n" for a in real_ip_from)
+    if real_ip:
+        real_ip += "        real_ip_header X-Forwarded-For;\n"
     location = "/" + location.strip("/") + "/"
     return NGINX.format(
-        user=f"user {user};\n" if user else "", workers=workers, run=Path(run_dir), access=access_log, log_format=LOG_FORMAT,
+        user=f"user {user};\n" if user else "", real_ip=real_ip, workers=workers, run=Path(run_dir), access=access_log, log_format=LOG_FORMAT,
         upstream=upstream, listen=listen, location=location, proto=proto,
         deliveries=Path(media_root) / "deliveries", fetch_log=Path(fetch_log_path))

@@ -77,6 +77,7 @@ def test_nginx_sends_each_delivery_and_only_whole_fetches_it_logged_count(clips,
     seen = " ".join(f"{k}: {v}" for k, v in headers.items()).lower()
     assert "x-accel" not in seen and "protected" not in seen and "deliveries" not in seen
     assert "etag" not in seen and headers.get("Content-Type") == "video/mp4"
+    assert headers["Cache-Control"] == "private, max-age=86400"
     assert headers.get("Last-Modified", "Thu, 01 Jan 1970 00:00:00 GMT").endswith("1970 00:00:00 GMT")
 
     # Straight from gunicorn: an empty body and the header that nginx consumes.

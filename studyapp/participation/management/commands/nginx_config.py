@@ -23,13 +23,17 @@ class Command(BaseCommand):
         parser.add_argument("--workers", default="auto")
         parser.add_argument("--user", default="",
                             help="User of nginx's workers when started as root (e.g. www-data).")
+        parser.add_argument("--real-ip-from", action="append", default=[], metavar="ADDRESS",
+                            help="A balancer in front (HAProxy) whose X-Forwarded-For names "
+                                 "the participant; repeatable.")
         parser.add_argument("--proto", default="$scheme",
                             help="X-Forwarded-Proto sent to the app (behind a TLS proxy: "
                                  "$http_x_forwarded_proto).")
 
-    def handle(self, *args, listen, upstream, run_dir, fetch_log, workers, proto, user, **options):
+    def handle(self, *args, listen, upstream, run_dir, fetch_log, workers, proto, user, real_ip_from,
+               **options):
         location = settings.STUDY_ACCEL_REDIRECT or "/protected-media/"
         self.stdout.write(proxy_log.nginx_config(
             listen=listen, upstream=upstream, media_root=settings.MEDIA_ROOT,
             fetch_log_path=fetch_log, run_dir=run_dir, location=location, workers=workers,
-            proto=proto, user=user), ending="")
+            proto=proto, user=user, real_ip_from=real_ip_from), ending="")
