@@ -5,7 +5,7 @@ nodes"): creates a fresh PostgreSQL database and a ranking study of tiny generat
 (3 sources, all three in every trial: balance allows a spread of 1), starts two gunicorn
 nodes (production settings, ``STUDY_NODES=2``, each with a fetch spool of its own that
 nothing reads: witnesses and rate limits are in the one Redis) on 127.0.0.1, and Debian's
-HAProxy in front of them (round robin, health-checked every 0.5 s). Bot participants
+HAProxy in front of them (round robin, a node checked by connecting every 0.5 s). Bot participants
 take the study through HAProxy (every clip fetched whole); once ``--kill-at`` of the
 answers are in, one node is killed (``kill -9``, master and workers). Bots cut off come
 back with their cookies, as people press reload, and finish on the other node.
@@ -84,7 +84,7 @@ async def limited_consents(url: str, slug: str, count: int) -> Counter:
 
 def run(database_url: str, var: Path, participants: int, trials: int = 4, workers: int = 2,
         kill_at: float = 0.4, limit: int | None = None, concurrency: int | None = None,
-        time_limit: float = 600, secret_key: str | None = None) -> dict:
+        time_limit: float = 600, secret_key: str | None = None, think: float = 0.0) -> dict:
     """Run the study on two nodes, kill one; return the figures (``ok``: every check held).
 
     The database must be migrated and Django set up in this process (it reads the
@@ -118,7 +118,7 @@ def run(database_url: str, var: Path, participants: int, trials: int = 4, worker
     expected = participants * trials
     try:
         for node in nodes:
-            node.start()
+            node.start(timeout=180)  # Django's start takes long on a busy machine
         balancer.start()
         for bot in bots:
             bot.host, bot.port = "127.0.0.1", balancer.port
@@ -129,7 +129,7 @@ def run(database_url: str, var: Path, participants: int, trials: int = 4, worker
             async def play(bot):
                 async with gate:
                     try:
-                        await asyncio.wait_for(bot.run(), time_limit)
+                        await asyncio.wait_for(bot.run(think), time_limit)
                         return None
                     except Exception as exc:
                         return bot, exc
@@ -214,7 +214,9 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--participants", type=int, default=500)
     parser.add_argument("--trials", type=int, default=4)
-    parser.add_argument("--workers", type=int, default=2, help="gunicorn workers per node.")
+    parser.add_argument("--workers", type=int, default=3, help="gunicorn workers per node.")
+    parser.add_argument("--think", type=float, default=0.0,
+                        help="Mean seconds a bot watches each trial (0: a closed loop).")
     parser.add_argument("--kill-at", type=float, default=0.4,
                         help="Kill node 0 once this share of the answers is in.")
     parser.add_argument("--time-limit", type=float, default=600)
@@ -233,7 +235,7 @@ def main(argv=None) -> int:
         django.setup()
         call_command("migrate", verbosity=0)
         r = run(url, var, args.participants, args.trials, args.workers, args.kill_at,
-                time_limit=args.time_limit)
+                time_limit=args.time_limit, think=args.think)
         for line in r["errors"][:3]:
             print("  cut off:", line)
         print(f"served by node: {r['served_by']}; killed node0 after {r['killed_at']} "
