@@ -6,7 +6,6 @@ theirs, so this runs on SQLite and on PostgreSQL alike.
 """
 
 import http.client
-import os
 import secrets
 import threading
 import time
@@ -56,7 +55,13 @@ def get(port, path, headers=None):
         connection.close()
 
 
-def test_nginx_sends_each_delivery_and_only_whole_fetches_it_logged_count(clips, stack):
+def answered(trial) -> bool:
+    from studyapp.survey.models import Trial
+
+    return Trial.objects.filter(pk=int(trial), answered_at__isnull=False).exists()
+
+
+def test_nginx_sends_each_delivery_and_only_whole_fetches_count(clips, stack):
     from studyapp.stimuli import media
     from studyapp.survey.models import TrialItem
 
@@ -99,18 +104,9 @@ def test_nginx_sends_each_delivery_and_only_whole_fetches_it_logged_count(clips,
     assert by_token[Path(second).stem].fetched_at is None  # 100 bytes: does not
     assert by_token[Path(second).stem].fetched == {"mp4": [[0, 99]]}
 
-
-def answered(trial) -> bool:
-    from studyapp.survey.models import Trial
-
-    return Trial.objects.filter(pk=int(trial), answered_at__isnull=False).exists()
-
-
-def test_answers_through_nginx_are_taken_after_whole_fetches_and_refused_without(clips, stack):
+    # Through the pages: answers taken after whole fetches, refused after half of each clip.
     from studyapp.participation import proxy_log
 
-    app, proxy, fetches = stack
-    study = make_ranking_study(clips, trials_per_participant=3)
     stop = threading.Event()
     follower = threading.Thread(target=proxy_log.follow, args=(fetches,),
                                 kwargs={"flush_every": 0, "stop": stop.is_set})
