@@ -84,7 +84,8 @@ async def limited_consents(url: str, slug: str, count: int) -> Counter:
 
 def run(database_url: str, var: Path, participants: int, trials: int = 4, workers: int = 2,
         kill_at: float = 0.4, limit: int | None = None, concurrency: int | None = None,
-        time_limit: float = 600, secret_key: str | None = None, think: float = 0.0) -> dict:
+        time_limit: float = 600, secret_key: str | None = None, think: float = 0.0,
+        retries: int = 5) -> dict:
     """Run the study on two nodes, kill one; return the figures (``ok``: every check held).
 
     The database must be migrated and Django set up in this process (it reads the
@@ -93,7 +94,7 @@ def run(database_url: str, var: Path, participants: int, trials: int = 4, worker
     from studyapp.survey.models import Participant as Row
     from studyapp.survey.models import Trial, TrialItem
 
-    limit = limit or 2 * participants  # the main study never reaches it
+    limit = limit or 3 * participants  # the main study (retries consent again) never reaches it
     study = make_study(f"nodes-{os.getpid()}", var / "media", sources=SOURCES, trials=trials)
     limited = make_study(f"limited-{os.getpid()}", var / "media", sources=SOURCES, trials=1)
     cache = redis_url()
@@ -150,13 +151,16 @@ def run(database_url: str, var: Path, participants: int, trials: int = 4, worker
         killed_at = len(acknowledged())
         nodes[0].kill()
         first.join(time_limit)
-        again = []
-        if cut_off:  # they come back with their cookies, and finish on the other node
-            errors.extend(f"{bot.person}: {type(exc).__name__}: {exc}" for bot, exc in cut_off)
+        again, rounds = list(cut_off), 0
+        while again and rounds < retries:  # they come back with their cookies, as people
+            rounds += 1                   # press reload, and finish on the other node
+            errors.extend(f"{bot.person}: {type(exc).__name__}: {exc}" for bot, exc in again)
+            left = []
             retry = threading.Thread(
-                target=lambda: again.extend(asyncio.run(crowd([b for b, _ in cut_off]))))
+                target=lambda: left.extend(asyncio.run(crowd([b for b, _ in again]))))
             retry.start()
             retry.join(time_limit)
+            again = left
         elapsed = time.perf_counter() - begun
         consents = Counter()
         consenting = threading.Thread(target=lambda: consents.update(
@@ -183,7 +187,8 @@ def run(database_url: str, var: Path, participants: int, trials: int = 4, worker
         "answered": trials_all.filter(answered_at__isnull=False).count(),
         "items": TrialItem.objects.filter(trial__participant__study=study).count(),
         "acknowledged": len(acks), "killed_at": killed_at, "cut_off": len(cut_off),
-        "still_failing": len(again), "served_by": served,
+        "still_failing": len(again), "retry_rounds": rounds,
+        "cut_off_by": dict(Counter(str(exc).rsplit(" ", 1)[-1] for _, exc in cut_off)), "served_by": served,
         "limited_passed": consents.get(302, 0), "limited_refused": consents.get(429, 0),
         "limit": limit, "elapsed_s": elapsed,
         "p50_ms": percentile(latencies, 50), "p99_ms": percentile(latencies, 99),
@@ -240,7 +245,8 @@ def main(argv=None) -> int:
             print("  cut off:", line)
         print(f"served by node: {r['served_by']}; killed node0 after {r['killed_at']} "
               f"of {r['participants'] * args.trials} answers; {r['cut_off']} bots cut off "
-              f"came back; elapsed_s={r['elapsed_s']:.1f}")
+              f"(by {r['cut_off_by']}) came back ({r['retry_rounds']} rounds, "
+              f"{r['still_failing']} still failing); elapsed_s={r['elapsed_s']:.1f}")
         print(f"consents to a study limited to {r['limit']}/h from one address, through "
               f"both nodes: {r['limited_passed']} passed, {r['limited_refused']} refused")
         print(f"participants={r['participants']} stored={r['stored_participants']} "
