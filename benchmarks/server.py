@@ -112,3 +112,106 @@ def create_database(name: str) -> str:
 def drop_database(name: str) -> None:
     subprocess.run(["dropdb", "-h", "127.0.0.1", "-U", "postgres", "--if-exists", "--force", name],
                    check=False)
+
+
+NGINX = "/usr/sbin/nginx"
+HAPROXY = "/usr/sbin/haproxy"
+
+
+def wait_port(port: int, timeout: float = 15, process=None) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if process is not None and process.poll() is not None:
+            raise RuntimeError(f"{process.args[0]} exited with {process.returncode}")
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=1).close()
+            return
+        except OSError:
+            time.sleep(0.05)
+    raise RuntimeError(f"nothing listens on 127.0.0.1:{port} after {timeout} s")
+
+
+class Proxy:
+    """A proxy (nginx or HAProxy) in the foreground, from a configuration file."""
+
+    def __init__(self, command: list[str], port: int, log: Path | None = None):
+        self.command, self.port = command, port
+        self.url = f"http://127.0.0.1:{port}"
+        self.log = log
+        self.process = None
+
+    def start(self) -> "Proxy":
+        out = open(self.log, "ab") if self.log else subprocess.DEVNULL
+        self.process = subprocess.Popen(self.command, stdout=out, stderr=subprocess.STDOUT,
+                                        start_new_session=True)
+        wait_port(self.port, process=self.process)
+        return self
+
+    def stop(self) -> None:
+        if self.process and self.process.poll() is None:
+            os.killpg(self.process.pid, signal.SIGTERM)
+            try:
+                self.process.wait(10)
+            except subprocess.TimeoutExpired:
+                os.killpg(self.process.pid, signal.SIGKILL)
+                self.process.wait(10)
+
+    def __enter__(self):
+        return self.start()
+
+    def __exit__(self, *exc):
+        self.stop()
+
+
+def nginx(env: dict, folder: Path, upstream: str, port: int | None = None) -> Proxy:
+    """Return nginx (not started) in front of gunicorn at ``upstream``, configured by
+    ``manage.py nginx_config`` with the settings of ``env``; its clip log is
+    ``folder/fetches.log``."""
+    port = port or free_port()
+    folder.mkdir(parents=True, exist_ok=True)
+    user = ["--user", "root"] if os.geteuid() == 0 else []
+    config = subprocess.run(
+        [sys.executable, "manage.py", "nginx_config", "--listen", f"127.0.0.1:{port}",
+         "--upstream", upstream, "--run-dir", str(folder), "--fetch-log",
+         str(folder / "fetches.log"), "--workers", "1", *user],
+        cwd=ROOT, env=env, check=True, capture_output=True, text=True).stdout
+    (folder / "nginx.conf").write_text(config)
+    return Proxy([NGINX, "-p", str(folder), "-c", str(folder / "nginx.conf"),
+                  "-e", str(folder / "error.log"), "-g", "daemon off;"], port,
+                 log=folder / "nginx.out")
+
+
+HAPROXY_CONFIG = """\
+global
+    maxconn 4096
+defaults
+    mode http
+    timeout connect 2s
+    timeout client 60s
+    timeout server 60s
+    retries 3
+    option redispatch
+    option forwardfor
+frontend study
+    bind 127.0.0.1:{port}
+    default_backend nodes
+backend nodes
+    balance roundrobin
+    timeout check 1s
+    default-server inter 500ms fall 2 rise 2
+{servers}
+"""
+
+
+def haproxy(folder: Path, upstreams: list[str], port: int | None = None) -> Proxy:
+    """Return HAProxy (not started) balancing over ``upstreams`` (``host:port``) round
+    robin. Nodes are checked by connecting every 0.5 s (a dead node is out after two
+    refused connections; requests it refuses meanwhile are sent to another node). Not by
+    an HTTP check: a node whose sync workers are all busy answers it late, and would be
+    taken out under exactly the load it is there for."""
+    port = port or free_port()
+    folder.mkdir(parents=True, exist_ok=True)
+    servers = "\n".join(f"    server node{i} {address} check" for i, address in enumerate(upstreams))
+    (folder / "haproxy.cfg").write_text(HAPROXY_CONFIG.format(port=port, servers=servers))
+    return Proxy([HAPROXY, "-db", "-f", str(folder / "haproxy.cfg")], port,
+                 log=folder / "haproxy.out")

@@ -127,6 +127,30 @@ STUDY_FETCH_FLUSH_S = float(os.environ.get("STUDY_FETCH_FLUSH_S", "30"))
 # its witness (the answer, or the flushing thread, writes it then).
 STUDY_FETCH_WRITE_WAIT_S = float(os.environ.get("STUDY_FETCH_WRITE_WAIT_S", "0.05"))
 
+# Behind nginx (``make serve`` with it set, docs/PRODUCTION.md): the internal location
+# (e.g. ``/protected-media/``) that the clip view hands each delivery's file to with
+# ``X-Accel-Redirect``; nginx sends the bytes and its access log of that location is
+# read into the fetch witnesses (``manage.py follow_fetches``). Empty: the view streams.
+STUDY_ACCEL_REDIRECT = os.environ.get("STUDY_ACCEL_REDIRECT", "").strip()
+if STUDY_ACCEL_REDIRECT:
+    STUDY_ACCEL_REDIRECT = "/" + STUDY_ACCEL_REDIRECT.strip("/") + "/"
+
+
+def check_nodes(nodes: int, cache_url: str, fetch_log_url: str) -> None:
+    """Several app nodes share nothing but the database, Redis and the media store: a
+    per-process cache would let each node count its own rate limits, and a spool of
+    fetch witnesses on one machine is not read by an answer taken on another."""
+    if nodes > 1 and not (cache_url and fetch_log_url):
+        raise RuntimeError(
+            f"STUDY_NODES={nodes}: several app nodes need Redis for the rate limits and the "
+            "clip-fetch witnesses (set STUDY_CACHE_URL=redis://host:6379/1 on every node; "
+            "docs/PRODUCTION.md, \"Many nodes\")")
+
+
+# How many app nodes serve this site (behind one load balancer): above 1, Redis is required.
+STUDY_NODES = int(os.environ.get("STUDY_NODES", "1") or 1)
+check_nodes(STUDY_NODES, os.environ.get("STUDY_CACHE_URL", ""), STUDY_FETCH_LOG_URL)
+
 ROOT_URLCONF = "studyapp.urls"
 
 TEMPLATES = [

@@ -15,8 +15,11 @@ laid out as the build writes mp4s) is sent as stored, and the blindness audit sa
 """
 
 import logging
+import os
 import re
 import struct
+import tempfile
+from pathlib import Path
 
 from django.core.files.storage import default_storage
 from django.http import HttpResponse, HttpResponseNotModified, StreamingHttpResponse
@@ -263,3 +266,70 @@ def merge_ranges(ranges) -> list[list[int]]:
     return out
 
 
+
+
+# --- bytes sent by the proxy (X-Accel-Redirect) -------------------------------------------
+
+DELIVERIES = "deliveries"
+
+
+def delivery_name(token: str, ext: str) -> str:
+    """Return the storage name of one delivery's file: its opaque token, nothing more."""
+    return f"{DELIVERIES}/{token}.{ext}"
+
+
+def write_delivery(name: str, token: str, ext: str, seed: bytes) -> None:
+    """Write the delivery ``token``'s bytes of the stored stimulus file ``name`` into the
+    deliveries folder under ``MEDIA_ROOT`` (once; a second call finds it there).
+
+    The file is written to a temporary name and renamed (two workers writing the same
+    delivery at once both leave whole, identical files). Its modification time is set to
+    the epoch, so the proxy's ``Last-Modified`` tells nothing of when or what was
+    rendered. Raise FileNotFoundError as :func:`file_response` does.
+    """
+    if not is_stimulus_name(name):
+        raise FileNotFoundError(f"not a stimulus name: {name!r}")
+    target = Path(default_storage.path(delivery_name(token, ext)))
+    if target.exists():
+        return
+    with default_storage.open(name, "rb") as f:
+        data = _read_all(f)
+    out = delivered_bytes(data, ext, seed, name=name)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, temporary = tempfile.mkstemp(dir=target.parent, prefix=".part-")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(out)
+        os.chmod(temporary, 0o644)  # the proxy's user reads it
+        os.utime(temporary, (0, 0))
+        os.replace(temporary, target)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+
+
+def proxied(location: str) -> bool:
+    """Whether clips can be handed to the proxy under ``location`` (``STUDY_ACCEL_REDIRECT``):
+    a location is set and the media live in a folder of this machine (the file system
+    storage; with S3 the view streams the bytes itself)."""
+    if not location:
+        return False
+    try:
+        default_storage.path(DELIVERIES)
+    except NotImplementedError:
+        return False
+    return True
+
+
+def accel_response(request, name: str, content_type: str, token: str, ext: str, seed: bytes,
+                   location: str) -> HttpResponse:
+    """Return an empty response that tells nginx to send the delivery's file itself:
+    ``X-Accel-Redirect: <location><token>.<ext>``, an internal location (nginx consumes the
+    header; the browser sees the opaque clip URL and the file's bytes only). nginx answers
+    byte ranges and conditional requests; its access log of that location says which
+    bytes went out (:mod:`studyapp.participation.proxy_log`)."""
+    write_delivery(name, token, ext, seed)
+    response = HttpResponse(content_type=content_type)
+    response["X-Accel-Redirect"] = f"{location}{token}.{ext}"
+    response["Cache-Control"] = "private, max-age=86400"
+    return response

@@ -1,6 +1,7 @@
 """Participant pages, the staff preview and clip serving; the pages live in ``flow`` (one
 sequence for participants and previews) and ``preview`` (the store that keeps nothing)."""
 
+from django.conf import settings
 from django.contrib.admin.views.decorators import staff_member_required
 from django.http import Http404
 from django.shortcuts import get_object_or_404
@@ -72,8 +73,23 @@ def clip(request, token, ext):
     range sent (``TrialItem.fetched``, first as a witness no database lock holds up:
     :mod:`~studyapp.participation.fetch_log`): the server, not the page, knows whether a clip
     was fetched to its end.
+
+    With ``STUDY_ACCEL_REDIRECT`` (production behind nginx, ``make serve``) the view only
+    authorises the token and writes the delivery's file once; nginx sends the bytes
+    (:func:`~studyapp.stimuli.media.accel_response`) and its access log of that internal
+    location is read into the same witnesses (:mod:`~studyapp.participation.proxy_log`).
     """
     item = get_object_or_404(TrialItem.objects.select_related("stimulus"), token=token)
+    location = getattr(settings, "STUDY_ACCEL_REDIRECT", "")
+    if media.proxied(location):
+        # The proxy sends the bytes; its access log is the record of what went out
+        # (studyapp.participation.proxy_log folds it into the witnesses).
+        try:
+            return media.accel_response(request, getattr(item.stimulus, FILES[ext]),
+                                        CONTENT_TYPES[ext], item.token, ext,
+                                        media.delivery_seed(item.token), location)
+        except (FileNotFoundError, IsADirectoryError, NotADirectoryError):
+            raise Http404("no such clip") from None
     on_sent = None
     if ext in ("mp4", "motion") and request.method == "GET":
         def on_sent(start, end, size, pk=item.pk, token=item.token):

@@ -337,3 +337,13 @@ def shown_item(stimulus):
     participant = Participant.objects.create(study=stimulus.study, seed=1)
     trial = Trial.objects.create(participant=participant, index=0, action=stimulus.action)
     return TrialItem.objects.create(trial=trial, stimulus=stimulus, position=0)
+
+
+def require_service(available: bool, what: str) -> None:
+    """Skip a test when a service it needs (nginx, HAProxy, Redis, PostgreSQL) is missing;
+    fail instead when ``STUDY_REQUIRE_SERVICES`` is set (CI has them all)."""
+    if available:
+        return
+    if os.environ.get("STUDY_REQUIRE_SERVICES"):
+        pytest.fail(f"{what} is not available, and STUDY_REQUIRE_SERVICES is set (CI)")
+    pytest.skip(f"{what} is not available")

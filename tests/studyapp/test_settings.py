@@ -110,3 +110,19 @@ def test_studies_links_use_the_address_served(tmp_path):
     assert "http://127.0.0.1:8010/s/links/" in done.stdout, done.stderr
     done = manage("studies", STUDY_VAR_DIR=str(tmp_path), STUDY_BASE_URL="https://study.example.org/")
     assert "https://study.example.org/s/links/" in done.stdout, done.stderr
+
+
+def test_several_nodes_without_redis_refuse_to_start_and_say_why(tmp_path):
+    from studyapp.settings import check_nodes
+
+    check_nodes(1, "", "")  # one node: the spool and per-process limits are enough
+    check_nodes(3, "redis://h:6379/1", "redis://h:6379/1")
+    done = manage("check", STUDY_NODES="2", STUDY_VAR_DIR=str(tmp_path))
+    assert done.returncode != 0
+    assert "STUDY_NODES=2" in done.stderr and "STUDY_CACHE_URL=redis://" in done.stderr
+
+
+def test_accel_location_is_one_path_with_slashes_around_it(tmp_path):
+    done = manage("shell", "-c", "from django.conf import settings; print(settings.STUDY_ACCEL_REDIRECT)",
+                  STUDY_ACCEL_REDIRECT="protected-media", STUDY_VAR_DIR=str(tmp_path))
+    assert done.stdout.strip() == "/protected-media/", done.stderr

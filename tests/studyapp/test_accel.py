@@ -1,0 +1,155 @@
+"""Clips sent by a real nginx (X-Accel-Redirect), its access log read into fetch witnesses.
+
+gunicorn (production settings, ``STUDY_ACCEL_REDIRECT``) behind Debian's nginx configured
+by ``manage.py nginx_config``, as ``make serve`` starts them; the test database is
+theirs, so this runs on SQLite and on PostgreSQL alike.
+"""
+
+import http.client
+import secrets
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from django.core.management import call_command
+
+from benchmarks.loadtest import Participant
+from benchmarks.server import NGINX, Server, nginx, server_env
+from tests.studyapp.conftest import make_ranking_study, require_service
+from tests.studyapp.test_faults import database_url
+
+pytestmark = [pytest.mark.slow, pytest.mark.django_db(transaction=True)]
+
+
+@pytest.fixture
+def stack(tmp_path, media_root, settings):
+    require_service(Path(NGINX).exists(), f"nginx ({NGINX})")
+    var = tmp_path / "var"
+    settings.MEDIA_ROOT = var / "media"
+    settings.SECRET_KEY = secrets.token_urlsafe(50)  # the server's: the same delivery bytes
+    settings.STUDY_FETCH_LOG_URL = ""  # witnesses in the spool this process reads too
+    settings.STUDY_FETCH_SPOOL = var / "fetches"
+    settings.STUDY_ACCEL_REDIRECT = "/protected-media/"
+    env = server_env(database_url(), var, STUDY_ACCEL_REDIRECT="/protected-media/", STUDY_CACHE_URL="",
+                     STUDY_FETCH_LOG_URL="")
+    env["DJANGO_SECRET_KEY"] = settings.SECRET_KEY
+    app = Server(env, workers=2, settings="benchmarks.loadtest_settings",
+                 log=tmp_path / "gunicorn.log")
+    app.collectstatic()
+    app.start()
+    proxy = nginx(env, tmp_path / "nginx", f"127.0.0.1:{app.port}")
+    proxy.start()
+    yield app, proxy, tmp_path / "nginx" / "fetches.log"
+    proxy.stop()
+    app.stop()
+
+
+def get(port, path, headers=None):
+    connection = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+    try:
+        connection.request("GET", path, headers=headers or {})
+        response = connection.getresponse()
+        return response.status, dict(response.getheaders()), response.read()
+    finally:
+        connection.close()
+
+
+def answered(trial) -> bool:
+    from studyapp.survey.models import Trial
+
+    return Trial.objects.filter(pk=int(trial), answered_at__isnull=False).exists()
+
+
+def test_nginx_sends_each_delivery_and_only_whole_fetches_count(clips, stack):
+    from studyapp.stimuli import media
+    from studyapp.survey.models import TrialItem
+
+    app, proxy, fetches = stack
+    study = make_ranking_study(clips, trials_per_participant=3)
+    bot = Participant(proxy.url, study.slug, "accel-1")
+    bot.enter()
+    bot.consent()
+    bot.start()
+    first, second = bot.clips()[:2]
+
+    status, headers, body = get(proxy.port, first)
+    assert status == 200
+    item = TrialItem.objects.select_related("stimulus").get(token=Path(first).stem)
+    with open(Path(media.default_storage.path(item.stimulus.video)), "rb") as f:
+        stored = f.read()
+    assert body == media.delivered_bytes(stored, "mp4", media.delivery_seed(item.token))
+    seen = " ".join(f"{k}: {v}" for k, v in headers.items()).lower()
+    assert "x-accel" not in seen and "protected" not in seen and "deliveries" not in seen
+    assert "etag" not in seen and headers.get("Content-Type") == "video/mp4"
+    assert headers["Cache-Control"] == "private, max-age=86400"
+    assert headers.get("Last-Modified", "Thu, 01 Jan 1970 00:00:00 GMT").endswith("1970 00:00:00 GMT")
+
+    # Straight from gunicorn: an empty body and the header that nginx consumes.
+    status, headers, body = get(app.port, first)
+    assert (status, body, headers["X-Accel-Redirect"]) == (200, b"", f"/protected-media/{item.token}.mp4")
+    # The internal location is not reachable from outside.
+    assert get(proxy.port, f"/protected-media/{item.token}.mp4")[0] == 404
+
+    status, headers, body = get(proxy.port, second, {"Range": "bytes=0-99"})
+    assert (status, len(body)) == (206, 100)
+
+    call_command("follow_fetches", "--log", str(fetches), "--once")
+    from studyapp.participation import fetch_log
+
+    items = list(TrialItem.objects.filter(token__in=[Path(first).stem, Path(second).stem]))
+    fetch_log.witness(items)
+    by_token = {i.token: i for i in items}
+    assert by_token[Path(first).stem].fetched_at is not None  # whole: counts as fetched
+    assert by_token[Path(second).stem].fetched_at is None  # 100 bytes: does not
+    assert by_token[Path(second).stem].fetched == {"mp4": [[0, 99]]}
+
+    # Through the pages: answers taken after whole fetches, refused after half of each clip.
+    from studyapp.participation import proxy_log
+
+    stop = threading.Event()
+    follower = threading.Thread(target=proxy_log.follow, args=(fetches,),
+                                kwargs={"flush_every": 0, "stop": stop.is_set})
+    follower.start()
+    try:
+        watcher = Participant(proxy.url, study.slug, "accel-watcher")
+        watcher.enter()
+        watcher.consent()
+        watcher.start()
+        while watcher.on_trial():
+            watcher.answer()  # every clip whole through nginx, then its playing time
+        assert watcher.at.endswith("/done/")
+        assert all(status == 302 for _, status, _ in watcher.submits)
+
+        skipper = Participant(proxy.url, study.slug, "accel-skipper")
+        skipper.enter()
+        skipper.consent()
+        skipper.start()
+        for url in skipper.clips():  # the first 100 bytes of each clip
+            get(proxy.port, url, {"Range": "bytes=0-99"})
+        time.sleep(0.6)  # as long as they play, and more
+        data = skipper.answer_data()
+        status, _ = skipper.post(skipper.path("trial"), data)
+        assert status == 400  # the trial again, with what is missing: not taken
+        assert not answered(data["trial"])
+        for url in skipper.clips():  # the rest of each clip
+            get(proxy.port, url, {"Range": "bytes=100-"})
+        time.sleep(0.3)
+        status, _ = skipper.post(skipper.path("trial"), data)
+        assert status == 302 and answered(data["trial"])
+    finally:
+        stop.set()
+        follower.join(10)
+
+
+def test_nginx_config_command_names_the_internal_location_and_its_log(tmp_path, settings):
+    from io import StringIO
+
+    settings.STUDY_ACCEL_REDIRECT = "/protected-media/"
+    out = StringIO()
+    call_command("nginx_config", "--run-dir", str(tmp_path), "--fetch-log",
+                 str(tmp_path / "f.log"), "--listen", "127.0.0.1:9", stdout=out)
+    text = out.getvalue()
+    assert "location /protected-media/ {" in text and "internal;" in text
+    assert f"access_log {tmp_path / 'f.log'} study_fetch;" in text
+    assert f"alias {Path(settings.MEDIA_ROOT) / 'deliveries'}/;" in text

@@ -1,0 +1,43 @@
+"""Two app nodes behind a real HAProxy, one PostgreSQL, one Redis, one node killed mid-study.
+
+``benchmarks/nodes.py`` with a few dozen bots (the benchmark runs 500): nothing lost or
+stored twice, balanced assignment exact across the nodes, the rate limit counted once for
+both. Needs PostgreSQL (several nodes cannot share an SQLite file: this runs in the
+suite's PostgreSQL pass), Redis and HAProxy; ``STUDY_REQUIRE_SERVICES=1`` (CI) turns the
+skip into a failure.
+"""
+
+from pathlib import Path
+
+import pytest
+from django.db import connection
+
+from benchmarks import nodes
+from benchmarks.server import HAPROXY
+from tests.studyapp.conftest import require_service
+from tests.studyapp.test_faults import database_url
+from tests.studyapp.test_tasks import redis_up
+
+pytestmark = [pytest.mark.slow, pytest.mark.django_db(transaction=True)]
+
+
+def test_two_nodes_one_killed_lose_nothing_store_nothing_twice_and_share_limits(
+        tmp_path, media_root, settings):
+    if connection.vendor == "sqlite":
+        pytest.skip("several nodes share PostgreSQL, not an SQLite file "
+                    "(DATABASE_URL=postgres://...: the suite's PostgreSQL pass runs this)")
+    require_service(redis_up(), "Redis on 127.0.0.1:6379")
+    require_service(Path(HAPROXY).exists(), f"HAProxy ({HAPROXY})")
+    result = nodes.run(database_url(), tmp_path / "var", participants=24, trials=4,
+                       workers=2, kill_at=0.4, time_limit=120)
+    assert 0 < result["killed_at"] < 24 * 4  # killed mid-study
+    assert result["stored_participants"] == result["completed"] == 24
+    assert result["participants_twice"] == 0
+    assert result["answered"] == result["trials"] == 24 * 4
+    assert result["items"] == result["trials"] * 3
+    assert (result["missing"], result["duplicates"], result["bad_rankings"]) == (0, 0, 0)
+    assert result["assigned_spread"] <= 1  # every trial shows every source: exact balance
+    # a per-study limit of 3 x 24 consents (bots that come back consent again)
+    assert (result["limited_passed"], result["limited_refused"]) == (72, 20)
+    assert all(n > 0 for n in result["served_by"].values()) and len(result["served_by"]) == 2
+    assert result["ok"], result
