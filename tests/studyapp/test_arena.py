@@ -19,7 +19,7 @@ from studyapp.stimuli.config import ConfigError, load_config
 from studyapp.survey.models import Stimulus, Study
 from tests.studyapp.mdm_results import write_mdm_results
 
-pytestmark = pytest.mark.django_db(transaction=True)
+pytestmark = [pytest.mark.slow, pytest.mark.django_db(transaction=True)]
 
 ROOT = Path(__file__).resolve().parents[2]
 PROMPTS = ["a person jumps twice", "someone waves with the right hand", "a man sits down"]
@@ -134,6 +134,12 @@ def test_a_retired_source_is_never_shown_again_and_keeps_its_history(arena, tmp_
                  seed=1, stdout=StringIO())
     write_mdm_results(tmp_path / "model_c" / "results.npy", PROMPTS, repetitions=1, seed=7)
     add(tmp_path, render_cache, "model_c", audit="none")
+    # The design aims at the new source: no comparisons of it yet, the widest posterior.
+    arena.refresh_from_db()
+    sampling = arena.sampling
+    new = sampling["sources"].index("model_c")
+    with_new = sum(p for pair, p in zip(sampling["pairs"], sampling["p"]) if new in pair)
+    assert sampling["comparisons"] > 0 and with_new > 2 / 3
     call_command("arena", "retire", "--study", SLUG, "--name", "model_b", stdout=StringIO())
     arena.refresh_from_db()
     assert arena_settings.retired(arena) == ["model_b"]
@@ -189,3 +195,16 @@ def test_the_leaderboard_page_and_json_are_public_and_computed_in_the_background
     html = client.get(f"/arena/{SLUG}/").content.decode()
     assert "model_a" in html and "anchor: baseline" in html and "Votes" in html
     assert client.get("/arena/no-such-arena/").status_code == 404
+
+
+@pytest.mark.browser
+def test_the_leaderboard_reads_in_a_browser(arena, live_server, page):
+    from playwright.sync_api import expect
+
+    call_command("arena", "board", "--study", SLUG, "--bootstrap", "0", stdout=StringIO())
+    page.goto(f"{live_server.url}/arena/{SLUG}/")
+    expect(page.get_by_role("heading", name="Leaderboard")).to_be_visible()
+    rows = page.locator("[data-leaderboard] tbody tr")
+    expect(rows).to_have_count(2)
+    expect(page.locator("[data-source=model_a]")).to_contain_text("anchor: baseline")
+    assert page.evaluate("() => document.documentElement.scrollWidth") <= page.viewport_size["width"]
