@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 from collections import Counter
+from dataclasses import asdict
 from pathlib import Path
 
 import yaml
@@ -30,6 +31,8 @@ from django.core.files.storage import default_storage
 from django.db import transaction
 from django.utils import timezone
 from tqdm import tqdm
+
+from rendering import Framing
 
 from studyapp.participation.arena import is_arena, retired
 from studyapp.results.adaptive import recompute
@@ -162,10 +165,18 @@ def add(study, file, name: str, format: str = "auto", out=None, cache=None,
             f"reads them) and add the file again")
     groups = []
     for source in config.sources[:-1]:
-        motions, meta, _ = build.source_motions(source)
+        try:
+            motions, meta, _ = build.source_motions(source)
+        except ConfigError as exc:
+            raise ArenaError(f"{exc} (the arena's first sources are read again for their "
+                             f"skeleton and framing)") from None
         groups.append((source, motions, meta))
-    real = [m for source, motions, _ in groups if source.kind == "real" for m in motions]
-    framing = build.pooled_framing(real or [m for _, motions, _ in groups for m in motions])
+    kept = (study.arena_state or {}).get("framing")
+    if kept:  # the framing of the first add, kept: later adds draw exactly alike
+        framing = Framing(**{**kept, "target": tuple(kept["target"])})
+    else:
+        real = [m for source, motions, _ in groups if source.kind == "real" for m in motions]
+        framing = build.pooled_framing(real or [m for _, motions, _ in groups for m in motions])
     try:
         motions, meta, _ = build.source_motions(new)
     except ConfigError as exc:
@@ -192,7 +203,7 @@ def add(study, file, name: str, format: str = "auto", out=None, cache=None,
         state["added"] = {**(state.get("added") or {}), name: {
             "at": timezone.now().isoformat(), "file_sha256": meta.get("file"),
             "clips": sum(s.role == Role.JUDGED for s in stimuli)}}
-        state.pop("board_requested", None)
+        state.setdefault("framing", asdict(framing))
         Study.objects.filter(pk=study.pk).update(arena_state=state)
         study.arena_state = state
     _keep(folder, raw, frames, entries)

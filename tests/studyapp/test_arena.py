@@ -108,9 +108,15 @@ def test_a_source_added_from_results_npy_is_rendered_blind_registered_and_aimed_
         pages.append(bot.trial_page().content)
         pages.append(bot.answer(bot.answer_data(trial), follow=True).content)
     assert len(pages) > 3 and not any(b"model_" in page or b"/arena/" in page for page in pages)
-    # The same name twice is refused.
+    # The same name twice is refused; a later source is drawn in the framing kept.
     with pytest.raises(CommandError, match="has a source 'model_c' already"):
         add(tmp_path, render_cache, "model_c", audit="none")
+    assert arena.arena_state["framing"]["dims"] == 3
+    write_mdm_results(tmp_path / "model_d" / "results.npy", PROMPTS, repetitions=1, seed=8)
+    add(tmp_path, render_cache, "model_d", audit="none")
+    arena.refresh_from_db()
+    assert arena.sampling["sources"] == ["model_a", "model_b", "model_c", "model_d"]
+    assert len({default_storage.size(s.video) for s in arena.stimuli.all()}) == 1
 
 
 def test_a_file_missing_prompts_is_refused_naming_them_and_the_fix(arena, tmp_path,
