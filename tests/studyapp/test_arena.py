@@ -80,7 +80,7 @@ def test_a_source_added_from_results_npy_is_rendered_blind_registered_and_aimed_
     # The new model wrote the prompts in its own order and spelling, twice each.
     other = [p.capitalize() + "." for p in PROMPTS][::-1]
     write_mdm_results(tmp_path / "model_c" / "results.npy", other, repetitions=2, seed=7)
-    said = add(tmp_path, render_cache, "model_c", audit="basic")
+    said = add(tmp_path, render_cache, "model_c")  # the deep audit, as by default
     assert "added model_c (3 clips of 3 prompts" in said and "audit passed" in said
     arena.refresh_from_db()
     new = arena.stimuli.exclude(pk__in=before)
