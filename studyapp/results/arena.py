@@ -88,6 +88,7 @@ def retire(study, name: str) -> dict:
         locked = Study.objects.lock(study.pk)
         state = dict(locked.arena_state or {})
         state["retired"] = {**(state.get("retired") or {}), name: timezone.now().isoformat()}
+        state["changed_at"] = timezone.now().isoformat()  # the leaderboard is out of date
         Study.objects.filter(pk=study.pk).update(arena_state=state)
         study.arena_state = state
     _recompute_design(study)
@@ -204,6 +205,7 @@ def add(study, file, name: str, format: str = "auto", out=None, cache=None,
             "at": timezone.now().isoformat(), "file_sha256": meta.get("file"),
             "clips": sum(s.role == Role.JUDGED for s in stimuli)}}
         state.setdefault("framing", asdict(framing))
+        state["changed_at"] = timezone.now().isoformat()  # the leaderboard is out of date
         Study.objects.filter(pk=study.pk).update(arena_state=state)
         study.arena_state = state
     _keep(folder, raw, frames, entries)

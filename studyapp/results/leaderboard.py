@@ -11,8 +11,8 @@ own, and nothing on the participants' pages changes.
 The computation reads the whole response table and bootstraps, so a request never runs
 it: :func:`compute` stores the board in ``Study.arena_state`` (the ``arena board``
 command, run in the background), and a request for a board older than the arena's
-``refresh_seconds`` while answers came in since asks for that job (once per period) and
-serves the stored board meanwhile.
+``refresh_seconds`` while answers came in since, or older than the last source added or
+retired, asks for that job (once per period) and serves the stored board meanwhile.
 """
 
 from __future__ import annotations
@@ -106,7 +106,7 @@ def stored(study) -> dict | None:
     board = state.get("board")
     now = timezone.now()
     period = settings(study)["refresh_seconds"]
-    if board is not None:
+    if board is not None and board["computed_at"] >= state.get("changed_at", ""):
         age = (now - datetime.fromisoformat(board["computed_at"])).total_seconds()
         if age < period or answered_main(study) == board["answers"]:
             return board

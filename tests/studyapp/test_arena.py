@@ -134,8 +134,10 @@ def test_a_file_missing_prompts_is_refused_naming_them_and_the_fix(arena, tmp_pa
     assert out.getvalue().splitlines() == PROMPTS
 
 
-def test_a_retired_source_is_never_shown_again_and_keeps_its_history(arena, tmp_path,
-                                                                     render_cache, live_server):
+def test_a_retired_source_is_never_shown_again_and_keeps_its_history(
+        arena, tmp_path, render_cache, live_server, client, monkeypatch):
+    from studyapp.results import leaderboard
+
     call_command("simulate_participants", study=SLUG, n=3, url=live_server.url, pace=0,
                  seed=1, stdout=StringIO())
     write_mdm_results(tmp_path / "model_c" / "results.npy", PROMPTS, repetitions=1, seed=7)
@@ -146,11 +148,18 @@ def test_a_retired_source_is_never_shown_again_and_keeps_its_history(arena, tmp_
     new = sampling["sources"].index("model_c")
     with_new = sum(p for pair, p in zip(sampling["pairs"], sampling["p"]) if new in pair)
     assert sampling["comparisons"] > 0 and with_new > 2 / 3
+    call_command("arena", "board", "--study", SLUG, "--bootstrap", "0", stdout=StringIO())
+    started = []
+    monkeypatch.setattr(leaderboard, "run_job", lambda kind, **params: started.append(params))
+    client.get(f"/arena/{SLUG}.json")
+    assert not started  # fresh
     call_command("arena", "retire", "--study", SLUG, "--name", "model_b", stdout=StringIO())
     arena.refresh_from_db()
     assert arena_settings.retired(arena) == ["model_b"]
     assert arena.sampling["sources"] == ["model_a", "model_c"]
     assert all("model_b" not in row for row in stimuli_by_action(arena).values())
+    client.get(f"/arena/{SLUG}.json")
+    assert len(started) == 1  # the board is older than the retirement: computed again
     call_command("simulate_participants", study=SLUG, n=2, url=live_server.url, pace=0,
                  seed=3, stdout=StringIO())
     shown = Stimulus.objects.filter(study=arena, items__trial__participant__seed__isnull=False,

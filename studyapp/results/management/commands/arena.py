@@ -60,8 +60,9 @@ class Command(BaseCommand):
             elif action == "board":
                 board = leaderboard.compute(record, options["bootstrap"])
                 for row in board["sources"]:
-                    score = "-" if row["score"] is None else (
-                        f"{row['score']:.2f} [{row['ci_low']:.2f}, {row['ci_high']:.2f}]")
+                    score = "-" if row["score"] is None else f"{row['score']:.2f}"
+                    if row["ci_low"] is not None and row["ci_high"] is not None:
+                        score += f" [{row['ci_low']:.2f}, {row['ci_high']:.2f}]"
                     marks = [m for m, on in (("preliminary", row["preliminary"]),
                                              (f"anchor: {row['anchor']}", row["anchor"]),
                                              ("retired", row["retired"])) if on]
