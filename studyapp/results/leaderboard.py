@@ -3,7 +3,8 @@ and without login.
 
 Per source: its score (the type's worth, e.g. the Bradley-Terry log-worth) with the
 interval over participants and clips of :mod:`analysis.crossed` (the analysis ``analyze``
-runs, its exclusions included), its votes (judgements after exclusions), "preliminary"
+runs, its exclusions included), its difference from the fixed baseline with its interval
+(a scale that does not move as sources join and leave, as the centred worths do), its votes (judgements after exclusions), "preliminary"
 below the arena's ``min_votes``, the anchors (real motion capture and the fixed baseline)
 and retired sources, marked. It names sources, as a leaderboard does; it is a page of its
 own, and nothing on the participants' pages changes.
@@ -43,7 +44,7 @@ def compute(study, bootstrap: int = BOOTSTRAP) -> dict:
     answers = answered_main(study)
     names = sorted(set(Stimulus.objects.judged().filter(study=study)
                        .values_list("source", flat=True)))
-    rows, note, measure = {}, "", ""
+    rows, note, measure, differences = {}, "", "", None
     table = responses_frame(study)
     if len(table):
         config = AnalysisConfig(max_failed_catch=study.max_failed_catch, bootstrap=bootstrap,
@@ -60,6 +61,7 @@ def compute(study, bootstrap: int = BOOTSTRAP) -> dict:
                                     "n_participants")}
             note = " ".join(result.notes)
             measure = result.analysis.measure
+            differences = result.analysis.tests.get("differences")
     else:
         note = "no answers yet"
     gone = set(retired(study))
@@ -74,6 +76,7 @@ def compute(study, bootstrap: int = BOOTSTRAP) -> dict:
             "participants": int(found.get("n_participants") or 0),
             "preliminary": votes < chosen["min_votes"] or found.get("score") is None,
             "anchor": anchors.get(name), "retired": name in gone,
+            "vs_baseline": _versus(differences, name, chosen["baseline"]),
         })
     entries.sort(key=lambda e: (e["score"] is None, -(e["score"] or 0.0), e["source"]))
     for rank, entry in enumerate(entries, 1):
@@ -89,6 +92,21 @@ def compute(study, bootstrap: int = BOOTSTRAP) -> dict:
         Study.objects.filter(pk=study.pk).update(arena_state=state)
     study.arena_state = state
     return board
+
+
+def _versus(differences, name: str, anchor) -> dict | None:
+    """Return ``name``'s difference from the ``anchor`` source with its crossed interval
+    (from the analysis' table of differences), or None."""
+    if differences is None or anchor is None or name == anchor:
+        return None
+    for a, b, sign in ((name, anchor, 1.0), (anchor, name, -1.0)):
+        found = differences.loc[(differences["a"] == a) & (differences["b"] == b)]
+        if len(found):
+            row = found.iloc[0]
+            low, high = _number(sign * row["ci_low"]), _number(sign * row["ci_high"])
+            return {"difference": _number(sign * row["difference"]),
+                    "ci_low": low if sign > 0 else high, "ci_high": high if sign > 0 else low}
+    return None
 
 
 def _number(value):

@@ -206,7 +206,11 @@ def test_the_leaderboard_page_and_json_are_public_and_computed_in_the_background
     for row in rows.values():
         assert row["ci_low"] <= row["score"] <= row["ci_high"]
         assert row["votes"] > 0 and row["preliminary"] == (row["votes"] < 4)
-    assert rows["model_a"]["anchor"] == "baseline"
+    assert rows["model_a"]["anchor"] == "baseline" and rows["model_a"]["vs_baseline"] is None
+    versus = rows["model_b"]["vs_baseline"]  # model_b - model_a, with its interval
+    assert versus["difference"] == pytest.approx(rows["model_b"]["score"] - rows["model_a"]["score"],
+                                                 abs=1e-3)
+    assert versus["ci_low"] <= versus["difference"] <= versus["ci_high"]
     html = client.get(f"/arena/{SLUG}/").content.decode()
     assert "model_a" in html and "anchor: baseline" in html and "Votes" in html
     assert client.get("/arena/no-such-arena/").status_code == 404
