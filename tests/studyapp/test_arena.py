@@ -17,6 +17,7 @@ from studyapp.participation import arena as arena_settings
 from studyapp.participation.assignment import stimuli_by_action
 from studyapp.stimuli.config import ConfigError, load_config
 from studyapp.survey.models import Stimulus, Study
+from tests.motion import untrusted_files
 from tests.studyapp.mdm_results import write_mdm_results
 
 pytestmark = [pytest.mark.slow, pytest.mark.django_db(transaction=True)]
@@ -132,6 +133,12 @@ def test_a_file_missing_prompts_is_refused_naming_them_and_the_fix(arena, tmp_pa
     out = StringIO()
     call_command("arena", "prompts", "--study", SLUG, stdout=out)
     assert out.getvalue().splitlines() == PROMPTS
+    # A tampered results.npy is data: refused, naming the file, and nothing in it runs.
+    marker = tmp_path / "ran"
+    untrusted_files.mdm_results(tmp_path / "tampered" / "results.npy", marker)
+    with pytest.raises(CommandError, match="results.npy"):
+        add(tmp_path, render_cache, "tampered", audit="none")
+    assert not marker.exists() and not arena.stimuli.filter(source="tampered").exists()
 
 
 def test_a_retired_source_is_never_shown_again_and_keeps_its_history(
