@@ -145,10 +145,7 @@ def test_a_retired_source_is_never_shown_again_and_keeps_its_history(
         arena, tmp_path, render_cache, live_server, client, monkeypatch):
     from studyapp.results import leaderboard
 
-    # Bots at pace 1 take as long as the clips last: the analysis excludes faster answers
-    # (from the adaptive posterior and the leaderboard too).
-    call_command("simulate_participants", study=SLUG, n=3, url=live_server.url, pace=1,
-                 seed=1, stdout=StringIO())
+    take_part(live_server, seed=1)
     write_mdm_results(tmp_path / "model_c" / "results.npy", PROMPTS, repetitions=1, seed=7)
     add(tmp_path, render_cache, "model_c", audit="none")
     # The design aims at the new source: no comparisons of it yet, the widest posterior.
@@ -186,6 +183,14 @@ def test_a_retired_source_is_never_shown_again_and_keeps_its_history(
     assert board["model_a"]["anchor"] == "baseline" and not board["model_a"]["retired"]
 
 
+def take_part(live_server, seed, n=3):
+    """Bots of Bradley-Terry strengths, which pass the catch trials (the analysis leaves
+    out a participant who fails one), as slow as the clips last (it leaves out faster
+    answers too)."""
+    call_command("simulate_participants", study=SLUG, n=n, url=live_server.url, pace=1,
+                 seed=seed, policy="bt", strengths="model_a=2,model_b=1", stdout=StringIO())
+
+
 def live_json(url):
     import urllib.request
 
@@ -205,8 +210,7 @@ def test_the_leaderboard_page_and_json_are_public_and_computed_in_the_background
     assert started == [{"name": "arena", "args": ["board", "--study", SLUG]}]
     client.get(f"/arena/{SLUG}.json")
     assert len(started) == 1  # asked for within the period: not again
-    call_command("simulate_participants", study=SLUG, n=3, url=live_server.url, pace=1,
-                 seed=2, stdout=StringIO())
+    take_part(live_server, seed=2)
     call_command("arena", "board", "--study", SLUG, "--bootstrap", "50", stdout=StringIO())
     data = client.get(f"/arena/{SLUG}.json").json()
     assert data["min_votes"] == 4 and data["answers"] == 9
