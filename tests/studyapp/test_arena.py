@@ -10,13 +10,16 @@ from pathlib import Path
 
 import pytest
 import yaml
+from django.core.exceptions import ValidationError
 from django.core.files.storage import default_storage
 from django.core.management import CommandError, call_command
 
+from studyapp.participation import adaptive
 from studyapp.participation import arena as arena_settings
 from studyapp.participation.assignment import stimuli_by_action
 from studyapp.stimuli.config import ConfigError, load_config
 from studyapp.survey.models import Stimulus, Study
+from studyapp.survey.study_types import list_study_types
 from tests.motion import untrusted_files
 from tests.studyapp.mdm_results import write_mdm_results
 
@@ -73,6 +76,14 @@ def test_settings_are_checked_in_the_config_and_on_the_study():
         load_config(base, ["study.design=adaptive", "study.arena={min_vote: 3}"])
     config = load_config(base, ["study.design=adaptive", "study.arena={}"])
     assert config.study_options["arena"] == arena_settings.DEFAULTS
+    # The admin and every save check them too.
+    paired = next(name for name in list_study_types() if adaptive.supports(name))
+    with pytest.raises(ValidationError, match="set design: adaptive"):
+        Study.objects.create_study(paired, "not-adaptive", "X", arena={"min_votes": 3})
+    other = next(name for name in list_study_types() if not adaptive.supports(name))
+    with pytest.raises(ValidationError, match="worth model"):
+        Study.objects.create_study(other, "no-worth", "X", design="adaptive",
+                                   arena={"min_votes": 3})
 
 
 def test_a_source_added_from_results_npy_is_rendered_blind_registered_and_aimed_at(
