@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 from django.db.models import Count
 
+from studyapp.participation.arena import retired
 from studyapp.survey.models import Stimulus, Trial, TrialItem
 
 # Trials at least between a trial and its repeat, when the session is long enough.
@@ -22,9 +23,11 @@ REPEAT_GAP = 2
 
 
 def stimuli_by_action(study) -> dict[str, dict[str, list[Stimulus]]]:
-    """Return ``{action: {source: [stimuli]}}`` of the stimuli of a study to be judged."""
+    """Return ``{action: {source: [stimuli]}}`` of the stimuli of a study to be judged
+    (an arena's retired sources left out)."""
     table = defaultdict(lambda: defaultdict(list))
-    stimuli = Stimulus.objects.judged().filter(study=study).order_by("action", "source", "pk")
+    stimuli = (Stimulus.objects.judged().filter(study=study).exclude(source__in=retired(study))
+               .order_by("action", "source", "pk"))
     for stimulus in stimuli:
         table[stimulus.action][stimulus.source].append(stimulus)
     return {action: dict(sources) for action, sources in table.items()}

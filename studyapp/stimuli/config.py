@@ -25,7 +25,7 @@ from studyapp.participation import duration
 from studyapp.crowd.platform import make_platform, outcomes_of
 from studyapp.survey.models import Study
 from studyapp.survey.study_types import get_study_type, list_study_types
-from studyapp.participation import adaptive
+from studyapp.participation import adaptive, arena
 from studyapp.survey.study_types.base import COMMON_OPTIONS, check_criteria
 # The training and sources part (re-exported: callers import ConfigError and Source from here).
 from studyapp.stimuli.source_config import (  # noqa: F401
@@ -303,6 +303,12 @@ def _study(raw, conditions=None, clip_seconds=None) -> tuple[str, dict, dict, li
     problem = adaptive.check(options.get("design") or "balanced", options.get("adaptive"), study_type)
     if problem:
         raise ConfigError(f"study.{problem}")
+    if options.get("arena") is not None:  # arena: {} is an arena of the default settings
+        options["arena"], problem = arena.check(options["arena"] or True,
+                                                options.get("design") or "balanced",
+                                                adaptive.supports(study_type))
+        if problem:
+            raise ConfigError(f"study.{problem}")
     given = "catch_trials" in options or "instructed_checks" in options
     minutes = _config_minutes(study_type, options, own, conditions, clip_seconds)
     if not given and platform.default_checks(minutes):

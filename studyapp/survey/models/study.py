@@ -148,6 +148,16 @@ class Study(models.Model):
         help_text="The adaptive design's sampling distribution over pairs of sources, "
         "recomputed in the background every few answers.",
     )
+    arena = models.JSONField(
+        default=dict, blank=True, help_text='An arena\'s settings (a standing adaptive study to '
+        'which sources are added later), e.g. {"min_votes": 30, "real": "real", "baseline": '
+        '"mdm"}; empty: not an arena. See README, "Arena".',
+    )
+    arena_state = models.JSONField(
+        default=dict, blank=True, editable=False,
+        help_text="What changes while an arena stands: sources added and retired, and its "
+        "leaderboard as last computed.",
+    )
     ask_demographics = models.BooleanField(
         default=False, help_text="Ask age range, gender and comments (all optional) at the end."
     )

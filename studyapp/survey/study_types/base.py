@@ -33,7 +33,7 @@ import re
 from collections import Counter
 from dataclasses import dataclass, field
 
-from studyapp.participation import adaptive, assignment
+from studyapp.participation import adaptive, arena, assignment
 from studyapp.participation.answers import Criterion
 from studyapp.survey.models import Stimulus, Trial, TrialItem
 from studyapp.survey.study_type_registry import STUDY_TYPES
@@ -55,7 +55,7 @@ COMMON_OPTIONS = {
     "clips_per_trial": int, "trials_per_participant": int, "practice": bool,
     "catch_trials": int, "instructed_checks": int, "max_failed_catch": int, "repeat_trials": int,
     "ask_demographics": bool, "max_participants": int, "completion_url": str,
-    "design": str, "adaptive": dict,
+    "design": str, "adaptive": dict, "arena": dict,
     "instructions": str, "data_note": str, "criteria": list, "crowd": dict,
 }
 
@@ -208,6 +208,9 @@ class StudyType:
         problem = adaptive.check(study.design, study.adaptive, self.name)
         if problem:
             errors["adaptive" if problem.startswith("adaptive") else "design"] = problem
+        _, problem = arena.check(study.arena, study.design, adaptive.supports(self.name))
+        if problem:
+            errors["arena"] = problem
         return errors
 
     def defaults(self, n_sources: int) -> dict:

@@ -52,6 +52,9 @@ class Command(BaseCommand):
             raw = resolved_mapping(options["config"], options["overrides"])
             if raw.get("data_root") and not Path(raw["data_root"]).is_absolute():
                 raw["data_root"] = str(Path(options["config"]).resolve().parent / raw["data_root"])
+            for source in raw.get("sources") or []:  # file sources readable from the build folder
+                if isinstance(source, dict) and source.get("file"):
+                    source["file"] = str(config.path(source["file"]))
             (folder / "config.yaml").write_text(yaml.safe_dump(raw, sort_keys=False))
             self.stdout.write(
                 f"study {result.study.slug}: {len(result.entries)} clips "
