@@ -28,9 +28,21 @@ DEFAULTS = {"every": 50, "min_showings": 2, "target": "order", "floor": adaptive
 DESIGNS = ("balanced", "adaptive")
 
 
+def model(study_type: str) -> str | None:
+    """Return the worth model a study type's analysis offers an adaptive design: ``"pairs"``
+    (Bradley-Terry, :meth:`StudyAnalysis.worth_comparisons`), ``"sets"`` (Plackett-Luce
+    choices among the trial's sources, :meth:`StudyAnalysis.worth_choices`) or None."""
+    kind = type(get_analysis(study_type))
+    if kind.worth_comparisons is not StudyAnalysis.worth_comparisons:
+        return "pairs"
+    if kind.worth_choices is not StudyAnalysis.worth_choices:
+        return "sets"
+    return None
+
+
 def supports(study_type: str) -> bool:
     """Return whether a study type's analysis has the worth model an adaptive design needs."""
-    return type(get_analysis(study_type)).worth_comparisons is not StudyAnalysis.worth_comparisons
+    return model(study_type) is not None
 
 
 def settings(study) -> dict:
@@ -44,7 +56,8 @@ def check(design, given, study_type: str) -> str | None:
     if design == "balanced":
         return None
     if not supports(study_type):
-        return f"design: adaptive needs a type with a worth model of pairs; {study_type} has none"
+        return (f"design: adaptive needs a type with a worth model (of pairs, or of choices "
+                f"among a trial's sources); {study_type} has none")
     if not isinstance(given or {}, dict):
         return f"adaptive: {given!r} must be a mapping like {{every: 50, min_showings: 2}}"
     for name, value in (given or {}).items():
@@ -87,11 +100,12 @@ def request_recompute(study) -> bool:
 
 
 def plan_main(study, pool, rng):
-    """Return main trials ``(action, [left, right])`` drawn from the stored distribution,
-    or None when none is stored (the caller then plans balanced trials)."""
+    """Return main trials ``(action, [stimuli in their seats])`` drawn from the stored
+    distribution (of pairs, or of sets of sources), or None when none is stored (the
+    caller then plans balanced trials)."""
     request_recompute(study)
     stored = study.sampling or {}
-    if not stored.get("pairs"):
+    if not (stored.get("pairs") or stored.get("sets")):
         return None
     names = stored["sources"]
     clips, action_of = {}, {}
@@ -105,13 +119,13 @@ def plan_main(study, pool, rng):
         return None
     stimuli = {s.pk: s for by_source in pool.table.values() for ss in by_source.values() for s in ss}
     wanted = study.trials_per_participant or len(pool.table)
-    trials = adaptive.plan_pairs(stored, wanted, clips, pool.items, rng,
-                                 min_showings=settings(study)["min_showings"],
-                                 group_of=action_of.__getitem__)
+    plan = adaptive.plan_sets if stored.get("sets") else adaptive.plan_pairs
+    trials = plan(stored, wanted, clips, pool.items, rng,
+                  min_showings=settings(study)["min_showings"], group_of=action_of.__getitem__)
     plans = []
-    for left, right in trials:
-        seats = [stimuli[left], stimuli[right]]
+    for trial in trials:
+        seats = [stimuli[pk] for pk in trial]
         for position, stimulus in enumerate(seats):
             pool.positions[(stimulus.source, position)] += 1
-        plans.append((action_of[left], seats))
+        plans.append((action_of[trial[0]], seats))
     return plans

@@ -147,3 +147,99 @@ def test_worth_comparisons_of_simulated_raters_recover_the_order(study_type):
     post = adaptive.posterior(3, decided["winner"].map(index), decided["loser"].map(index),
                               decided["weight"])
     assert list(np.argsort(-post.mean)) == [0, 1, 2]
+
+
+def choice_types():
+    from analysis.registry import StudyAnalysis, get_analysis, list_analyses
+
+    return [name for name in list_analyses()
+            if type(get_analysis(name)).worth_choices is not StudyAnalysis.worth_choices]
+
+
+def test_a_choice_between_two_is_a_comparison():
+    winner, loser = comparisons(np.array([1.0, 0.5, 0.0, -1.0]), 600)
+    pairs = adaptive.posterior(4, winner, loser)
+    choices = adaptive.choice_posterior(4, winner, list(zip(winner, loser)))
+    np.testing.assert_allclose(choices.mean, pairs.mean, atol=1e-9)
+    np.testing.assert_allclose(choices.cov, pairs.cov, atol=1e-9)
+    # The sets' scores of pairs are the pairs' scores (up to the posterior's Monte Carlo).
+    contrasts, weights = adaptive.target_contrasts(pairs, "order")
+    np.testing.assert_allclose(adaptive.set_scores(pairs, contrasts, weights, adaptive.all_pairs(4)),
+                               adaptive.pair_scores(pairs, contrasts, weights), rtol=0.1)
+
+
+def test_choice_posterior_recovers_plackett_luce_worths():
+    rng = np.random.default_rng(1)
+    strength = np.array([1.0, 0.4, 0.0, -0.6, -0.8])
+    chosen, among = [], []
+    for _ in range(3000):
+        members = rng.choice(5, 3, replace=False)
+        order = members[np.argsort(-(strength[members] + rng.gumbel(size=3)))]
+        chosen += [order[0], order[1]]
+        among += [tuple(order), tuple(order[1:])]
+    post = adaptive.choice_posterior(5, chosen, among)
+    np.testing.assert_allclose(post.mean, strength - strength.mean(), atol=0.1)
+    assert post.sd([1, -1, 0, 0, 0])[0] < 0.06
+
+
+def test_set_distribution_aims_at_the_uncertain_top():
+    rng = np.random.default_rng(2)
+    strength = np.array([2.0, 1.9, 0.0, -1.0, -2.0, -2.5])
+    chosen, among = [], []
+    for _ in range(300):
+        members = rng.choice(6, 3, replace=False)
+        best = members[np.argmax(strength[members] + rng.gumbel(size=3))]
+        chosen.append(best)
+        among.append(tuple(members))
+    post = adaptive.choice_posterior(6, chosen, among)
+    dist = adaptive.set_distribution(post, 3, "top_two", depth=1, sharpness=2)
+    p = np.array(dist["p"])
+    assert len(p) == 20 and p.sum() == pytest.approx(1) and p.min() >= 0.2 / 20 - 1e-12
+    best = dist["sets"][int(np.argmax(p))]
+    assert {0, 1} <= set(best)
+    # A ranking informs more than a pick of the best from the same set.
+    contrasts, weights = adaptive.target_contrasts(post, "order")
+    sets = adaptive.all_sets(6, 3)
+    assert (adaptive.set_scores(post, contrasts, weights, sets, depth=None)
+            > adaptive.set_scores(post, contrasts, weights, sets, depth=1)).all()
+
+
+def test_plan_sets_keeps_the_constraints():
+    clips = clip_table(6, 4)
+    dist = {"sets": [[0, 1, 2], [3, 4, 5]], "p": [1.0, 0.0], "size": 3}
+    shown = Counter()
+    rng = random.Random(3)
+    trials = adaptive.plan_sets(dist, 9, clips, shown, rng, min_showings=1,
+                                group_of=lambda clip: clip[1] % 2)
+    assert len(trials) == 9
+    # Every clip once first (the set with 3, 4, 5 too), then the distribution decides.
+    assert min(shown[c] for ids in clips.values() for c in ids) >= 1
+    assert all(len({clip[1] % 2 for clip in trial}) == 1 for trial in trials)
+    assert len({frozenset(trial) for trial in trials}) == 9
+    seats = Counter((clip[0], seat) for trial in trials for seat, clip in enumerate(trial))
+    for source in range(6):
+        counts = [seats[(source, seat)] for seat in range(3)]
+        assert max(counts) - min(counts) <= 1
+
+
+def test_some_analyses_give_choices_for_the_posterior():
+    assert len(choice_types()) >= 1
+
+
+@pytest.mark.parametrize("study_type", choice_types())
+def test_worth_choices_of_simulated_raters_recover_the_order(study_type):
+    from analysis.registry import get_analysis
+    from analysis.simulate import simulate
+    from analysis.study import apply_exclusions
+
+    strengths = {"a": 1.0, "b": 0.0, "c": -1.0}
+    table = simulate(study_type, strengths, participants=60, trials=10, seed=3)
+    main, _, _ = apply_exclusions(table, study_type=study_type)
+    choices = get_analysis(study_type).worth_choices(main)
+    assert set(choices.columns) >= {"chosen", "among", "weight"} and len(choices)
+    assert all(c in members for c, members in zip(choices["chosen"], choices["among"]))
+    index = {name: i for i, name in enumerate(sorted(strengths))}
+    post = adaptive.choice_posterior(3, choices["chosen"].map(index),
+                                     [[index[m] for m in members] for members in choices["among"]],
+                                     choices["weight"])
+    assert list(np.argsort(-post.mean)) == [0, 1, 2]

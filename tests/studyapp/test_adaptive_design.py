@@ -15,18 +15,21 @@ from tests.studyapp.conftest import SOURCES, make_stimuli
 pytestmark = pytest.mark.django_db
 
 ADAPTIVE = [name for name in list_study_types() if adaptive.supports(name)]
+PAIRS = [name for name in ADAPTIVE if adaptive.model(name) == "pairs"]
+SETS = [name for name in ADAPTIVE if adaptive.model(name) == "sets"]
 OTHERS = [name for name in list_study_types() if not adaptive.supports(name)]
 
 
-def adaptive_study(study_type, **settings):
+def adaptive_study(study_type, clips_per_trial=2, **settings):
     study = Study.objects.create_study(study_type, "adaptive", "Adaptive", design="adaptive",
-                                       adaptive=settings, trials_per_participant=6)
+                                       adaptive=settings, trials_per_participant=6,
+                                       clips_per_trial=clips_per_trial)
     make_stimuli(study, per_cell=2)
     return study
 
 
 def test_some_types_offer_it_and_the_others_refuse_it():
-    assert ADAPTIVE and OTHERS
+    assert PAIRS and SETS and OTHERS
     assert "worth model" in adaptive.check("adaptive", {}, OTHERS[0])
     assert adaptive.check("adaptive", {"every": 20, "target": "top_two"}, ADAPTIVE[0]) is None
     assert "every" in adaptive.check("adaptive", {"every": 0}, ADAPTIVE[0])
@@ -36,7 +39,7 @@ def test_some_types_offer_it_and_the_others_refuse_it():
         Study.objects.create_study(OTHERS[0], "other", "Other", design="adaptive")
 
 
-@pytest.mark.parametrize("study_type", ADAPTIVE)
+@pytest.mark.parametrize("study_type", PAIRS)
 def test_balanced_until_a_distribution_is_stored_and_a_recompute_is_asked_for(
         study_type, monkeypatch, django_capture_on_commit_callbacks):
     started = []
@@ -53,7 +56,7 @@ def test_balanced_until_a_distribution_is_stored_and_a_recompute_is_asked_for(
     assert len(started) == 1
 
 
-@pytest.mark.parametrize("study_type", ADAPTIVE)
+@pytest.mark.parametrize("study_type", PAIRS)
 def test_trials_follow_the_stored_distribution_under_the_constraints(study_type):
     study = adaptive_study(study_type, min_showings=0)
     names = sorted(SOURCES)
@@ -72,7 +75,7 @@ def test_trials_follow_the_stored_distribution_under_the_constraints(study_type)
     assert left[names[0]] == left[names[1]] == 3
 
 
-@pytest.mark.parametrize("study_type", ADAPTIVE)
+@pytest.mark.parametrize("study_type", PAIRS)
 def test_every_clip_gets_its_minimum_before_the_distribution_decides(study_type):
     study = adaptive_study(study_type, min_showings=1)
     names = sorted(SOURCES)
@@ -83,7 +86,7 @@ def test_every_clip_gets_its_minimum_before_the_distribution_decides(study_type)
     assert {s.source for plan in plans for s in plan.stimuli} == set(SOURCES)
 
 
-@pytest.mark.parametrize("study_type", ADAPTIVE)
+@pytest.mark.parametrize("study_type", PAIRS)
 def test_the_command_stores_a_distribution_over_the_studys_sources(study_type):
     from django.core.management import call_command
 
@@ -109,7 +112,7 @@ def test_the_config_takes_the_design_and_checks_it():
         _study({"type": ADAPTIVE[0], "design": "adaptive", "adaptive": {"target": "best"}})
 
 
-@pytest.mark.parametrize("study_type", ADAPTIVE)
+@pytest.mark.parametrize("study_type", PAIRS)
 def test_answers_through_the_pages_reach_the_posterior(study_type, media_root, clips,
                                                        extra_clips, make_bot):
     from django.core.management import call_command
@@ -134,7 +137,7 @@ def test_answers_through_the_pages_reach_the_posterior(study_type, media_root, c
     assert len(study.sampling["worth"]) == len(study.sampling["sources"])
 
 
-@pytest.mark.parametrize("study_type", ADAPTIVE)
+@pytest.mark.parametrize("study_type", PAIRS)
 def test_a_versus_target_aims_at_that_source(study_type):
     from studyapp.results.adaptive import recompute
 
@@ -147,3 +150,69 @@ def test_a_versus_target_aims_at_that_source(study_type):
     assert min(mine) > max(others) and "note" not in sampling
     study.adaptive = {"target": {"versus": "nobody"}}
     assert "aimed at the order" in recompute(study)["note"]
+
+
+FIVE = ("s1", "s2", "s3", "s4", "s5")
+
+
+def set_study(study_type, **settings):
+    study = Study.objects.create_study(study_type, "adaptive-sets", "Adaptive sets",
+                                       design="adaptive", adaptive=settings,
+                                       trials_per_participant=6, clips_per_trial=3)
+    make_stimuli(study, sources=FIVE, per_cell=2)
+    return study
+
+
+@pytest.mark.parametrize("study_type", SETS)
+def test_sets_follow_the_stored_distribution_under_the_constraints(study_type):
+    study = set_study(study_type, min_showings=0)
+    study.sampling = {"sources": list(FIVE), "sets": [[0, 1, 2], [2, 3, 4]], "p": [1.0, 0.0],
+                      "size": 3, "answers": 0}
+    study.save()
+    plans = study.kind.plan_trials(study, random.Random(0))
+    assert len(plans) == 6
+    shown = [tuple(s.source for s in plan.stimuli) for plan in plans]
+    assert all(sorted(trial) == ["s1", "s2", "s3"] for trial in shown)
+    assert all(len({s.action for s in plan.stimuli}) == 1 for plan in plans)
+    keys = [frozenset(s.pk for s in plan.stimuli) for plan in plans]
+    assert len(set(keys)) == len(keys)
+    # Each source twice in each of the three seats over six trials.
+    seats = Counter((source, seat) for trial in shown for seat, source in enumerate(trial))
+    assert set(seats.values()) == {2}
+
+
+@pytest.mark.parametrize("study_type", SETS)
+def test_the_command_stores_a_distribution_over_sets(study_type):
+    from django.core.management import call_command
+    from io import StringIO
+
+    study = set_study(study_type)
+    out = StringIO()
+    call_command("adaptive_design", study.slug, stdout=out)
+    study.refresh_from_db()
+    assert study.sampling["sources"] == list(FIVE) and study.sampling["size"] == 3
+    assert len(study.sampling["sets"]) == 10 and sum(study.sampling["p"]) == pytest.approx(1)
+    assert "most likely sets" in out.getvalue()
+    plans = study.kind.plan_trials(study, random.Random(0))
+    assert len(plans) == 6 and all(len(plan.stimuli) == 3 for plan in plans)
+
+
+@pytest.mark.parametrize("study_type", SETS)
+def test_set_answers_through_the_pages_reach_the_posterior(study_type, media_root, clips,
+                                                           extra_clips, make_bot):
+    from django.core.management import call_command
+
+    from studyapp.survey.models import Trial
+    from tests.studyapp.conftest import make_study
+
+    study = make_study(study_type, clips, extra_clips, design="adaptive",
+                       adaptive={"every": 2}, trials_per_participant=2, clips_per_trial=2)
+    for _ in range(3):
+        bot = make_bot(study)
+        bot.join()
+        bot.finish()
+    Trial.objects.update(time_ms=60_000)
+    call_command("adaptive_design", study.slug, stdout=open("/dev/null", "w"))
+    study.refresh_from_db()
+    assert study.sampling["answers"] == 6 and study.sampling["size"] == 2
+    assert 0 < study.sampling["comparisons"] <= 6
