@@ -519,3 +519,136 @@ def seat_sets(trials: list[tuple], rng, source_of) -> list[tuple]:
             used[(source_of(trial[r]), c)] += 1
         seated.append(tuple(seats))
     return seated
+
+
+# --- Stopping rules -------------------------------------------------------------------
+
+STOP_RULES = ("interval_width", "rank_certainty", "judgements")
+
+
+@dataclass
+class Spread:
+    """Variances of the differences between sources ``(K, K)``: ``model`` (the posterior's,
+    judgements alone), ``sandwich`` (clustered by participant and by clip), ``steady`` (the
+    model's plus one clip variance pooled over every pair of sources, times how much each
+    source leans on single clips) and the degrees of freedom of a t interval (None: normal)."""
+
+    model: np.ndarray
+    sandwich: np.ndarray | None = None
+    steady: np.ndarray | None = None
+    df: int | None = None
+
+    @property
+    def stopping(self) -> np.ndarray:
+        """The variance a stopping rule reads: the steady one where clips are known (it
+        barely moves with the luck of the answers, so stopping on it does not pick looks
+        where an interval happens to be narrow), else the model's."""
+        return self.model if self.steady is None else self.steady
+
+
+def difference_variance(cov) -> np.ndarray:
+    d = np.diag(cov)
+    return np.maximum(d[:, None] + d[None, :] - 2 * cov, 1e-12)
+
+
+def spread(post: Posterior, winner, loser, clip_w=None, clip_l=None, who=None) -> Spread:
+    """Return the :class:`Spread` of a Bradley-Terry posterior of comparisons ``winner``
+    beat ``loser``; with each comparison's clips ``clip_w``, ``clip_l`` and participant
+    ``who`` (any labels), also the sandwich variance clustered by participant and by clip
+    (a comparison belongs to both its clips; CR1 factors) and the steady one."""
+    model = difference_variance(post.cov)
+    if clip_w is None or len(winner) == 0:
+        return Spread(model)
+    k = post.n_sources
+    winner, loser = np.asarray(winner, dtype=np.int64), np.asarray(loser, dtype=np.int64)
+    clips, codes = np.unique(np.concatenate([np.asarray(clip_w), np.asarray(clip_l)]).astype(str),
+                             return_inverse=True)
+    codes = codes.ravel()
+    clip_w, clip_l = codes[:len(winner)], codes[len(winner):]
+    who = np.unique(np.asarray(who).astype(str), return_inverse=True)[1].ravel()
+    theta = post.mean
+    p = expit(theta[winner] - theta[loser])
+    rows = np.arange(len(winner))
+    g = np.zeros((len(winner), k))
+    g[rows, winner] = 1 - p
+    g[rows, loser] = -(1 - p)
+    n_clips, n_people = len(clips), int(who.max()) + 1
+
+    def meat(keys, n_keys):
+        sums = np.zeros((n_keys, k))
+        for key in keys:
+            np.add.at(sums, key, g)
+        return sums.T @ sums
+
+    clips_part = meat([clip_w, clip_l], n_clips)
+    both = meat([who * n_clips + clip_w, who * n_clips + clip_l], n_people * n_clips)
+    middle = (meat([who], n_people) * n_people / max(n_people - 1, 1)
+              + (clips_part - both) * n_clips / max(n_clips - 1, 1))
+    sandwich = difference_variance(post.cov @ middle @ post.cov)
+    source_of = np.zeros(n_clips, dtype=np.int64)
+    source_of[clip_w], source_of[clip_l] = winner, loser
+    showings = np.bincount(codes, minlength=n_clips).astype(float)
+    per_source = np.bincount(source_of, weights=showings, minlength=k)
+    lean = np.bincount(source_of, weights=showings ** 2, minlength=k) / np.maximum(per_source, 1) ** 2
+    factor = lean[:, None] + lean[None, :]
+    upper = np.triu_indices(k, 1)
+    tau2 = max(0.0, (sandwich - model)[upper].sum() / max(factor[upper].sum(), 1e-300))
+    clips_per_source = np.bincount(source_of, minlength=k)
+    df = max(1, min(n_people - 1, 2 * int(clips_per_source[clips_per_source > 0].min()) - 2))
+    return Spread(model, sandwich, model + tau2 * factor, df)
+
+
+def stop_pairs(post: Posterior, target="order") -> list[tuple[int, int]]:
+    """Return the differences a stopping rule looks at, as pairs of sources (the better
+    estimated first): the top two, every neighbour in the estimated order, or the pairs
+    of given contrasts (rows with one +1 and one -1, e.g. :func:`versus`)."""
+    order = [int(i) for i in np.argsort(-post.mean)]
+    if isinstance(target, str):
+        if target == "top_two":
+            return [(order[0], order[1])]
+        return list(zip(order[:-1], order[1:]))
+    pairs = []
+    for row in np.atleast_2d(np.asarray(target, dtype=float)):
+        a, b = int(np.argmax(row)), int(np.argmin(row))
+        pairs.append((a, b) if post.mean[a] >= post.mean[b] else (b, a))
+    return pairs
+
+
+def stop_state(post: Posterior, rule: dict, target="order", judgements: int = 0,
+               variance: Spread | None = None, confidence: float = 0.95, draws: int = 4000,
+               seed: int = 0) -> dict:
+    """Return where a study stands against its stopping rule (JSON-ready): ``width`` (the
+    widest ``confidence`` interval of the target's differences), ``certainty`` (the
+    posterior probability that the target's estimated order is right: every one of its
+    differences has the estimated sign), ``judgements``, and ``met``: the first of
+    ``rule``'s settings (:data:`STOP_RULES`) that holds, or ""."""
+    from scipy import stats
+
+    variance = variance or Spread(difference_variance(post.cov))
+    pairs = stop_pairs(post, target)
+    var = variance.stopping
+    level = 0.5 + confidence / 2
+    t = stats.norm.ppf(level) if variance.df is None else stats.t.ppf(level, variance.df)
+    width = max(2 * t * float(np.sqrt(var[a, b])) for a, b in pairs)
+    # The posterior, widened where the stopping variance is wider than the model's.
+    inflate = max(float(var[a, b] / variance.model[a, b]) for a, b in pairs)
+    rng = np.random.default_rng(seed)
+    sample = rng.multivariate_normal(post.mean, post.cov * max(inflate, 1.0), size=draws,
+                                     method="eigh")
+    right = np.ones(draws, dtype=bool)
+    for a, b in pairs:
+        right &= sample[:, a] > sample[:, b]
+    certainty = float(right.mean())
+    met = ""
+    for name in STOP_RULES:
+        if name not in rule:
+            continue
+        value = rule[name]
+        if ((name == "interval_width" and width <= value)
+                or (name == "rank_certainty" and certainty >= value)
+                or (name == "judgements" and judgements >= value)):
+            met = name
+            break
+    return {"width": round(width, 4), "certainty": round(certainty, 4), "judgements": int(judgements),
+            "met": met, "pairs": [list(pair) for pair in pairs],
+            "interval": "model" if variance.steady is None else "clips"}

@@ -97,7 +97,9 @@ class StudyAnalysis:
 
     def worth_comparisons(self, rows: pd.DataFrame) -> pd.DataFrame | None:
         """Return the decided comparisons of answered main ``rows`` as ``winner`` and
-        ``loser`` source columns (and ``weight``), for a Bradley-Terry posterior; None when
+        ``loser`` source columns (and ``weight``; optionally ``winner_clip``,
+        ``loser_clip`` and ``participant``, with which a stopping rule's intervals count
+        clips and participants as random), for a Bradley-Terry posterior; None when
         this type has no worth model of pairs (then it offers no adaptive design,
         :mod:`analysis.adaptive`)."""
         return None

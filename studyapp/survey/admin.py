@@ -88,6 +88,7 @@ class StudyAdmin(admin.ModelAdmin):
                     "repeat_trials",
                     "design",
                     "adaptive",
+                    "stop_when",
                     "ask_demographics",
                     "options",
                     "criteria",

@@ -216,3 +216,92 @@ def test_set_answers_through_the_pages_reach_the_posterior(study_type, media_roo
     study.refresh_from_db()
     assert study.sampling["answers"] == 6 and study.sampling["size"] == 2
     assert 0 < study.sampling["comparisons"] <= 6
+
+
+# Stopping rules
+
+
+def test_the_config_and_the_study_check_the_stopping_rule():
+    from studyapp.stimuli.config import ConfigError, _study
+
+    _, options, _, _ = _study({"type": PAIRS[0], "design": "adaptive",
+                               "stop_when": {"interval_width": 0.6, "judgements": 3000}})
+    assert options["stop_when"] == {"interval_width": 0.6, "judgements": 3000}
+    _study({"type": OTHERS[0], "stop_when": {"judgements": 500}})  # a budget fits every type
+    for rule, message in [({"interval_width": 0}, "above 0"),
+                          ({"rank_certainty": 1.2}, r"\[0.5, 1\)"),
+                          ({"judgements": 2.5}, "whole number"),
+                          ({"width": 0.5}, "not a stopping rule"),
+                          ([0.5], "stop_when")]:
+        with pytest.raises(ConfigError, match=message):
+            _study({"type": PAIRS[0], "stop_when": rule})
+    with pytest.raises(ConfigError, match="stop it by judgements"):
+        _study({"type": OTHERS[0], "stop_when": {"rank_certainty": 0.9}})
+    with pytest.raises(ValidationError, match="stop_when"):
+        Study.objects.create_study(PAIRS[0], "bad-stop", "Bad", stop_when={"interval_width": -1})
+
+
+@pytest.mark.parametrize("design", ["adaptive", "balanced"])
+def test_a_budget_stops_the_study_and_closes_its_places(design, media_root, clips, extra_clips,
+                                                        make_bot, monkeypatch,
+                                                        django_capture_on_commit_callbacks):
+    from django.core.management import call_command
+
+    from studyapp.participation.adaptive import answered_main
+    from studyapp.survey.models import Trial
+    from tests.studyapp.conftest import make_study
+
+    started = []
+    monkeypatch.setattr(adaptive, "run_job", lambda kind, **params: started.append(params))
+    study = make_study(PAIRS[0], clips, extra_clips, design=design, adaptive={"every": 50},
+                       stop_when={"judgements": 4}, trials_per_participant=2)
+    for _ in range(3):
+        with django_capture_on_commit_callbacks(execute=True):
+            bot = make_bot(study)
+            bot.join()
+        bot.finish()
+    # The third participant's start found the budget reached and asked for the check,
+    # although fewer than ``every`` answers came in since the last.
+    assert len(started) == 2
+    Trial.objects.update(time_ms=60_000)
+    call_command("adaptive_design", study.slug, stdout=open("/dev/null", "w"))
+    study.refresh_from_db()
+    assert study.status == Study.Status.CLOSED
+    assert study.stopped["rule"] == "judgements" and study.stopped["judgements"] == answered_main(study) == 6
+    assert study.stopped["design"] == design and study.stopped["platform"] == ""
+    late = make_bot(study)
+    assert "This study is not open" in late.enter().content.decode()
+
+
+def test_a_met_interval_width_stops_the_study_on_prolific(monkeypatch):
+    from io import StringIO
+
+    from django.core.management import call_command
+
+    from tests.studyapp.prolific_fake import FakeProlific
+
+    with FakeProlific(token="stop-token") as fake:
+        monkeypatch.setenv("PROLIFIC_TOKEN", "stop-token")
+        monkeypatch.setenv("PROLIFIC_API_URL", fake.url)
+        study = Study.objects.create_study(PAIRS[0], "stop-prolific", "Movement study",
+                                           design="adaptive", max_participants=20,
+                                           stop_when={"interval_width": 100.0})
+        make_stimuli(study, per_cell=2)
+        call_command("prolific", "create", "--study", study.slug, "--base-url",
+                     "https://study.example", stdout=StringIO(), stderr=StringIO())
+        call_command("prolific", "publish", "--study", study.slug, stdout=StringIO())
+        study.refresh_from_db()
+        prolific_id = study.crowd["prolific_study_id"]
+        assert fake.studies[prolific_id]["status"] == "ACTIVE"
+        out = StringIO()
+        # No answers yet: the prior's interval (wider than 16) is narrower than 100.
+        call_command("adaptive_design", study.slug, stdout=out)
+        study.refresh_from_db()
+        assert fake.studies[prolific_id]["status"] == "AWAITING REVIEW"
+        assert study.status == Study.Status.CLOSED
+        assert study.stopped["rule"] == "interval_width" and study.stopped["width"] <= 100
+        assert "STOP sent" in study.stopped["platform"] and "stopped by interval_width" in out.getvalue()
+        # Stopped once: a second check sends nothing more.
+        call_command("adaptive_design", study.slug, stdout=StringIO())
+        sent = fake.requests("POST", f"/api/v1/studies/{prolific_id}/transition/")
+        assert [r["body"]["action"] for r in sent] == ["PUBLISH", "STOP"]
