@@ -161,17 +161,60 @@ def pair_scores(post: Posterior, contrasts, weights, pairs=None) -> np.ndarray:
     return drop @ np.asarray(weights, dtype=float)
 
 
+def batch_counts(post: Posterior, contrasts, weights, size: int, focus: float = 0.0,
+                 pairs=None) -> np.ndarray:
+    """Return how many of the next ``size`` comparisons each pair gets ``(M,)`` when they
+    are planned together (as ASAP batches its comparisons): one at a time, each the pair
+    whose comparison most lowers ``sum_c weight_c var_c^(1 + focus)`` over the target
+    contrasts, the posterior covariance updated by its expected information before the
+    next (Sherman-Morrison), so that a batch spreads over the pairs that each lower a
+    different variance, as a spanning tree of comparisons does, and leans on the widest."""
+    pairs = all_pairs(post.n_sources) if pairs is None else np.asarray(pairs)
+    contrasts = np.atleast_2d(np.asarray(contrasts, dtype=float))
+    weights = np.asarray(weights, dtype=float)
+    d = np.zeros((len(pairs), post.n_sources))
+    d[np.arange(len(pairs)), pairs[:, 0]] = 1.0
+    d[np.arange(len(pairs)), pairs[:, 1]] = -1.0
+    mu = d @ post.mean
+    cov = post.cov.copy()
+    counts = np.zeros(len(pairs))
+    power = 1.0 + focus
+    for _ in range(size):
+        sd_ = d @ cov  # (M, K)
+        var_d = np.einsum("mk,mk->m", sd_, d)
+        kappa = 1.0 / np.sqrt(1.0 + np.pi * var_d / 8.0)
+        p = expit(kappa * mu)
+        w = kappa * p * (1 - p)
+        var_c = np.einsum("ck,kl,cl->c", contrasts, cov, contrasts)
+        drop = w[:, None] * (sd_ @ contrasts.T) ** 2 / (1.0 + w * var_d)[:, None]  # (M, C)
+        # Exact change of the objective for each candidate pair.
+        after = np.maximum(var_c[None, :] - drop, 1e-300)
+        gain = (weights * (var_c ** power)).sum() - (after ** power) @ weights
+        best = int(np.argmax(gain))
+        counts[best] += 1
+        u = sd_[best]
+        cov -= w[best] * np.outer(u, u) / (1.0 + w[best] * var_d[best])
+    return counts
+
+
 def distribution(post: Posterior, target="order", floor: float = FLOOR, sharpness: float = 1.0,
-                 focus: float = 0.0, seed: int = 0) -> dict:
+                 focus: float = 0.0, seed: int = 0, batch: int = 0) -> dict:
     """Return the sampling distribution over pairs: ``{"pairs": [[i, j], ...], "p": [...]}``
     (JSON-ready), ``floor`` of it uniform and the rest proportional to the pairs' scores
     raised to ``sharpness``. ``focus`` > 0 weighs each target contrast also by its
     variance relative to the largest, to that power (aiming at the widest interval, which
-    a stopping rule on the widest interval waits for)."""
+    a stopping rule on the widest interval waits for). ``batch`` > 0: the rest is instead
+    the share of each pair in a batch of that many comparisons planned together
+    (:func:`batch_counts`; ``sharpness`` unused)."""
     if not 0 < floor <= 1:
         raise ValueError("floor must be in (0, 1]: every pair keeps a chance")
     pairs = all_pairs(post.n_sources)
     contrasts, weights = target_contrasts(post, target, seed=seed)
+    if batch:
+        counts = batch_counts(post, contrasts, weights, batch, focus, pairs)
+        uniform = np.full(len(pairs), 1.0 / len(pairs))
+        p = floor * uniform + (1 - floor) * counts / counts.sum()
+        return {"pairs": pairs.tolist(), "p": (p / p.sum()).tolist()}
     if focus:
         variance = post.sd(contrasts) ** 2
         weights = weights * (variance / variance.max()) ** focus

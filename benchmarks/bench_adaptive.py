@@ -130,6 +130,34 @@ def intervals(n_sources, data, clips_per_source, confidence=0.95):
     return theta, t * np.sqrt(var_diff), t * np.sqrt(steady)
 
 
+def crossed_intervals(n_sources, data, pairs, seed, bootstrap=1000, confidence=0.95):
+    """Return the study's own intervals of the differences ``pairs`` (``a - b``): the
+    pairwise analysis's Bradley-Terry fit with the crossed bootstrap of participants and
+    clips (:func:`analysis.pairwise.bradley_terry`, :func:`analysis.crossed.differences`),
+    as ``{(a, b): (estimate, low, high)}``."""
+    import pandas as pd
+
+    from analysis import crossed
+    from analysis.pairwise import bradley_terry
+    from analysis.study import AnalysisConfig
+
+    winner, loser, clip_w, clip_l, who = (np.asarray(c) for c in data)
+    n = len(winner)
+    decided = pd.DataFrame({"winner": winner, "loser": loser})
+    rows = pd.DataFrame({"trial_key": np.repeat(np.arange(n), 2), "pcode": np.repeat(who, 2),
+                         "stimulus": np.stack([clip_w, clip_l], 1).ravel(),
+                         "source": np.stack([winner, loser], 1).ravel(), "action": "walk"})
+    names = [f"s{i}" for i in range(n_sources)]
+    result = bradley_terry(decided, rows, names, AnalysisConfig(bootstrap=bootstrap, seed=seed,
+                                                                confidence=confidence))
+    table = crossed.differences(result, list(range(n_sources)), confidence)
+    out = {}
+    for row in table.itertuples():
+        out[(row.a, row.b)] = (row.difference, row.ci_low, row.ci_high)
+        out[(row.b, row.a)] = (-row.difference, -row.ci_high, -row.ci_low)
+    return {pair: out[pair] for pair in pairs}
+
+
 def run_study(design, strength, clip_quality, args, seed):
     """Return per target the judgements at stopping and whether the intervals covered."""
     k = len(strength)
@@ -164,21 +192,38 @@ def run_study(design, strength, clip_quality, args, seed):
         order = np.argsort(-theta)
         pairs = {"top_two": [(order[0], order[1])],
                  "order": list(zip(order[:-1], order[1:]))}
+        if args.rule == "app":
+            post = adaptive.posterior(k, data[0], data[1])
+            spread = adaptive.spread(post, *data)
         for target, which in pairs.items():
-            if target not in args.targets:
+            if target not in args.targets or target in done:
                 continue
-            widest = max(2 * look[a, b] for a, b in which)
             limit = args.top_width if target == "top_two" else args.order_width
-            if target not in done and widest <= limit:
+            if args.rule == "app":
+                # The app's stopping rule: the steady 95 % interval (study.stop_when).
+                state = adaptive.stop_state(post, {"interval_width": limit}, target, n, spread,
+                                            draws=200, seed=n)
+                reached = bool(state["met"])
+            else:
+                reached = max(2 * look[a, b] for a, b in which) <= limit
+            if reached:
                 covered = [abs((theta[a] - theta[b]) - (true[a] - true[b])) <= half[a, b]
                            for a, b in which]
                 done[target] = {"n": n, "covered": covered,
                                 "width": max(2 * half[a, b] for a, b in which)}
+                if args.crossed:
+                    own = crossed_intervals(k, data, which, seed + n, args.bootstrap)
+                    done[target]["crossed_covered"] = [
+                        low <= true[a] - true[b] <= high for (a, b), (_, low, high) in own.items()]
+                    done[target]["crossed_width"] = max(high - low for _, low, high in own.values())
         if design != "balanced":
             post = adaptive.posterior(k, data[0], data[1])
-            dist = adaptive.distribution(post, design, floor=args.floor,
+            target, batch = design, 0
+            if design.endswith("_batch"):  # planned as a batch of the next look's comparisons
+                target, batch = design[:-len("_batch")], args.every
+            dist = adaptive.distribution(post, target, floor=args.floor,
                                          sharpness=args.sharpness, focus=args.focus,
-                                         seed=seed + n)
+                                         seed=seed + n, batch=batch)
     for target in ("top_two", "order"):
         done.setdefault(target, {"n": None, "covered": []})
     return done
@@ -206,6 +251,13 @@ def main(argv=None):
                         help="the reported interval: the sandwich's, or the larger of it and "
                         "the steady one the stopping rule reads")
     parser.add_argument("--targets", default="top_two,order")
+    parser.add_argument("--rule", choices=("reported", "app"), default="reported",
+                        help="stop when the reported interval is at most the width (reported), or "
+                        "by the app's stopping rule, study.stop_when: {interval_width: W} (app)")
+    parser.add_argument("--crossed", action="store_true",
+                        help="also compute the study's own crossed-bootstrap intervals at the "
+                        "stop and their coverage")
+    parser.add_argument("--bootstrap", type=int, default=1000)
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
     designs = args.designs.split(",")
@@ -231,7 +283,11 @@ def main(argv=None):
             mean = float(np.mean(reached)) if reached else float("nan")
             if design == "balanced":
                 base = mean
+            crossed_cov = [c for r in results[design] for c in r[target].get("crossed_covered", [])]
+            crossed_w = [r[target]["crossed_width"] for r in results[design] if "crossed_width" in r[target]]
             rows.append({
+                "crossed_coverage": float(np.mean(crossed_cov)) if crossed_cov else float("nan"),
+                "crossed_width": float(np.mean(crossed_w)) if crossed_w else float("nan"),
                 "target": target, "design": design if design == "balanced" else f"adaptive {design}",
                 "reached": f"{len(reached)}/{len(ns)}",
                 "median": float(np.median(reached)) if reached else float("nan"),
@@ -246,13 +302,16 @@ def main(argv=None):
     print(f"{args.studies} studies per design, 8 sources, {args.clips} clips per source "
           f"(clip SD {args.clip_sd}), {args.trials} pairs per participant, looks every "
           f"{args.every} judgements; {seconds:.0f} s")
+    extra = " crossed coverage | crossed width |" if args.crossed else ""
     print("| target (width) | design | reached | median judgements | mean | vs balanced | "
-          "coverage (intervals) | all covered | width at stop |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "coverage (intervals) | all covered | width at stop |" + extra)
+    print("|---|---|---|---|---|---|---|---|---|" + ("---|---|" if args.crossed else ""))
     for row in rows:
+        more = (f" {row['crossed_coverage']:.3f} | {row['crossed_width']:.2f} |" if args.crossed else "")
         print(f"| {row['target']} ({width[row['target']]}) | {row['design']} | {row['reached']} | "
               f"{row['median']:.0f} | {row['mean']:.0f} | {row['vs_balanced']:+.0%} | "
-              f"{row['coverage']:.3f} ({row['intervals']}) | {row['all_covered']:.2f} | {row['width']:.2f} |")
+              f"{row['coverage']:.3f} ({row['intervals']}) | {row['all_covered']:.2f} | "
+              f"{row['width']:.2f} |{more}")
     if args.json:
         args.json.write_text(json.dumps({"args": {k: str(v) for k, v in vars(args).items()},
                                          "rows": rows}, indent=1))
