@@ -271,6 +271,13 @@ def test_a_budget_stops_the_study_and_closes_its_places(design, media_root, clip
     assert study.stopped["design"] == design and study.stopped["platform"] == ""
     late = make_bot(study)
     assert "This study is not open" in late.enter().content.decode()
+    # The report says how the study chose its trials and stopped.
+    out = media_root / "report"
+    call_command("analyze", study=study.slug, out=str(out), bootstrap=20, no_audit=True,
+                 stdout=open("/dev/null", "w"))
+    report = (out / "report.html").read_text()
+    assert "The study stopped by its stopping rule when its budget of 4 answered main" in report
+    assert ("The design was adaptive" in report) == (design == "adaptive")
 
 
 def test_a_met_interval_width_stops_the_study_on_prolific(monkeypatch):
