@@ -26,7 +26,7 @@ from studyapp.survey.models import Study, Trial
 run_job = None
 
 DEFAULTS = {"every": 50, "min_showings": 2, "target": "order", "floor": adaptive.FLOOR,
-            "sharpness": 2.0, "focus": 2.0}
+            "sharpness": 2.0, "focus": 2.0, "batch": 0}
 DESIGNS = ("balanced", "adaptive")
 
 
@@ -65,9 +65,12 @@ def check(design, given, study_type: str) -> str | None:
     for name, value in (given or {}).items():
         if name not in DEFAULTS:
             return f"adaptive.{name}: not a setting (settings: {', '.join(DEFAULTS)})"
-        if name in ("every", "min_showings") and (not isinstance(value, int) or isinstance(value, bool)
-                                                  or value < (1 if name == "every" else 0)):
+        if name in ("every", "min_showings", "batch") and (
+                not isinstance(value, int) or isinstance(value, bool) or value < (1 if name == "every" else 0)):
             return f"adaptive.{name}: {value!r} must be a whole number of at least {1 if name == 'every' else 0}"
+        if name == "batch" and value and model(study_type) != "pairs":
+            return (f"adaptive.batch: batches are planned for pairs of sources only; {study_type} "
+                    f"draws sets (leave batch out)")
         if name == "floor" and not (isinstance(value, (int, float)) and 0 < value <= 1):
             return f"adaptive.floor: {value!r} must be in (0, 1]"
         if name in ("sharpness", "focus") and not (isinstance(value, (int, float)) and value >= 0):

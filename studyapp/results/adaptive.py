@@ -97,7 +97,7 @@ def recompute(study) -> dict:
         dist = adaptive.set_distribution(post, size, target,
                                          depth=get_analysis(study.study_type).choice_depth, **options)
     elif study.design == "adaptive":
-        dist = adaptive.distribution(post, target, **options)
+        dist = adaptive.distribution(post, target, batch=chosen["batch"], **options)
     sampling = {"sources": names, **dist, "answers": answers, "comparisons": decided,
                 "worth": np.round(post.mean, 4).tolist(), "computed_at": timezone.now().isoformat(),
                 **({"note": note} if note else {})}

@@ -307,3 +307,18 @@ def test_stopping_at_the_width_keeps_the_crossed_intervals_coverage():
     # Twelve studies bound nothing tightly (the benchmark measures 0.93 and more); this
     # catches an analysis that ignores how the study stopped.
     assert np.mean(covered) >= 10 / 12
+
+
+def test_a_batch_spreads_over_the_pairs_that_lower_different_variances():
+    winner, loser = comparisons(np.array([1.5, 1.0, 0.5, 0.0, -0.5]), 400, seed=6)
+    post = adaptive.posterior(5, winner, loser)
+    contrasts, weights = adaptive.target_contrasts(post, "order")
+    counts = adaptive.batch_counts(post, contrasts, weights, 100, focus=2.0)
+    assert counts.sum() == 100
+    pairs = [tuple(p) for p in adaptive.all_pairs(5)]
+    # Every neighbour in the order gets comparisons; no one pair takes the batch.
+    for a in range(4):
+        assert counts[pairs.index((a, a + 1))] >= 5
+    assert counts.max() < 50
+    dist = adaptive.distribution(post, "order", floor=0.2, focus=2.0, batch=100)
+    np.testing.assert_allclose(dist["p"], 0.2 / 10 + 0.8 * counts / 100)

@@ -35,6 +35,8 @@ def test_some_types_offer_it_and_the_others_refuse_it():
     assert "every" in adaptive.check("adaptive", {"every": 0}, ADAPTIVE[0])
     assert "not a setting" in adaptive.check("adaptive", {"speed": 1}, ADAPTIVE[0])
     assert "not one of" in adaptive.check("greedy", {}, ADAPTIVE[0])
+    assert adaptive.check("adaptive", {"batch": 50}, PAIRS[0]) is None
+    assert "pairs of sources only" in adaptive.check("adaptive", {"batch": 50}, SETS[0])
     with pytest.raises(ValidationError, match="worth model"):
         Study.objects.create_study(OTHERS[0], "other", "Other", design="adaptive")
 
@@ -148,6 +150,10 @@ def test_a_versus_target_aims_at_that_source(study_type):
     mine = [p for pair, p in at.items() if SOURCES[0] in pair]
     others = [p for pair, p in at.items() if SOURCES[0] not in pair]
     assert min(mine) > max(others) and "note" not in sampling
+    study.adaptive = {"target": {"versus": SOURCES[0]}, "batch": 30}
+    batched = recompute(study)
+    at = {tuple(names[i] for i in pair): p for pair, p in zip(batched["pairs"], batched["p"])}
+    assert sum(p for pair, p in at.items() if SOURCES[0] in pair) > 0.75  # balanced: 2/3
     study.adaptive = {"target": {"versus": "nobody"}}
     assert "aimed at the order" in recompute(study)["note"]
 
