@@ -318,3 +318,14 @@ def test_a_met_interval_width_stops_the_study_on_prolific(monkeypatch):
         call_command("adaptive_design", study.slug, stdout=StringIO())
         sent = fake.requests("POST", f"/api/v1/studies/{prolific_id}/transition/")
         assert [r["body"]["action"] for r in sent] == ["PUBLISH", "STOP"]
+
+
+def test_the_example_config_is_adaptive_with_a_stopping_rule():
+    from pathlib import Path
+
+    from studyapp.stimuli.config import load_config
+
+    config = load_config(Path(__file__).resolve().parents[2] / "studies" / "adaptive_pairwise.yaml")
+    assert config.study_options["design"] == "adaptive"
+    assert config.study_options["stop_when"] == {"interval_width": 1.5, "judgements": 600}
+    assert adaptive.supports(config.study_type)
