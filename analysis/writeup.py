@@ -153,8 +153,9 @@ def adaptive_sentences(options: dict) -> list[str]:
             f"The design was adaptive: after every clip had been shown {plural(minimum, 'time')}, "
             f"the sources shown together in a main trial were drawn from a distribution "
             f"recomputed in the background every {plural(every, 'answered main trial')}, "
-            f"favouring the sources expected to narrow the interval of {_target_text(target)} "
-            f"most, with {floor:.0%} of it spread evenly over every choice of sources; clips "
+            f"favouring the sources whose answers were expected to narrow most the intervals "
+            f"of {_target_text(target)}, with {floor:.0%} of it spread evenly over every choice "
+            f"of sources; clips "
             f"were taken least-shown first, positions balanced within each participant, and "
             f"no participant saw the same clips together twice")
         sentences.append(

@@ -172,7 +172,8 @@ def run_study(design, strength, clip_quality, args, seed):
     done = {}
     participant, queue = -1, []
     n = 0
-    while n < args.budget and len(done) < len(args.targets):
+    wanted = len(args.targets) * len(getattr(args, "rules", None) or [args.rule])
+    while n < args.budget and len(done) < wanted:
         if not queue:
             participant += 1
             queue = adaptive.plan_pairs(dist, args.trials, clips, shown, rng,
@@ -192,30 +193,34 @@ def run_study(design, strength, clip_quality, args, seed):
         order = np.argsort(-theta)
         pairs = {"top_two": [(order[0], order[1])],
                  "order": list(zip(order[:-1], order[1:]))}
-        if args.rule == "app":
+        rules = getattr(args, "rules", None) or [args.rule]
+        if "app" in rules:
             post = adaptive.posterior(k, data[0], data[1])
             spread = adaptive.spread(post, *data)
-        for target, which in pairs.items():
-            if target not in args.targets or target in done:
-                continue
-            limit = args.top_width if target == "top_two" else args.order_width
-            if args.rule == "app":
-                # The app's stopping rule: the steady 95 % interval (study.stop_when).
-                state = adaptive.stop_state(post, {"interval_width": limit}, target, n, spread,
-                                            draws=200, seed=n)
-                reached = bool(state["met"])
-            else:
-                reached = max(2 * look[a, b] for a, b in which) <= limit
-            if reached:
+        for rule in rules:
+            for target, which in pairs.items():
+                key = target if rule == rules[0] else f"{target}@{rule}"
+                if target not in args.targets or key in done:
+                    continue
+                limit = args.top_width if target == "top_two" else args.order_width
+                if rule == "app":
+                    # The app's stopping rule: the steady 95 % interval (study.stop_when).
+                    state = adaptive.stop_state(post, {"interval_width": limit}, target, n,
+                                                spread, draws=200, seed=n)
+                    reached = bool(state["met"])
+                else:
+                    reached = max(2 * look[a, b] for a, b in which) <= limit
+                if not reached:
+                    continue
                 covered = [abs((theta[a] - theta[b]) - (true[a] - true[b])) <= half[a, b]
                            for a, b in which]
-                done[target] = {"n": n, "covered": covered,
-                                "width": max(2 * half[a, b] for a, b in which)}
+                done[key] = {"n": n, "covered": covered,
+                             "width": max(2 * half[a, b] for a, b in which)}
                 if args.crossed:
                     own = crossed_intervals(k, data, which, seed + n, args.bootstrap)
-                    done[target]["crossed_covered"] = [
+                    done[key]["crossed_covered"] = [
                         low <= true[a] - true[b] <= high for (a, b), (_, low, high) in own.items()]
-                    done[target]["crossed_width"] = max(high - low for _, low, high in own.values())
+                    done[key]["crossed_width"] = max(high - low for _, low, high in own.values())
         if design != "balanced":
             post = adaptive.posterior(k, data[0], data[1])
             target, batch = design, 0
@@ -224,8 +229,10 @@ def run_study(design, strength, clip_quality, args, seed):
             dist = adaptive.distribution(post, target, floor=args.floor,
                                          sharpness=args.sharpness, focus=args.focus,
                                          seed=seed + n, batch=batch)
-    for target in ("top_two", "order"):
-        done.setdefault(target, {"n": None, "covered": []})
+    for rule in getattr(args, "rules", None) or [args.rule]:
+        for target in ("top_two", "order"):
+            key = target if rule == (getattr(args, "rules", None) or [args.rule])[0] else f"{target}@{rule}"
+            done.setdefault(key, {"n": None, "covered": []})
     return done
 
 
@@ -254,6 +261,9 @@ def main(argv=None):
     parser.add_argument("--rule", choices=("reported", "app"), default="reported",
                         help="stop when the reported interval is at most the width (reported), or "
                         "by the app's stopping rule, study.stop_when: {interval_width: W} (app)")
+    parser.add_argument("--rules", default="",
+                        help="several rules at once, e.g. reported,app: each stops its own copy "
+                        "of the same simulated study (the answers do not depend on the rule)")
     parser.add_argument("--crossed", action="store_true",
                         help="also compute the study's own crossed-bootstrap intervals at the "
                         "stop and their coverage")
@@ -262,6 +272,7 @@ def main(argv=None):
     args = parser.parse_args(argv)
     designs = args.designs.split(",")
     args.targets = args.targets.split(",")
+    args.rules = args.rules.split(",") if args.rules else [args.rule]
     results = {d: [] for d in designs}
     started = time.perf_counter()
     for study in range(args.studies):
@@ -272,23 +283,26 @@ def main(argv=None):
             results[design].append(run_study(design, STRENGTHS, quality, args, seed))
     seconds = time.perf_counter() - started
     rows = []
-    for target in args.targets:
+    keys = [(target if rule == args.rules[0] else f"{target}@{rule}", target, rule)
+            for rule in args.rules for target in args.targets]
+    for key, target, rule in keys:
         base = None
         for design in designs:
-            ns = [r[target]["n"] for r in results[design]]
+            ns = [r[key]["n"] for r in results[design]]
             reached = [x for x in ns if x is not None]
-            covered = [c for r in results[design] for c in r[target]["covered"]]
-            widths = [r[target]["width"] for r in results[design] if r[target]["n"]]
-            all_covered = [all(r[target]["covered"]) for r in results[design] if r[target]["n"]]
+            covered = [c for r in results[design] for c in r[key]["covered"]]
+            widths = [r[key]["width"] for r in results[design] if r[key]["n"]]
+            all_covered = [all(r[key]["covered"]) for r in results[design] if r[key]["n"]]
             mean = float(np.mean(reached)) if reached else float("nan")
             if design == "balanced":
                 base = mean
-            crossed_cov = [c for r in results[design] for c in r[target].get("crossed_covered", [])]
-            crossed_w = [r[target]["crossed_width"] for r in results[design] if "crossed_width" in r[target]]
+            crossed_cov = [c for r in results[design] for c in r[key].get("crossed_covered", [])]
+            crossed_w = [r[key]["crossed_width"] for r in results[design] if "crossed_width" in r[key]]
             rows.append({
                 "crossed_coverage": float(np.mean(crossed_cov)) if crossed_cov else float("nan"),
                 "crossed_width": float(np.mean(crossed_w)) if crossed_w else float("nan"),
-                "target": target, "design": design if design == "balanced" else f"adaptive {design}",
+                "target": target, "rule": rule,
+                "design": design if design == "balanced" else f"adaptive {design}",
                 "reached": f"{len(reached)}/{len(ns)}",
                 "median": float(np.median(reached)) if reached else float("nan"),
                 "mean": mean,
@@ -303,12 +317,12 @@ def main(argv=None):
           f"(clip SD {args.clip_sd}), {args.trials} pairs per participant, looks every "
           f"{args.every} judgements; {seconds:.0f} s")
     extra = " crossed coverage | crossed width |" if args.crossed else ""
-    print("| target (width) | design | reached | median judgements | mean | vs balanced | "
+    print("| target (width) | stop | design | reached | median judgements | mean | vs balanced | "
           "coverage (intervals) | all covered | width at stop |" + extra)
-    print("|---|---|---|---|---|---|---|---|---|" + ("---|---|" if args.crossed else ""))
+    print("|---|---|---|---|---|---|---|---|---|---|" + ("---|---|" if args.crossed else ""))
     for row in rows:
         more = (f" {row['crossed_coverage']:.3f} | {row['crossed_width']:.2f} |" if args.crossed else "")
-        print(f"| {row['target']} ({width[row['target']]}) | {row['design']} | {row['reached']} | "
+        print(f"| {row['target']} ({width[row['target']]}) | {row['rule']} | {row['design']} | {row['reached']} | "
               f"{row['median']:.0f} | {row['mean']:.0f} | {row['vs_balanced']:+.0%} | "
               f"{row['coverage']:.3f} ({row['intervals']}) | {row['all_covered']:.2f} | "
               f"{row['width']:.2f} |{more}")

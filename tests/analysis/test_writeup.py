@@ -166,6 +166,7 @@ def test_the_paragraph_says_how_an_adaptive_study_chose_its_trials_and_stopped()
         "design": "adaptive", "adaptive": {"every": 50, "target": "top_two"},
         "stop_when": {"interval_width": 0.6}, "stopped": stopped})).methods()
     assert "The design was adaptive" in text and "every 50 answered main trials" in text
+    assert "narrow most the intervals of the difference between the two sources estimated best" in text
     assert ("The study stopped by its stopping rule when the widest 95% interval of the "
             "difference between the two sources estimated best was 0.57, at most the rule's 0.6 "
             "(logit scale), after 1234 answered main trials") in text
