@@ -2,8 +2,9 @@
 
     .venv/bin/python benchmarks/bench_adaptive.py [--studies 20] [--every 100]
         [--top-width 0.6] [--order-width 0.7] [--budget 20000] [--targets top_two,order]
-        [--designs balanced,top_two,order] [--interval larger|sandwich]
-        [--stop-on larger|information|sandwich] [--json out.json]
+        [--designs balanced,top_two,order,order_batch] [--interval larger|sandwich]
+        [--stop-on larger|information|sandwich] [--rules reported,app] [--crossed
+        [--bootstrap 1000]] [--json out.json]
 
 Each simulated study has 8 sources with a spread of Bradley-Terry strengths
 (:data:`STRENGTHS`), ``--clips`` clips per source whose qualities vary about their
@@ -16,7 +17,10 @@ clips, fresh answers):
 - ``adaptive top_two`` and ``adaptive order``: :func:`analysis.adaptive.distribution`
   aiming at the top two or at the whole order, recomputed every ``--every`` judgements
   (every clip shown ``--min-showings`` times first, no participant seeing a pair of clips
-  twice, positions counterbalanced per participant: :func:`analysis.adaptive.plan_pairs`).
+  twice, positions counterbalanced per participant: :func:`analysis.adaptive.plan_pairs`);
+- ``adaptive top_two_batch`` and ``adaptive order_batch``: the same targets, each look's
+  next ``--every`` comparisons planned as one batch (``adaptive.batch``:
+  :func:`analysis.adaptive.batch_counts`).
 
 Every ``--every`` judgements (a look) two 95 % intervals of each source difference are
 computed, both treating participants and clips as random but in closed form, so that
@@ -38,7 +42,12 @@ of every difference of neighbours in the estimated order, is at most the target 
 every design stops at the same width. ``--stop-on information`` stops on the steady width
 alone (the reported interval may then be wider than the target), ``--stop-on sandwich`` on
 the sandwich's alone, which selects looks where the sandwich happens to be small and so
-undercovers. Reported per design and target:
+undercovers. ``--rules app`` stops instead by the app's stopping rule
+(``study.stop_when: {interval_width: W}``, :func:`analysis.adaptive.stop_state`: the steady
+interval alone); ``--rules reported,app`` stops a copy of each simulated study by each
+rule (the answers do not depend on the rule). ``--crossed`` also computes, at each stop,
+the study's own intervals (the pairwise analysis's crossed bootstrap of participants and
+clips, :func:`crossed_intervals`) and their coverage. Reported per rule, design and target:
 the judgements needed (median, mean, and the mean relative to balanced), the share of
 studies reaching the target within ``--budget``, the coverage of the true differences
 (those of infinitely many clips and judgements, balanced: :func:`truth`) by the reported
