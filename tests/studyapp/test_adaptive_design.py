@@ -329,3 +329,13 @@ def test_the_example_config_is_adaptive_with_a_stopping_rule():
     assert config.study_options["design"] == "adaptive"
     assert config.study_options["stop_when"] == {"interval_width": 1.5, "judgements": 600}
     assert adaptive.supports(config.study_type)
+
+
+def test_a_budget_is_checked_for_a_type_without_a_worth_model():
+    from studyapp.results.adaptive import recompute
+
+    study = Study.objects.create_study(OTHERS[0], "budget-only", "Budget", stop_when={"judgements": 1})
+    make_stimuli(study, per_cell=1)
+    sampling = recompute(study)
+    assert sampling["stop"]["met"] == "" and sampling["stop"]["judgements"] == 0
+    assert "pairs" not in sampling and not study.stopped
