@@ -245,6 +245,51 @@ def run_study(design, strength, clip_quality, args, seed):
     return done
 
 
+def run_sets_study(design, strength, clip_quality, args, seed):
+    """Return, for best of ``--sets`` k (one Luce choice per trial among its k sources'
+    clips, Plackett-Luce with clip qualities), the judgements until the Plackett-Luce
+    posterior's interval of the target (the model's alone: no clip term for sets) is at
+    most the width, and whether the intervals there covered the truth (the sources'
+    strengths: the estimand of infinitely many clips, up to the clips' spread)."""
+    k = len(strength)
+    rng = random.Random(seed)
+    answers = np.random.default_rng(seed + 10_000)
+    clips = {s: list(range(s * args.clips, (s + 1) * args.clips)) for s in range(k)}
+    source_of = np.repeat(np.arange(k), args.clips)
+    true = strength - strength.mean()
+    dist = adaptive.balanced_sets(k, args.sets)
+    shown = Counter()
+    chosen, among = [], []
+    done, queue, n = {}, [], 0
+    while n < args.budget and len(done) < len(args.targets):
+        if not queue:
+            queue = adaptive.plan_sets(dist, args.trials, clips, shown, rng,
+                                       min_showings=args.min_showings)
+        trial = queue.pop(0)
+        utility = clip_quality[list(trial)] + answers.gumbel(size=len(trial))
+        chosen.append(source_of[trial[int(np.argmax(utility))]])
+        among.append([source_of[c] for c in trial])
+        n += 1
+        if n % args.every:
+            continue
+        post = adaptive.choice_posterior(k, chosen, among)
+        for target in args.targets:
+            limit = args.top_width if target == "top_two" else args.order_width
+            state = adaptive.stop_state(post, {"interval_width": limit}, target, n, draws=200, seed=n)
+            if target not in done and state["met"]:
+                half = 1.959964 * np.sqrt(adaptive.difference_variance(post.cov))
+                pairs = [tuple(pair) for pair in state["pairs"]]
+                done[target] = {"n": n, "width": state["width"],
+                                "covered": [abs(post.mean[a] - post.mean[b] - (true[a] - true[b]))
+                                            <= half[a, b] for a, b in pairs]}
+        if design != "balanced":
+            dist = adaptive.set_distribution(post, args.sets, design, depth=1, floor=args.floor,
+                                             sharpness=args.sharpness, focus=args.focus, seed=seed + n)
+    for target in ("top_two", "order"):
+        done.setdefault(target, {"n": None, "covered": []})
+    return done
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--studies", type=int, default=20)
@@ -277,6 +322,9 @@ def main(argv=None):
                         help="also compute the study's own crossed-bootstrap intervals at the "
                         "stop and their coverage")
     parser.add_argument("--bootstrap", type=int, default=1000)
+    parser.add_argument("--sets", type=int, default=0,
+                        help="best of this many sources per trial instead of pairs (Plackett-Luce; "
+                        "the app's rule on the model's interval; no --crossed)")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
     designs = args.designs.split(",")
@@ -289,7 +337,8 @@ def main(argv=None):
         clip_rng = np.random.default_rng(seed)
         quality = np.repeat(STRENGTHS, args.clips) + clip_rng.normal(0, args.clip_sd, len(STRENGTHS) * args.clips)
         for design in designs:
-            results[design].append(run_study(design, STRENGTHS, quality, args, seed))
+            run = run_sets_study if args.sets else run_study
+            results[design].append(run(design, STRENGTHS, quality, args, seed))
     seconds = time.perf_counter() - started
     rows = []
     keys = [(target if rule == args.rules[0] else f"{target}@{rule}", target, rule)
@@ -322,8 +371,9 @@ def main(argv=None):
                 "width": float(np.mean(widths)) if widths else float("nan"),
             })
     width = {"top_two": args.top_width, "order": args.order_width}
-    print(f"{args.studies} studies per design, 8 sources, {args.clips} clips per source "
-          f"(clip SD {args.clip_sd}), {args.trials} pairs per participant, looks every "
+    print(f"{args.studies} studies per design, 8 sources, "
+          f"{f'best of {args.sets}' if args.sets else 'pairs'}, {args.clips} clips per source "
+          f"(clip SD {args.clip_sd}), {args.trials} trials per participant, looks every "
           f"{args.every} judgements; {seconds:.0f} s")
     extra = " crossed coverage | crossed width |" if args.crossed else ""
     print("| target (width) | stop | design | reached | median judgements | mean | vs balanced | "
