@@ -339,3 +339,15 @@ def test_a_budget_is_checked_for_a_type_without_a_worth_model():
     sampling = recompute(study)
     assert sampling["stop"]["met"] == "" and sampling["stop"]["judgements"] == 0
     assert "pairs" not in sampling and not study.stopped
+
+
+def test_a_failed_stop_on_prolific_says_how_to_retry(monkeypatch):
+    from studyapp.crowd.platform import make_platform
+
+    monkeypatch.delenv("PROLIFIC_TOKEN", raising=False)
+    platform = make_platform({"platform": "prolific", "codes": {"completed": "C1A2B3C4"},
+                              "prolific_study_id": "64f0c0ffee0000000000beef"})
+    said = platform.stop_recruiting(Study(slug="s"))
+    assert "STOP failed" in said and "PROLIFIC_TOKEN" in said and "prolific stop --study s" in said
+    assert "nothing sent" in make_platform({"platform": "prolific", "codes": {
+        "completed": "C1A2B3C4"}}).stop_recruiting(Study(slug="s"))
