@@ -130,6 +130,16 @@ class BestOfK(StudyAnalysis):
         picks[tie] = np.where(good[tie], "all_good", "all_bad")[:, None]
         return {"pick": picks.ravel()}
 
+    def worth_choices(self, rows):
+        """Return one Luce choice per trial that picked a clip: its source among the
+        sources of the trial's clips ("all good" and "all bad" pick none)."""
+        sources = rows.groupby("trial_key", sort=False)["source"].agg(tuple)
+        best = rows.loc[rows["pick"].astype(str).to_numpy() == "best"]
+        best = best.drop_duplicates("trial_key")
+        return pd.DataFrame({"chosen": best["source"].to_numpy(),
+                             "among": sources.reindex(best["trial_key"]).to_numpy(),
+                             "weight": 1.0})
+
     def answered(self, rows):
         """Return the rows of trials with a valid answer: one clip ``best`` and the rest
         ``other``, or every clip ``all_good`` (or ``all_bad``)."""

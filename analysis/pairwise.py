@@ -79,9 +79,14 @@ class Pairwise(StudyAnalysis):
         names = np.array(sorted(rows["source"].unique()), dtype=object)
         trials = comparisons(rows, list(names))
         decided = trials.loc[trials["winner"] >= 0]
+        left_won = (decided["winner"] == decided["left"]).to_numpy()
+        left, right = decided["left_stimulus"].to_numpy(), decided["right_stimulus"].to_numpy()
         return pd.DataFrame({"winner": names[decided["winner"].to_numpy()],
                              "loser": names[decided["loser"].to_numpy()],
-                             "weight": 1.0})
+                             "weight": 1.0,
+                             "winner_clip": np.where(left_won, left, right),
+                             "loser_clip": np.where(left_won, right, left),
+                             "participant": decided["pcode"].to_numpy()})
 
     def analyse(self, rows, config):
         names = sorted(rows["source"].unique())

@@ -134,7 +134,14 @@ class PairwiseGraded(StudyAnalysis):
         winner = np.concatenate([np.where(grade > 0, left, right), right[tie]])
         loser = np.concatenate([np.where(grade > 0, right, left), left[tie]])
         weight = np.concatenate([np.where(tie, 0.5, 1.0), np.full(int(tie.sum()), 0.5)])
-        return pd.DataFrame({"winner": names[winner], "loser": names[loser], "weight": weight})
+        left_clip = trials["left_stimulus"].to_numpy()
+        right_clip = trials["right_stimulus"].to_numpy()
+        winner_clip = np.concatenate([np.where(grade > 0, left_clip, right_clip), right_clip[tie]])
+        loser_clip = np.concatenate([np.where(grade > 0, right_clip, left_clip), left_clip[tie]])
+        who = trials["pcode"].to_numpy()
+        return pd.DataFrame({"winner": names[winner], "loser": names[loser], "weight": weight,
+                             "winner_clip": winner_clip, "loser_clip": loser_clip,
+                             "participant": np.concatenate([who, who[tie]])})
 
     def analyse(self, rows, config):
         names = sorted(rows["source"].unique())

@@ -118,6 +118,21 @@ class Ranking(StudyAnalysis):
                           axis=1)
         return {"rank": pd.array(ranks.ravel(), dtype="Int64")}
 
+    choice_depth = None
+
+    def worth_choices(self, rows):
+        """Return a ranking's Luce choices: rank 1 among all the trial's sources, rank 2
+        among the rest, and so on (Plackett-Luce); ``rows`` as :meth:`answered` leaves them."""
+        chosen, among = [], []
+        for _, trial in rows.sort_values(["trial_key", "rank"], kind="stable").groupby(
+                "trial_key", sort=False):
+            order = tuple(trial["source"])
+            for place in range(len(order) - 1):
+                chosen.append(order[place])
+                among.append(order[place:])
+        return pd.DataFrame({"chosen": chosen, "among": pd.Series(among, dtype=object),
+                             "weight": 1.0})
+
     def answered(self, rows):
         """Return ranked rows sorted by trial and rank, ranks renumbered 1..m within the trial.
 

@@ -97,9 +97,23 @@ class StudyAnalysis:
 
     def worth_comparisons(self, rows: pd.DataFrame) -> pd.DataFrame | None:
         """Return the decided comparisons of answered main ``rows`` as ``winner`` and
-        ``loser`` source columns (and ``weight``), for a Bradley-Terry posterior; None when
+        ``loser`` source columns (and ``weight``; optionally ``winner_clip``,
+        ``loser_clip`` and ``participant``, with which a stopping rule's intervals count
+        clips and participants as random), for a Bradley-Terry posterior; None when
         this type has no worth model of pairs (then it offers no adaptive design,
         :mod:`analysis.adaptive`)."""
+        return None
+
+    # How many Luce choices one trial's answer makes (:meth:`worth_choices`): 1 for a pick
+    # of the best, None for a ranking of all the trial's clips (``k - 1`` choices).
+    choice_depth: int | None = 1
+
+    def worth_choices(self, rows: pd.DataFrame) -> pd.DataFrame | None:
+        """Return the Luce choices of answered main ``rows``: ``chosen`` (a source),
+        ``among`` (a tuple of the sources it was chosen among, itself included) and
+        ``weight``, for a Plackett-Luce posterior over sets of sources; None when this type
+        has no such model (then its adaptive design, if any, is of pairs,
+        :meth:`worth_comparisons`)."""
         return None
 
     def answered(self, rows: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:

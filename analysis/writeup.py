@@ -128,6 +128,68 @@ def _design(result) -> list[str]:
                          + " a second time measured how consistently participants answered")
     if options.get("practice"):
         sentences.append("A practice trial came first; its answer is not analysed")
+    sentences += adaptive_sentences(options)
+    return sentences
+
+
+def _target_text(target) -> str:
+    if isinstance(target, dict) and "versus" in target:
+        return f"each difference between {target['versus']} and another source"
+    if target == "top_two":
+        return "the difference between the two sources estimated best"
+    return "every difference between neighbours in the estimated order of the sources"
+
+
+def adaptive_sentences(options: dict) -> list[str]:
+    """Return how the study chose its trials and how it stopped, from its ``design``,
+    ``adaptive``, ``stop_when`` and ``stopped`` settings (``Study`` fields; none for a
+    balanced study without a stopping rule or a table analysed without its study)."""
+    sentences = []
+    settings = options.get("adaptive") or {}
+    target = settings.get("target", "order")
+    if options.get("design") == "adaptive":
+        every = settings.get("every", 50)
+        floor = settings.get("floor", 0.2)
+        minimum = settings.get("min_showings", 2)
+        sentences.append(
+            f"The design was adaptive: after every clip had been shown {plural(minimum, 'time')}, "
+            f"the sources shown together in a main trial were drawn from a distribution "
+            f"recomputed in the background every {plural(every, 'answered main trial')}, "
+            f"favouring the sources whose answers were expected to narrow most the intervals "
+            f"of {_target_text(target)}, with {floor:.0%} of it spread evenly over every choice "
+            f"of sources; clips "
+            f"were taken least-shown first, positions balanced within each participant, and "
+            f"no participant saw the same clips together twice")
+        sentences.append(
+            "Which sources were shown together depended only on answers already given, so the "
+            "likelihood of the answers, and the fit, are those of a fixed design; the "
+            "intervals resample participants and clips as for a balanced design")
+    stopped, rule = options.get("stopped") or {}, options.get("stop_when") or {}
+    if stopped:
+        n = plural(stopped["judgements"], "answered main trial")
+        what = _target_text(stopped.get("target", target))
+        if stopped["rule"] == "interval_width":
+            how = (f"when the widest 95% interval of {what} was {stopped['width']:.2f}, at "
+                   f"most the rule's {stopped['value']:g} (logit scale), after {n}")
+            if stopped.get("interval") == "clips":
+                how += (" (the rule's own interval: the model's variance with one clip variance "
+                        "pooled over every pair of sources, computed at every check; the "
+                        "intervals reported here resample participants and clips and can be "
+                        "wider)")
+        elif stopped["rule"] == "rank_certainty":
+            how = (f"when the posterior probability that the estimated order of {what} was "
+                   f"right reached {stopped['certainty']:.2f}, at least the rule's "
+                   f"{stopped['value']:g}, after {n}")
+        else:
+            how = f"when its budget of {plural(stopped['value'], 'answered main trial')} was reached ({n})"
+        sentences.append(
+            f"The study stopped by its stopping rule {how}; the rule was checked in the "
+            f"background every few answers, its places were closed then, and the answers of "
+            f"those still taking part were kept")
+    elif rule:
+        wanted = ", ".join(f"{name.replace('_', ' ')} {value:g}" for name, value in rule.items())
+        sentences.append(f"The study had a stopping rule ({wanted}) that had not been met when "
+                         f"the data were exported")
     return sentences
 
 

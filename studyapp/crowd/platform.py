@@ -264,6 +264,11 @@ class Platform:
         """Return a client of the platform's API, or None for a platform without one."""
         return None
 
+    def stop_recruiting(self, study) -> str:
+        """Ask the platform to send no more people to ``study``, which its stopping rule
+        closed; return what was done, in words ("" when the platform has nothing to ask)."""
+        return ""
+
 
 def platform_of(study) -> Platform:
     """Return the platform adapter of ``study``'s ``crowd`` settings (ValueError if bad)."""

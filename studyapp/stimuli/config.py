@@ -300,7 +300,8 @@ def _study(raw, conditions=None, clip_seconds=None) -> tuple[str, dict, dict, li
     problem = check_criteria(options.get("criteria"))
     if problem:
         raise ConfigError(f"study.{problem}")
-    problem = adaptive.check(options.get("design") or "balanced", options.get("adaptive"), study_type)
+    problem = (adaptive.check(options.get("design") or "balanced", options.get("adaptive"), study_type)
+               or adaptive.check_stop(options.get("stop_when"), study_type))
     if problem:
         raise ConfigError(f"study.{problem}")
     if options.get("arena") is not None:  # arena: {} is an arena of the default settings

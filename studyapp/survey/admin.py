@@ -67,7 +67,7 @@ class StudyAdmin(admin.ModelAdmin):
     list_filter = ["study_type", "status"]
     search_fields = ["slug", "title"]
     readonly_fields = ["dashboard_link", "participant_link", "preview_link", "results_link",
-                       "plan_link", "duration", "progress", "created_at"]
+                       "plan_link", "duration", "progress", "created_at", "stopped"]
     actions = ["open_studies", "close_studies"]
     inlines = [ScoringStandardInline]
     fieldsets = [
@@ -89,6 +89,8 @@ class StudyAdmin(admin.ModelAdmin):
                     "design",
                     "adaptive",
                     "arena",
+                    "stop_when",
+                    "stopped",
                     "ask_demographics",
                     "options",
                     "criteria",

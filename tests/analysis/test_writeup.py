@@ -154,3 +154,30 @@ def test_instructed_checks_are_named_as_such(study_type):
     assert "Attention was checked with 1 instructed check per participant" in text
     assert "catch trial" not in text.lower()
     assert "Instructed checks do not enter the statistics" in text
+
+
+def test_the_paragraph_says_how_an_adaptive_study_chose_its_trials_and_stopped():
+    from analysis.writeup import adaptive_sentences
+
+    table = simulate(TYPES[0], participants=12, trials=4, seed=3)
+    stopped = {"rule": "interval_width", "value": 0.6, "width": 0.574, "judgements": 1234,
+               "certainty": 0.8, "interval": "clips", "target": "top_two"}
+    text = analyse(table, config(bootstrap=20, study_options={
+        "design": "adaptive", "adaptive": {"every": 50, "target": "top_two"},
+        "stop_when": {"interval_width": 0.6}, "stopped": stopped})).methods()
+    assert "The design was adaptive" in text and "every 50 answered main trials" in text
+    assert "narrow most the intervals of the difference between the two sources estimated best" in text
+    assert ("The study stopped by its stopping rule when the widest 95% interval of the "
+            "difference between the two sources estimated best was 0.57, at most the rule's 0.6 "
+            "(logit scale), after 1234 answered main trials") in text
+    assert "adaptive" not in analyse(table, config(bootstrap=20)).methods()
+    budget = adaptive_sentences({"stop_when": {"judgements": 500},
+                                 "stopped": {"rule": "judgements", "value": 500, "judgements": 512,
+                                             "width": 1.0, "certainty": 0.5}})
+    assert budget == ["The study stopped by its stopping rule when its budget of 500 answered main "
+                      "trials was reached (512 answered main trials); the rule was checked in the "
+                      "background every few answers, its places were closed then, and the answers "
+                      "of those still taking part were kept"]
+    running = adaptive_sentences({"stop_when": {"rank_certainty": 0.95}})
+    assert running == ["The study had a stopping rule (rank certainty 0.95) that had not been met "
+                       "when the data were exported"]

@@ -15,28 +15,33 @@ from tests.studyapp.conftest import SOURCES, make_stimuli
 pytestmark = pytest.mark.django_db
 
 ADAPTIVE = [name for name in list_study_types() if adaptive.supports(name)]
+PAIRS = [name for name in ADAPTIVE if adaptive.model(name) == "pairs"]
+SETS = [name for name in ADAPTIVE if adaptive.model(name) == "sets"]
 OTHERS = [name for name in list_study_types() if not adaptive.supports(name)]
 
 
-def adaptive_study(study_type, **settings):
+def adaptive_study(study_type, clips_per_trial=2, **settings):
     study = Study.objects.create_study(study_type, "adaptive", "Adaptive", design="adaptive",
-                                       adaptive=settings, trials_per_participant=6)
+                                       adaptive=settings, trials_per_participant=6,
+                                       clips_per_trial=clips_per_trial)
     make_stimuli(study, per_cell=2)
     return study
 
 
 def test_some_types_offer_it_and_the_others_refuse_it():
-    assert ADAPTIVE and OTHERS
+    assert PAIRS and SETS and OTHERS
     assert "worth model" in adaptive.check("adaptive", {}, OTHERS[0])
     assert adaptive.check("adaptive", {"every": 20, "target": "top_two"}, ADAPTIVE[0]) is None
     assert "every" in adaptive.check("adaptive", {"every": 0}, ADAPTIVE[0])
     assert "not a setting" in adaptive.check("adaptive", {"speed": 1}, ADAPTIVE[0])
     assert "not one of" in adaptive.check("greedy", {}, ADAPTIVE[0])
+    assert adaptive.check("adaptive", {"batch": 50}, PAIRS[0]) is None
+    assert "pairs of sources only" in adaptive.check("adaptive", {"batch": 50}, SETS[0])
     with pytest.raises(ValidationError, match="worth model"):
         Study.objects.create_study(OTHERS[0], "other", "Other", design="adaptive")
 
 
-@pytest.mark.parametrize("study_type", ADAPTIVE)
+@pytest.mark.parametrize("study_type", PAIRS)
 def test_balanced_until_a_distribution_is_stored_and_a_recompute_is_asked_for(
         study_type, monkeypatch, django_capture_on_commit_callbacks):
     started = []
@@ -53,7 +58,7 @@ def test_balanced_until_a_distribution_is_stored_and_a_recompute_is_asked_for(
     assert len(started) == 1
 
 
-@pytest.mark.parametrize("study_type", ADAPTIVE)
+@pytest.mark.parametrize("study_type", PAIRS)
 def test_trials_follow_the_stored_distribution_under_the_constraints(study_type):
     study = adaptive_study(study_type, min_showings=0)
     names = sorted(SOURCES)
@@ -72,7 +77,7 @@ def test_trials_follow_the_stored_distribution_under_the_constraints(study_type)
     assert left[names[0]] == left[names[1]] == 3
 
 
-@pytest.mark.parametrize("study_type", ADAPTIVE)
+@pytest.mark.parametrize("study_type", PAIRS)
 def test_every_clip_gets_its_minimum_before_the_distribution_decides(study_type):
     study = adaptive_study(study_type, min_showings=1)
     names = sorted(SOURCES)
@@ -83,7 +88,7 @@ def test_every_clip_gets_its_minimum_before_the_distribution_decides(study_type)
     assert {s.source for plan in plans for s in plan.stimuli} == set(SOURCES)
 
 
-@pytest.mark.parametrize("study_type", ADAPTIVE)
+@pytest.mark.parametrize("study_type", PAIRS)
 def test_the_command_stores_a_distribution_over_the_studys_sources(study_type):
     from django.core.management import call_command
 
@@ -109,7 +114,7 @@ def test_the_config_takes_the_design_and_checks_it():
         _study({"type": ADAPTIVE[0], "design": "adaptive", "adaptive": {"target": "best"}})
 
 
-@pytest.mark.parametrize("study_type", ADAPTIVE)
+@pytest.mark.parametrize("study_type", PAIRS)
 def test_answers_through_the_pages_reach_the_posterior(study_type, media_root, clips,
                                                        extra_clips, make_bot):
     from django.core.management import call_command
@@ -134,7 +139,7 @@ def test_answers_through_the_pages_reach_the_posterior(study_type, media_root, c
     assert len(study.sampling["worth"]) == len(study.sampling["sources"])
 
 
-@pytest.mark.parametrize("study_type", ADAPTIVE)
+@pytest.mark.parametrize("study_type", PAIRS)
 def test_a_versus_target_aims_at_that_source(study_type):
     from studyapp.results.adaptive import recompute
 
@@ -145,5 +150,204 @@ def test_a_versus_target_aims_at_that_source(study_type):
     mine = [p for pair, p in at.items() if SOURCES[0] in pair]
     others = [p for pair, p in at.items() if SOURCES[0] not in pair]
     assert min(mine) > max(others) and "note" not in sampling
+    study.adaptive = {"target": {"versus": SOURCES[0]}, "batch": 30}
+    batched = recompute(study)
+    at = {tuple(names[i] for i in pair): p for pair, p in zip(batched["pairs"], batched["p"])}
+    assert sum(p for pair, p in at.items() if SOURCES[0] in pair) > 0.75  # balanced: 2/3
     study.adaptive = {"target": {"versus": "nobody"}}
     assert "aimed at the order" in recompute(study)["note"]
+
+
+FIVE = ("s1", "s2", "s3", "s4", "s5")
+
+
+def set_study(study_type, **settings):
+    study = Study.objects.create_study(study_type, "adaptive-sets", "Adaptive sets",
+                                       design="adaptive", adaptive=settings,
+                                       trials_per_participant=6, clips_per_trial=3)
+    make_stimuli(study, sources=FIVE, per_cell=2)
+    return study
+
+
+@pytest.mark.parametrize("study_type", SETS)
+def test_sets_follow_the_stored_distribution_under_the_constraints(study_type):
+    study = set_study(study_type, min_showings=0)
+    study.sampling = {"sources": list(FIVE), "sets": [[0, 1, 2], [2, 3, 4]], "p": [1.0, 0.0],
+                      "size": 3, "answers": 0}
+    study.save()
+    plans = study.kind.plan_trials(study, random.Random(0))
+    assert len(plans) == 6
+    shown = [tuple(s.source for s in plan.stimuli) for plan in plans]
+    assert all(sorted(trial) == ["s1", "s2", "s3"] for trial in shown)
+    assert all(len({s.action for s in plan.stimuli}) == 1 for plan in plans)
+    keys = [frozenset(s.pk for s in plan.stimuli) for plan in plans]
+    assert len(set(keys)) == len(keys)
+    # Each source twice in each of the three seats over six trials.
+    seats = Counter((source, seat) for trial in shown for seat, source in enumerate(trial))
+    assert set(seats.values()) == {2}
+
+
+@pytest.mark.parametrize("study_type", SETS)
+def test_the_command_stores_a_distribution_over_sets(study_type):
+    from django.core.management import call_command
+    from io import StringIO
+
+    study = set_study(study_type)
+    out = StringIO()
+    call_command("adaptive_design", study.slug, stdout=out)
+    study.refresh_from_db()
+    assert study.sampling["sources"] == list(FIVE) and study.sampling["size"] == 3
+    assert len(study.sampling["sets"]) == 10 and sum(study.sampling["p"]) == pytest.approx(1)
+    assert "most likely sets" in out.getvalue()
+    plans = study.kind.plan_trials(study, random.Random(0))
+    assert len(plans) == 6 and all(len(plan.stimuli) == 3 for plan in plans)
+
+
+@pytest.mark.parametrize("study_type", SETS)
+def test_set_answers_through_the_pages_reach_the_posterior(study_type, media_root, clips,
+                                                           extra_clips, make_bot):
+    from django.core.management import call_command
+
+    from studyapp.survey.models import Trial
+    from tests.studyapp.conftest import make_study
+
+    study = make_study(study_type, clips, extra_clips, design="adaptive",
+                       adaptive={"every": 2}, trials_per_participant=2, clips_per_trial=2)
+    for _ in range(3):
+        bot = make_bot(study)
+        bot.join()
+        bot.finish()
+    Trial.objects.update(time_ms=60_000)
+    call_command("adaptive_design", study.slug, stdout=open("/dev/null", "w"))
+    study.refresh_from_db()
+    assert study.sampling["answers"] == 6 and study.sampling["size"] == 2
+    assert 0 < study.sampling["comparisons"] <= 6
+
+
+# Stopping rules
+
+
+def test_the_config_and_the_study_check_the_stopping_rule():
+    from studyapp.stimuli.config import ConfigError, _study
+
+    _, options, _, _ = _study({"type": PAIRS[0], "design": "adaptive",
+                               "stop_when": {"interval_width": 0.6, "judgements": 3000}})
+    assert options["stop_when"] == {"interval_width": 0.6, "judgements": 3000}
+    _study({"type": OTHERS[0], "stop_when": {"judgements": 500}})  # a budget fits every type
+    for rule, message in [({"interval_width": 0}, "above 0"),
+                          ({"rank_certainty": 1.2}, r"\[0.5, 1\)"),
+                          ({"judgements": 2.5}, "whole number"),
+                          ({"width": 0.5}, "not a stopping rule"),
+                          ([0.5], "stop_when")]:
+        with pytest.raises(ConfigError, match=message):
+            _study({"type": PAIRS[0], "stop_when": rule})
+    with pytest.raises(ConfigError, match="stop it by judgements"):
+        _study({"type": OTHERS[0], "stop_when": {"rank_certainty": 0.9}})
+    with pytest.raises(ValidationError, match="stop_when"):
+        Study.objects.create_study(PAIRS[0], "bad-stop", "Bad", stop_when={"interval_width": -1})
+
+
+@pytest.mark.parametrize("design", ["adaptive", "balanced"])
+def test_a_budget_stops_the_study_and_closes_its_places(design, media_root, clips, extra_clips,
+                                                        make_bot, monkeypatch,
+                                                        django_capture_on_commit_callbacks):
+    from django.core.management import call_command
+
+    from studyapp.participation.adaptive import answered_main
+    from studyapp.survey.models import Trial
+    from tests.studyapp.conftest import make_study
+
+    started = []
+    monkeypatch.setattr(adaptive, "run_job", lambda kind, **params: started.append(params))
+    study = make_study(PAIRS[0], clips, extra_clips, design=design, adaptive={"every": 50},
+                       stop_when={"judgements": 4}, trials_per_participant=2)
+    for _ in range(3):
+        with django_capture_on_commit_callbacks(execute=True):
+            bot = make_bot(study)
+            bot.join()
+        bot.finish()
+    # The third participant's start found the budget reached and asked for the check,
+    # although fewer than ``every`` answers came in since the last.
+    assert len(started) == 2
+    Trial.objects.update(time_ms=60_000)
+    call_command("adaptive_design", study.slug, stdout=open("/dev/null", "w"))
+    study.refresh_from_db()
+    assert study.status == Study.Status.CLOSED
+    assert study.stopped["rule"] == "judgements" and study.stopped["judgements"] == answered_main(study) == 6
+    assert study.stopped["design"] == design and study.stopped["platform"] == ""
+    late = make_bot(study)
+    assert "This study is not open" in late.enter().content.decode()
+    # The report says how the study chose its trials and stopped.
+    out = media_root / "report"
+    call_command("analyze", study=study.slug, out=str(out), bootstrap=20, no_audit=True,
+                 stdout=open("/dev/null", "w"))
+    report = (out / "report.html").read_text()
+    assert "The study stopped by its stopping rule when its budget of 4 answered main" in report
+    assert ("The design was adaptive" in report) == (design == "adaptive")
+
+
+def test_a_met_interval_width_stops_the_study_on_prolific(monkeypatch):
+    from io import StringIO
+
+    from django.core.management import call_command
+
+    from tests.studyapp.prolific_fake import FakeProlific
+
+    with FakeProlific(token="stop-token") as fake:
+        monkeypatch.setenv("PROLIFIC_TOKEN", "stop-token")
+        monkeypatch.setenv("PROLIFIC_API_URL", fake.url)
+        study = Study.objects.create_study(PAIRS[0], "stop-prolific", "Movement study",
+                                           design="adaptive", max_participants=20,
+                                           stop_when={"interval_width": 100.0})
+        make_stimuli(study, per_cell=2)
+        call_command("prolific", "create", "--study", study.slug, "--base-url",
+                     "https://study.example", stdout=StringIO(), stderr=StringIO())
+        call_command("prolific", "publish", "--study", study.slug, stdout=StringIO())
+        study.refresh_from_db()
+        prolific_id = study.crowd["prolific_study_id"]
+        assert fake.studies[prolific_id]["status"] == "ACTIVE"
+        out = StringIO()
+        # No answers yet: the prior's interval (wider than 16) is narrower than 100.
+        call_command("adaptive_design", study.slug, stdout=out)
+        study.refresh_from_db()
+        assert fake.studies[prolific_id]["status"] == "AWAITING REVIEW"
+        assert study.status == Study.Status.CLOSED
+        assert study.stopped["rule"] == "interval_width" and study.stopped["width"] <= 100
+        assert "STOP sent" in study.stopped["platform"] and "stopped by interval_width" in out.getvalue()
+        # Stopped once: a second check sends nothing more.
+        call_command("adaptive_design", study.slug, stdout=StringIO())
+        sent = fake.requests("POST", f"/api/v1/studies/{prolific_id}/transition/")
+        assert [r["body"]["action"] for r in sent] == ["PUBLISH", "STOP"]
+
+
+def test_the_example_config_is_adaptive_with_a_stopping_rule():
+    from pathlib import Path
+
+    from studyapp.stimuli.config import load_config
+
+    config = load_config(Path(__file__).resolve().parents[2] / "studies" / "adaptive_pairwise.yaml")
+    assert config.study_options["design"] == "adaptive"
+    assert config.study_options["stop_when"] == {"interval_width": 1.5, "judgements": 600}
+    assert adaptive.supports(config.study_type)
+
+
+def test_a_budget_is_checked_for_a_type_without_a_worth_model():
+    from studyapp.results.adaptive import recompute
+
+    study = Study.objects.create_study(OTHERS[0], "budget-only", "Budget", stop_when={"judgements": 1})
+    make_stimuli(study, per_cell=1)
+    sampling = recompute(study)
+    assert sampling["stop"]["met"] == "" and sampling["stop"]["judgements"] == 0
+    assert "pairs" not in sampling and not study.stopped
+
+
+def test_a_failed_stop_on_prolific_says_how_to_retry(monkeypatch):
+    from studyapp.crowd.platform import make_platform
+
+    monkeypatch.delenv("PROLIFIC_TOKEN", raising=False)
+    platform = make_platform({"platform": "prolific", "codes": {"completed": "C1A2B3C4"},
+                              "prolific_study_id": "64f0c0ffee0000000000beef"})
+    said = platform.stop_recruiting(Study(slug="s"))
+    assert "STOP failed" in said and "PROLIFIC_TOKEN" in said and "prolific stop --study s" in said
+    assert "nothing sent" in make_platform({"platform": "prolific", "codes": {
+        "completed": "C1A2B3C4"}}).stop_recruiting(Study(slug="s"))

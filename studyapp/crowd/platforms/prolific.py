@@ -135,3 +135,18 @@ class Prolific(Platform):
         from studyapp.crowd.prolific.client import Client
 
         return Client.from_env()
+
+    def stop_recruiting(self, study):
+        """Stop the study on Prolific (``POST /api/v1/studies/{id}/transition/`` with
+        ``{"action": "STOP"}``): no new places; those taking part can still finish."""
+        from studyapp.crowd.prolific.client import ProlificError
+
+        if not self.study_id:
+            return ("no Prolific study id in crowd.prolific_study_id: nothing sent to Prolific; "
+                    "stop the study on its page there")
+        try:
+            answer = self.client().transition_study(self.study_id, "STOP")
+        except (ProlificError, ValueError) as exc:
+            return (f"Prolific study {self.study_id}: STOP failed ({exc}); stop it with "
+                    f"manage.py prolific stop --study {study.slug}")
+        return f"Prolific study {self.study_id}: STOP sent, status {(answer or {}).get('status', 'unknown')}"

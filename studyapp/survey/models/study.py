@@ -158,6 +158,16 @@ class Study(models.Model):
         help_text="What changes while an arena stands: sources added and retired, and its "
         "leaderboard as last computed.",
     )
+    stop_when = models.JSONField(
+        default=dict, blank=True, help_text='A stopping rule, checked in the background every few '
+        'answers: {"interval_width": 0.6} (the widest interval of the target\'s differences), '
+        '{"rank_certainty": 0.95} or {"judgements": 2000} (answered main trials), or several '
+        '(the first met stops); see README, "Stopping rules".',
+    )
+    stopped = models.JSONField(
+        default=dict, blank=True, editable=False,
+        help_text="How the study stopped by its stopping rule (empty while it runs).",
+    )
     ask_demographics = models.BooleanField(
         default=False, help_text="Ask age range, gender and comments (all optional) at the end."
     )

@@ -55,7 +55,7 @@ COMMON_OPTIONS = {
     "clips_per_trial": int, "trials_per_participant": int, "practice": bool,
     "catch_trials": int, "instructed_checks": int, "max_failed_catch": int, "repeat_trials": int,
     "ask_demographics": bool, "max_participants": int, "completion_url": str,
-    "design": str, "adaptive": dict, "arena": dict,
+    "design": str, "adaptive": dict, "arena": dict, "stop_when": dict,
     "instructions": str, "data_note": str, "criteria": list, "crowd": dict,
 }
 
@@ -211,6 +211,9 @@ class StudyType:
         _, problem = arena.check(study.arena, study.design, adaptive.supports(self.name))
         if problem:
             errors["arena"] = problem
+        problem = adaptive.check_stop(study.stop_when, self.name)
+        if problem:
+            errors["stop_when"] = problem
         return errors
 
     def defaults(self, n_sources: int) -> dict:
@@ -284,6 +287,8 @@ class StudyType:
             drawn = adaptive.plan_main(study, pool, rng)
             if drawn is not None:
                 return [TrialPlan(action, seats) for action, seats in drawn]
+        elif study.stop_when:
+            adaptive.request_recompute(study)  # the stopping rule is checked there
         n = self.items_per_trial(study)
         actions = rng.sample(sorted(pool.table), len(pool.table))
         per_action = self.trials_per_action(study, pool.table)

@@ -14,7 +14,8 @@ from studyapp.results.analysis_page import note_report
 
 
 # The study's design the methods paragraph states (Study fields).
-STUDY_OPTIONS = ("practice", "catch_trials", "instructed_checks", "repeat_trials")
+STUDY_OPTIONS = ("practice", "catch_trials", "instructed_checks", "repeat_trials", "design",
+                 "adaptive", "stop_when", "stopped")
 
 
 class Command(BaseCommand):
