@@ -22,7 +22,11 @@ MAX_EVENTS_BYTES = 40_000
 MAX_EVENTS_DEPTH = 2  # a list of events, each a list
 MAX_NUMBER_DIGITS = 12
 EVENTS = ("play", "pause", "seek", "ended", "hidden", "visible", "blur", "focus", "waiting",
-          "error", "truncated")
+          "error", "truncated", "fallback")
+# Events that may carry a message as a fourth element: ``fallback`` (the in-page player
+# failed and the trial went back to its videos) says why.
+WITH_DETAIL = ("fallback",)
+MAX_DETAIL_CHARS = 200
 
 
 @dataclass(frozen=True)
@@ -55,6 +59,9 @@ def field_name(name: str, criterion_index: int, criterion: Criterion) -> str:
 def parse_events(text: str) -> list:
     """Return the page's event log, ``[[ms, event, position], ...]``; ValueError if malformed.
 
+    A ``fallback`` event may carry its message as a fourth element (a string of at most
+    ``MAX_DETAIL_CHARS`` characters): ``[ms, "fallback", position, message]``.
+
     The text is bounded before it is parsed: at most ``MAX_EVENTS_BYTES`` of UTF-8, lists
     (or objects) nested at most ``MAX_EVENTS_DEPTH`` deep (Python's JSON parser recurses
     once per level: a tampered post nested thousands deep must not reach it), numbers of
@@ -78,9 +85,9 @@ def parse_events(text: str) -> list:
         raise ValueError(f"the event log must be a list of at most {MAX_EVENTS} events")
     out = []
     for event in events:
-        if not (isinstance(event, list) and len(event) == 3):
+        if not (isinstance(event, list) and len(event) in (3, 4)):
             raise ValueError("each logged event is [milliseconds, name, clip position]")
-        ms, name, position = event
+        ms, name, position = event[:3]
         if isinstance(ms, bool) or not isinstance(ms, int) or not 0 <= ms < 10**9:
             raise ValueError("a logged event has no valid time")
         if name not in EVENTS:
@@ -88,7 +95,17 @@ def parse_events(text: str) -> list:
         if position is not None and (isinstance(position, bool) or not isinstance(position, int)
                                      or not 0 <= position < 1000):
             raise ValueError("a logged event names no valid clip position")
-        out.append([ms, name, position])
+        if len(event) == 4:
+            detail = event[3]
+            if name not in WITH_DETAIL:
+                raise ValueError(f"a logged event other than {', '.join(WITH_DETAIL)} has "
+                                 "no fourth element")
+            if not isinstance(detail, str) or len(detail) > MAX_DETAIL_CHARS:
+                raise ValueError(f"a logged {name} event's message is not a string of at "
+                                 f"most {MAX_DETAIL_CHARS} characters")
+            out.append([ms, name, position, detail])
+        else:
+            out.append([ms, name, position])
     return out
 
 

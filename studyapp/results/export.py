@@ -80,7 +80,8 @@ def get_study(slug: str) -> Study:
 
 
 def _event_counts(events) -> dict:
-    names = [event[1] for event in events or [] if isinstance(event, list) and len(event) == 3]
+    names = [event[1] for event in events or []
+             if isinstance(event, list) and len(event) in (3, 4)]
     return {"n_events": len(names), "page_hidden": names.count("hidden"),
             "window_blurs": names.count("blur")}
 
@@ -96,8 +97,10 @@ def responses_frame(study: Study) -> pd.DataFrame:
     Reference and example clips are never judgements, so never rows. Crowd-platform ids
     (``Participant.external_ids``) become columns right after ``participant``; times are
     ISO 8601 strings; ``events`` is the page's log of the trial as JSON
-    (``[[ms, event, position], ...]``), summarised in ``n_events``, ``page_hidden`` and
-    ``window_blurs``; ``simulated`` marks the answers of bots (``simulate_participants``).
+    (``[[ms, event, position], ...]``; a ``fallback`` event, the in-page player's trial
+    gone back to its videos, adds its message), summarised in ``n_events``,
+    ``page_hidden`` and ``window_blurs``; ``simulated`` marks the answers of bots
+    (``simulate_participants``).
     """
     import json
 

@@ -79,7 +79,7 @@ def test_the_motion_plays_in_the_page_and_the_answer_is_stored(browser, live_ser
     assert items.count() == 4 and not items.filter(fetched_at=None).exists()
     assert all(set(item.fetched) == {"motion"} for item in items)  # no mp4 was needed
     assert all(t.answers == {"preference": "left"} for t in person.trials.all())
-    names = {name for t in person.trials.all() for _, name, _ in t.events}
+    names = {event[1] for t in person.trials.all() for event in t.events}
     assert {"play", "ended"} <= names
 
 
@@ -100,3 +100,97 @@ def test_without_webgl_the_same_page_plays_the_videos(browser, live_server, stud
     context.close()
     items = TrialItem.objects.filter(trial__participant=Participant.objects.get())
     assert all("mp4" in item.fetched for item in items)
+
+
+# The trial's players are gone, its two videos back, and the fallback is in its log.
+BACK_TO_VIDEOS = ("() => !document.querySelector('motion-player')"
+                  " && document.querySelectorAll('[data-clip-card] video').length === 2"
+                  " && JSON.parse(document.querySelector('[data-events]').value || '[]')"
+                  "    .some(e => e[1] === 'fallback')")
+
+
+def trial_events(page):
+    return page.evaluate("JSON.parse(document.querySelector('[data-events]').value || '[]')")
+
+
+def payloads_fail(context, how):
+    """Answer the page's payload requests as a broken network or an old build would."""
+    seen = []
+
+    def handle(route):
+        seen.append(route.request.url)
+        if how == "404":
+            route.fulfill(status=404, body="gone")
+        elif how == "corrupt":
+            route.fulfill(status=200, body=b"\x00not a payload" * 40,
+                          content_type="application/octet-stream")
+        else:  # one clip of each trial fails, its neighbour loads and draws
+            if len(seen) % 2:
+                route.fulfill(status=404, body="gone")
+            else:
+                route.continue_()
+
+    context.route("**/*.motion", handle)
+    return seen
+
+
+@pytest.mark.parametrize("how", ["404", "corrupt", "one"])
+def test_a_payload_that_fails_brings_the_trials_videos_back(browser, live_server, study, how):
+    context = browser.new_context()
+    seen = payloads_fail(context, how)
+    page = context.new_page()
+    page.set_default_timeout(20_000)
+    begin(page, f"{live_server.url}/s/{study.slug}/")
+    # The whole trial goes back to its videos, which play and count the plays.
+    page.wait_for_function(BACK_TO_VIDEOS)
+    page.wait_for_function(ALL_WATCHED, timeout=20_000)
+    played = page.eval_on_selector_all("[data-clip-card] video", "vs => vs.map(v => v.played.length)")
+    assert all(played)
+    events = trial_events(page)
+    fallback = [e for e in events if e[1] == "fallback"]
+    assert len(fallback) == 1, events
+    message = fallback[0][3]
+    assert ("HTTP 404" in message) if how != "corrupt" else ("not a motion payload" in message)
+    # Plays count from the videos only: every ended comes after the fallback.
+    assert all(e[0] >= fallback[0][0] for e in events if e[1] == "ended")
+    answer_every_trial(page)
+    expect(page.locator("[data-completion-code]")).to_be_visible()
+    context.close()
+    person = Participant.objects.get()
+    assert all(t.answers == {"preference": "left"} for t in person.trials.all())
+    for trial in person.trials.all():
+        assert [e[1] for e in trial.events].count("fallback") == 1, trial.events
+    items = TrialItem.objects.filter(trial__participant=person)
+    assert len(seen) == items.count()  # every clip asked for its payload first
+    assert not items.filter(fetched_at=None).exists()
+    # The server's own record: the videos it sent whole (the failed payloads never came
+    # from it); a payload the server did send whole counts as for any player trial.
+    failed = seen[0::2] if how == "one" else seen
+    for item in items:
+        if any(f"/{item.token}.motion" in url for url in failed):
+            assert set(item.fetched) == {"mp4"}, item.fetched
+        else:
+            assert set(item.fetched) <= {"mp4", "motion"} and item.fetched, item.fetched
+
+
+def test_after_a_fallback_the_server_still_wants_the_videos(browser, live_server, study):
+    """The page's say-so is not enough: with the payloads and the mp4s both lost on the
+    way, a post claiming every clip played is refused and nothing is stored."""
+    context = browser.new_context()
+    payloads_fail(context, "404")
+    context.route("**/*.mp4", lambda route: route.abort())
+    page = context.new_page()
+    page.set_default_timeout(20_000)
+    begin(page, f"{live_server.url}/s/{study.slug}/")
+    page.wait_for_function(BACK_TO_VIDEOS)
+    page.wait_for_timeout(1500)  # longer than the clips: only the fetch is missing
+    page.evaluate("document.querySelectorAll('[data-plays]').forEach(i => { i.value = '1'; })")
+    page.locator(".choice-left").click()
+    page.evaluate("document.querySelector('[data-submit]').disabled = false")
+    page.locator("[data-submit]").click()
+    page.wait_for_load_state()
+    assert "has not been loaded to its end yet" in page.content()
+    context.close()
+    person = Participant.objects.get()
+    assert not person.trials.filter(answered_at__isnull=False).exists()
+    assert not TrialItem.objects.filter(trial__participant=person).exclude(fetched_at=None).exists()

@@ -8,18 +8,21 @@
   "use strict";
 
   var MAX_EVENTS = 400;
+  var MAX_DETAIL = 200; // characters of a fallback's message (answers.MAX_DETAIL_CHARS)
 
   function eventLog(form) {
     var field = form.querySelector("[data-events]");
     var events = [];
     var dropped = false;
-    function log(name, position) {
+    function log(name, position, detail) {
       if (!field) { return; }
       if (events.length >= MAX_EVENTS) {
         if (!dropped) { events.push([Math.round(performance.now()), "truncated", null]); }
         dropped = true;
       } else {
-        events.push([Math.round(performance.now()), name, position === undefined ? null : position]);
+        var event = [Math.round(performance.now()), name, position === undefined ? null : position];
+        if (detail !== undefined) { event.push(String(detail).slice(0, MAX_DETAIL)); }
+        events.push(event);
       }
       field.value = JSON.stringify(events);
     }
@@ -85,30 +88,29 @@
       var plays = card.querySelector("[data-plays]");
       var state = card.querySelector("[data-state]");
       var position = Number(card.getAttribute("data-position"));
+      // Once the trial fell back to its videos (player-page.js), a removed player's
+      // events are no longer the page's.
+      function live(handler) {
+        return function (event) { if (player.isConnected) { handler(event); } };
+      }
       ["play", "pause", "seek"].forEach(function (name) {
-        player.addEventListener(name, function () { log(name, position); });
+        player.addEventListener(name, live(function () { log(name, position); }));
       });
-      player.addEventListener("loadeddata", function () { state.textContent = "Playing…"; });
-      player.addEventListener("ended", function () {
+      player.addEventListener("loadeddata", live(function () { state.textContent = "Playing…"; }));
+      player.addEventListener("ended", live(function () {
         log("ended", position);
         plays.value = String(playsOf(card) + 1);
         card.classList.add("is-watched");
         state.textContent = "Watched";
         update();
-      });
-      player.addEventListener("error", function () {
+      }));
+      player.addEventListener("error", live(function () {
         log("error", position);
         state.textContent = "Could not load: please reload the page";
-      });
+      }));
     }
 
-    cards.forEach(function (card) {
-      var video = card.querySelector("video");
-      var player = card.querySelector("motion-player[src]");
-      if (player || !video) {
-        if (player) { watchPlayer(card, player); }
-        return;
-      }
+    function watchVideo(card, video) {
       var plays = card.querySelector("[data-plays]");
       var state = card.querySelector("[data-state]");
       var position = Number(card.getAttribute("data-position"));
@@ -157,6 +159,35 @@
       } else {
         start(card, video);
       }
+    }
+
+    cards.forEach(function (card) {
+      var video = card.querySelector("video");
+      var player = card.querySelector("motion-player[src]");
+      if (player) {
+        watchPlayer(card, player);
+      } else if (video) {
+        watchVideo(card, video);
+      }
+    });
+
+    // The trial went back to its videos (player-page.js: a payload failed to load or
+    // read, or WebGL was lost): log why, and count plays from the videos only, from
+    // nothing, so every clip of the trial is watched in the one medium.
+    form.addEventListener("player-fallback", function (event) {
+      var detail = event.detail || {};
+      log("fallback", typeof detail.position === "number" ? detail.position : null,
+          detail.message || "");
+      waiting = leads.length ? cards.filter(function (card) { return leads.indexOf(card) < 0; }) : [];
+      cards.forEach(function (card) {
+        card.querySelector("[data-plays]").value = "0";
+        card.classList.remove("is-watched");
+      });
+      cards.forEach(function (card) {
+        var video = card.querySelector("video");
+        if (video) { watchVideo(card, video); }
+      });
+      update();
     });
 
     form.addEventListener("submit", function (event) {

@@ -156,6 +156,13 @@ function renderer() {
     // No MSAA: the canvas is drawn at the device's pixel ratio, and software GL (phones
     // without a GPU driver, headless browsers) pays for every sample.
     const gl = new THREE.WebGLRenderer({ canvas, antialias: false, stencil: true, alpha: false });
+    // A lost context (the GPU reset, too many contexts) draws nothing more: every player
+    // says so with an `error`, so the page can go back to its videos.
+    canvas.addEventListener('webglcontextlost', () => {
+      for (const player of players) {
+        player.dispatchEvent(new CustomEvent('error', { detail: { message: 'WebGL context lost', time: now() } }));
+      }
+    });
     gl.outputColorSpace = THREE.LinearSRGBColorSpace;
     gl.setPixelRatio(1);
     shared = gl;
