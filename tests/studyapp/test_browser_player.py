@@ -1,7 +1,9 @@
 """A study played in the page (render.player: webgl) in a real Chromium, on desktop and
 phone viewports: the canvas draws the figure and its frames advance, the answer unlocks
 once every clip has looped, the server saw the payloads fetched and stores the answer;
-without WebGL 2 the same page plays the mp4s."""
+without WebGL 2 the same page plays the mp4s; a payload that fails (404, corrupt bytes)
+or a lost WebGL context brings the trial's videos back, and the server still decides from
+the mp4s it sent."""
 
 import pytest
 from playwright.sync_api import expect
@@ -194,3 +196,42 @@ def test_after_a_fallback_the_server_still_wants_the_videos(browser, live_server
     person = Participant.objects.get()
     assert not person.trials.filter(answered_at__isnull=False).exists()
     assert not TrialItem.objects.filter(trial__participant=person).exclude(fetched_at=None).exists()
+
+
+def test_a_lost_webgl_context_brings_the_trials_videos_back(browser, live_server, study):
+    """The GPU goes away once the players drew: the first trial finishes on its videos,
+    the next page plays in the page again."""
+    context = browser.new_context()
+    context.add_init_script(
+        "window.__contexts = [];"
+        "const get = HTMLCanvasElement.prototype.getContext;"
+        "HTMLCanvasElement.prototype.getContext = function (kind, ...rest) {"
+        "  const made = get.call(this, kind, ...rest);"
+        "  if (kind === 'webgl2' && made) window.__contexts.push(made);"
+        "  return made; };")
+    page = context.new_page()
+    page.set_default_timeout(20_000)
+    begin(page, f"{live_server.url}/s/{study.slug}/")
+    page.wait_for_function(
+        "[...document.querySelectorAll('motion-player')].every(p => 'frame' in p.dataset)")
+    page.evaluate("window.__contexts.at(-1).getExtension('WEBGL_lose_context').loseContext()")
+    page.wait_for_function(BACK_TO_VIDEOS)
+    fallback = [e for e in trial_events(page) if e[1] == "fallback"]
+    assert fallback == [[fallback[0][0], "fallback", None, "WebGL context lost"]]
+    page.wait_for_function(ALL_WATCHED, timeout=20_000)
+    first = page.locator("input[name=trial]").input_value()
+    page.locator(".choice-left").click()
+    page.locator("[data-submit]").click()
+    page.wait_for_function(
+        "id => (document.querySelector('input[name=trial]') || {}).value !== id",
+        arg=first, timeout=20_000)
+    page.wait_for_function(
+        "[...document.querySelectorAll('motion-player')].every(p => 'frame' in p.dataset)"
+        " && document.querySelectorAll('motion-player').length === 2")
+    answer_every_trial(page)
+    expect(page.locator("[data-completion-code]")).to_be_visible()
+    context.close()
+    trials = list(Participant.objects.get().trials.order_by("index"))
+    assert [[e[1] for e in t.events].count("fallback") for t in trials] == [1, 0]
+    assert all(t.answers == {"preference": "left"} for t in trials)
+    assert not TrialItem.objects.filter(trial__in=trials, fetched_at=None).exists()

@@ -83,3 +83,15 @@ def test_any_json_at_any_depth_is_parsed_or_refused_never_an_error(value, depth)
         assert str(exc).startswith("the event log") or "logged event" in str(exc)
     else:
         assert isinstance(events, list) and nesting(text, 2) <= 2
+
+
+def test_a_fallback_carries_its_message_and_nothing_else_does():
+    logged = [[0, "fallback", 1, "Error: HTTP 404"], [900, "ended", 0]]
+    assert parse_events(json.dumps(logged)) == logged
+    assert parse_events(json.dumps([[0, "fallback", None, "WebGL context lost"]]))
+    for bad, words in [([[0, "ended", 0, "why"]], "no fourth element"),
+                       ([[0, "fallback", 0, 404]], "message is not a string"),
+                       ([[0, "fallback", 0, "x" * 201]], "at most 200 characters"),
+                       ([[0, "fallback", 0, "a", "b"]], "each logged event")]:
+        with pytest.raises(ValueError, match=words):
+            parse_events(json.dumps(bad))

@@ -7,7 +7,7 @@
 // If any player of the trial fires `error` (its payload could not be fetched or read, or
 // the WebGL context was lost), the whole trial goes back to its videos: every player is
 // removed, every video put back where it was, and the trial form gets a `player-fallback`
-// event (detail: `message`, `position` of the clip that failed, or null) on which
+// event (detail: `message`, `position` of the clip that failed, null for a lost context) on which
 // survey.js starts counting plays from the videos afresh and logs `fallback`. All clips
 // of a trial use one medium, so the page keeps one way of counting.
 import { supported, playback } from "./player/motion-player.js";
@@ -35,9 +35,11 @@ if (supported()) {
   const fail = (player, event) => {
     if (fallen) return;
     fallen = true;
-    const message = (event.detail && event.detail.message) || "the player failed";
+    const detail = event.detail || {};
+    const message = detail.message || "the player failed";
     const card = player.closest("[data-clip-card]");
-    const position = card ? Number(card.getAttribute("data-position")) : null;
+    // A lost context is the page's, not one clip's.
+    const position = card && !detail.contextLost ? Number(card.getAttribute("data-position")) : null;
     // survey.js wires the cards before DOMContentLoaded: fall back once it has.
     if (document.readyState === "loading") {
       document.addEventListener("DOMContentLoaded", () => fallBack(message, position), { once: true });

@@ -160,7 +160,7 @@ function renderer() {
     // says so with an `error`, so the page can go back to its videos.
     canvas.addEventListener('webglcontextlost', () => {
       for (const player of players) {
-        player.dispatchEvent(new CustomEvent('error', { detail: { message: 'WebGL context lost', time: now() } }));
+        player.dispatchEvent(new CustomEvent('error', { detail: { message: 'WebGL context lost', contextLost: true, time: now() } }));
       }
     });
     gl.outputColorSpace = THREE.LinearSRGBColorSpace;
