@@ -153,3 +153,47 @@ def test_nginx_config_command_names_the_internal_location_and_its_log(tmp_path, 
     assert "location /protected-media/ {" in text and "internal;" in text
     assert f"access_log {tmp_path / 'f.log'} study_fetch;" in text
     assert f"alias {Path(settings.MEDIA_ROOT) / 'deliveries'}/;" in text
+
+
+def test_only_responses_sent_whole_become_witnesses():
+    from studyapp.participation.fetch_log import parse_line
+    from studyapp.participation.proxy_log import witness_of
+
+    token = "AbCdEfGh12345678"
+    whole = witness_of(f"1796474588.570 200 1910 OK /protected-media/{token}.mp4 -")
+    assert whole[0] == token and parse_line(whole[1])[:4] == ("mp4", 0, 1909, 1910)
+    ranged = witness_of(f"1796474588.5 206 100 OK /protected-media/{token}.mp4 bytes 100-199/1910")
+    assert parse_line(ranged[1])[:4] == ("mp4", 100, 199, 1910)
+    assert parse_line(ranged[1])[4] == pytest.approx(1796474588.5)
+    for line in (
+        f"1796474588.5 200 900 - /protected-media/{token}.mp4 -",  # cut off
+        f"1796474588.5 206 50 - /protected-media/{token}.mp4 bytes 100-199/1910",  # cut off
+        f"1796474588.5 206 100 OK /protected-media/{token}.mp4 bytes 0-9/1910",  # sizes disagree
+        f"1796474588.5 206 300 OK /protected-media/{token}.mp4 -",  # several ranges at once
+        f"1796474588.5 304 0 OK /protected-media/{token}.mp4 -",
+        f"1796474588.5 200 0 OK /protected-media/{token}.mp4 -",  # HEAD
+        f"1796474588.5 200 1910 OK /protected-media/{token}.png -",  # a poster
+        "1796474588.5 200 1910 OK /protected-media/tok%24en.mp4 -",  # not a token
+        "garbage",
+    ):
+        assert witness_of(line) is None, line
+
+
+def test_the_log_is_read_once_from_where_it_stopped_and_anew_after_rotation(tmp_path, settings):
+    from studyapp.participation import fetch_log
+    from studyapp.participation.proxy_log import read_new
+
+    settings.STUDY_FETCH_LOG_URL = ""
+    settings.STUDY_FETCH_SPOOL = tmp_path / "spool"
+    log = tmp_path / "fetches.log"
+    line = "1796474588.5 200 1910 OK /protected-media/{}.mp4 -\n"
+    log.write_text(line.format("tokenAAAA") + line.format("tokenBBBB")[:20])  # one being written
+    assert read_new(log) == 1
+    assert read_new(log) == 0  # nothing new (the half line waits)
+    with open(log, "a") as f:
+        f.write(line.format("tokenBBBB")[20:])
+    assert read_new(log) == 1
+    log.rename(tmp_path / "fetches.log.1")  # rotated: a new file, read from its start
+    log.write_text(line.format("tokenCCCC"))
+    assert read_new(log) == 1
+    assert set(fetch_log.spool().tokens()) == {"tokenAAAA", "tokenBBBB", "tokenCCCC"}
