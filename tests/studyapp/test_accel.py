@@ -197,3 +197,25 @@ def test_the_log_is_read_once_from_where_it_stopped_and_anew_after_rotation(tmp_
     log.write_text(line.format("tokenCCCC"))
     assert read_new(log) == 1
     assert set(fetch_log.spool().tokens()) == {"tokenAAAA", "tokenBBBB", "tokenCCCC"}
+
+
+@pytest.fixture(scope="module")
+def built_clips(tmp_path_factory):
+    from tests.studyapp.rendered_clips import render_clips
+
+    return render_clips(tmp_path_factory.mktemp("audited"), catch_per_action=3)
+
+
+def test_the_deep_blindness_audit_passes_through_nginx(built_clips, stack, tmp_path):
+    """What a browser receives from nginx (sizes, headers, boxes, padding, hashes) tells
+    no source apart and recognises no repeated delivery: each has bytes of its own."""
+    from tests.studyapp.conftest import make_study
+    from tests.studyapp.test_audit import audit
+
+    app, proxy, _ = stack
+    study = make_study("ranking", built_clips, slug="own-bytes", catch_trials=1)
+    result, text, error = audit(study, proxy.url, tmp_path)
+    assert error is None, text
+    assert result["source: delivery"]["passed"] and result["catch: delivery"]["passed"]
+    hashes = result["deliveries: hashes"]
+    assert hashes["passed"] and hashes["n"] == 2 * len(built_clips)
