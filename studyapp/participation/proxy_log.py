@@ -178,9 +178,9 @@ http {{
         keepalive 32;
     }}
     server {{
-        listen {listen};
+        listen {listen}{ssl};
         client_max_body_size 1m;
-{real_ip}        location / {{
+{tls}{real_ip}        location / {{
             proxy_pass http://study_app;
             proxy_http_version 1.1;
             proxy_set_header Connection "";
@@ -206,17 +206,22 @@ http {{
 def nginx_config(*, listen: str, upstream: str, media_root, fetch_log_path, run_dir,
                  location: str = "/protected-media/", workers: str = "auto",
                  access_log: str = "off", proto: str = "$scheme", user: str = "",
-                 real_ip_from=()) -> str:
+                 real_ip_from=(), tls_cert: str = "", tls_key: str = "") -> str:
     """Return an nginx.conf that serves the app from ``upstream`` (gunicorn's
     ``host:port``) on ``listen`` and the deliveries' files under ``location``; ``user``:
     the user of nginx's workers when it is started as root (they read the deliveries);
     ``real_ip_from``: addresses of a balancer in front (HAProxy) whose
-    ``X-Forwarded-For`` names the participant (the app's rate limits count that address)."""
+    ``X-Forwarded-For`` names the participant (the app's rate limits count that address);
+    ``tls_cert`` and ``tls_key``: nginx ends TLS itself on ``listen``."""
+    if bool(tls_cert) != bool(tls_key):
+        raise ValueError("TLS needs both a certificate and its key")
+    tls = (f"        ssl_certificate {tls_cert};\n        ssl_certificate_key {tls_key};\n"
+           if tls_cert else "")
     real_ip = "".join(f"        set_real_ip_from {a};\n" for a in real_ip_from)
     if real_ip:
         real_ip += "        real_ip_header X-Forwarded-For;\n"
     location = "/" + location.strip("/") + "/"
     return NGINX.format(
-        user=f"user {user};\n" if user else "", real_ip=real_ip, workers=workers, run=Path(run_dir), access=access_log, log_format=LOG_FORMAT,
+        user=f"user {user};\n" if user else "", real_ip=real_ip, tls=tls, ssl=" ssl" if tls_cert else "", workers=workers, run=Path(run_dir), access=access_log, log_format=LOG_FORMAT,
         upstream=upstream, listen=listen, location=location, proto=proto,
         deliveries=Path(media_root) / "deliveries", fetch_log=Path(fetch_log_path))

@@ -153,6 +153,14 @@ def test_nginx_config_command_names_the_internal_location_and_its_log(tmp_path, 
     assert "location /protected-media/ {" in text and "internal;" in text
     assert f"access_log {tmp_path / 'f.log'} study_fetch;" in text
     assert f"alias {Path(settings.MEDIA_ROOT) / 'deliveries'}/;" in text
+    assert "ssl" not in text
+    out = StringIO()
+    call_command("nginx_config", "--run-dir", str(tmp_path), "--fetch-log", str(tmp_path / "f.log"),
+                 "--listen", "0.0.0.0:443", "--tls-cert", "/c.pem", "--tls-key", "/k.pem",
+                 "--real-ip-from", "10.0.0.2", stdout=out)
+    text = out.getvalue()
+    assert "listen 0.0.0.0:443 ssl;" in text and "ssl_certificate_key /k.pem;" in text
+    assert "set_real_ip_from 10.0.0.2;" in text and "real_ip_header X-Forwarded-For;" in text
 
 
 def test_only_responses_sent_whole_become_witnesses():

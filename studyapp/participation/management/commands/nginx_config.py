@@ -26,14 +26,18 @@ class Command(BaseCommand):
         parser.add_argument("--real-ip-from", action="append", default=[], metavar="ADDRESS",
                             help="A balancer in front (HAProxy) whose X-Forwarded-For names "
                                  "the participant; repeatable.")
+        parser.add_argument("--tls-cert", default="", help="End TLS in nginx: the certificate "
+                            "(chain) file; with --tls-key.")
+        parser.add_argument("--tls-key", default="")
         parser.add_argument("--proto", default="$scheme",
                             help="X-Forwarded-Proto sent to the app (behind a TLS proxy: "
                                  "$http_x_forwarded_proto).")
 
     def handle(self, *args, listen, upstream, run_dir, fetch_log, workers, proto, user, real_ip_from,
-               **options):
+               tls_cert, tls_key, **options):
         location = settings.STUDY_ACCEL_REDIRECT or "/protected-media/"
         self.stdout.write(proxy_log.nginx_config(
             listen=listen, upstream=upstream, media_root=settings.MEDIA_ROOT,
             fetch_log_path=fetch_log, run_dir=run_dir, location=location, workers=workers,
-            proto=proto, user=user, real_ip_from=real_ip_from), ending="")
+            proto=proto, user=user, real_ip_from=real_ip_from,
+            tls_cert=tls_cert, tls_key=tls_key), ending="")
