@@ -6,6 +6,7 @@ theirs, so this runs on SQLite and on PostgreSQL alike.
 """
 
 import http.client
+import os
 import secrets
 import threading
 import time
@@ -227,3 +228,73 @@ def test_the_deep_blindness_audit_passes_through_nginx(built_clips, stack, tmp_p
     assert result["source: delivery"]["passed"] and result["catch: delivery"]["passed"]
     hashes = result["deliveries: hashes"]
     assert hashes["passed"] and hashes["n"] == 2 * len(built_clips)
+
+
+def test_nginx_fetches_a_bucket_object_with_the_presigned_query_and_hides_s3(tmp_path):
+    """The S3 location of nginx_config in a real nginx, with a stand-in app (answers
+    X-Accel-Redirect as the clip view does with S3) and a stand-in bucket host (answers
+    the signed path with S3's headers; records what it was asked)."""
+    import http.server
+
+    from benchmarks.server import Proxy, free_port
+    from studyapp.participation.proxy_log import nginx_config, witness_of
+
+    require_service(Path(NGINX).exists(), f"nginx ({NGINX})")
+    body = bytes(range(256)) * 40
+    token = "S3tokenABCDEFGH1"
+    asked = []
+
+    class Bucket(http.server.BaseHTTPRequestHandler):
+        def do_GET(self):
+            asked.append((self.path, dict(self.headers)))
+            self.send_response(200)
+            for name, value in (("Content-Type", "video/mp4"), ("ETag", '"abc"'),
+                                ("Last-Modified", "Sat, 05 Dec 2026 10:00:00 GMT"),
+                                ("x-amz-request-id", "R1"), ("x-amz-id-2", "I2"),
+                                ("Server", "AmazonS3"), ("Content-Length", str(len(body)))):
+                self.send_header(name, value)
+            self.end_headers()
+            self.wfile.write(body)
+
+        def log_message(self, *args):
+            pass
+
+    class App(http.server.BaseHTTPRequestHandler):
+        def do_GET(self):
+            self.send_response(200)
+            self.send_header("X-Accel-Redirect", f"/protected-media/s3/bucket/media/deliveries/"
+                                                 f"{token}.mp4?Signature=s%2Fg&Expires=9")
+            self.send_header("Content-Length", "0")
+            self.end_headers()
+
+        def log_message(self, *args):
+            pass
+
+    servers = [http.server.ThreadingHTTPServer(("127.0.0.1", 0), cls) for cls in (Bucket, App)]
+    for server in servers:
+        threading.Thread(target=server.serve_forever, daemon=True).start()
+    bucket, app = (f"127.0.0.1:{s.server_address[1]}" for s in servers)
+    port = free_port()
+    config = nginx_config(listen=f"127.0.0.1:{port}", upstream=app, media_root=tmp_path,
+                          fetch_log_path=tmp_path / "fetches.log", run_dir=tmp_path,
+                          workers="1", s3_endpoint=f"http://{bucket}",
+                          user="root" if os.geteuid() == 0 else "")
+    (tmp_path / "nginx.conf").write_text(config)
+    proxy = Proxy([NGINX, "-p", str(tmp_path), "-c", str(tmp_path / "nginx.conf"), "-e",
+                   str(tmp_path / "error.log"), "-g", "daemon off;"], port)
+    proxy.start()
+    try:
+        status, headers, got = get(port, f"/c/{token}.mp4", {"Cookie": "sessionid=secret"})
+    finally:
+        proxy.stop()
+        for server in servers:
+            server.shutdown()
+    assert status == 200 and got == body
+    seen = " ".join(f"{k}: {v}" for k, v in headers.items()).lower()
+    for leak in ("amz", "bucket", "etag", "s3", "signature", "10:00:00"):
+        assert leak not in seen, leak
+    path, sent = asked[0]
+    assert path == f"/bucket/media/deliveries/{token}.mp4?Signature=s%2Fg&Expires=9"
+    assert sent["Host"] == bucket and "Cookie" not in sent
+    lines = (tmp_path / "fetches.log").read_text().splitlines()
+    assert witness_of(lines[-1])[0] == token  # sent whole: a witness
