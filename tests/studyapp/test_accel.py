@@ -218,11 +218,10 @@ def built_clips(tmp_path_factory):
 def test_the_deep_blindness_audit_passes_through_nginx(built_clips, stack, tmp_path):
     """What a browser receives from nginx (sizes, headers, boxes, padding, hashes) tells
     no source apart and recognises no repeated delivery: each has bytes of its own."""
-    from tests.studyapp.conftest import make_study
     from tests.studyapp.test_audit import audit
 
     app, proxy, _ = stack
-    study = make_study("ranking", built_clips, slug="own-bytes", catch_trials=1)
+    study = make_ranking_study(built_clips, slug="own-bytes", catch_trials=1)
     result, text, error = audit(study, proxy.url, tmp_path)
     assert error is None, text
     assert result["source: delivery"]["passed"] and result["catch: delivery"]["passed"]
