@@ -71,13 +71,20 @@ def served_by(socket_path: Path) -> dict[str, int]:
     return out
 
 
-async def limited_consents(url: str, slug: str, count: int) -> Counter:
-    """``count`` people from one address open a study and consent; return the statuses."""
+async def limited_consents(url: str, slug: str, count: int, at_once: int = 50) -> Counter:
+    """``count`` people from one address open a study and consent (``at_once`` at a
+    time); return the consents' statuses ("error" for a request that failed before)."""
+    gate = asyncio.Semaphore(at_once)
+
     async def one(i):
-        bot = AsyncParticipant(url, slug, f"limited-{i}")
-        bot.page = await bot.get(bot.path() + "?" + urlencode({"PROLIFIC_PID": f"limited-{i}"}))
-        status, _, _ = await bot.request("POST", bot.path("consent"), bot.form({"agree": "1"}))
-        return status
+        async with gate:
+            bot = AsyncParticipant(url, slug, f"limited-{i}")
+            try:
+                bot.page = await bot.get(bot.path() + "?" + urlencode({"PROLIFIC_PID": f"limited-{i}"}))
+                status, _, _ = await bot.request("POST", bot.path("consent"), bot.form({"agree": "1"}))
+            except Exception:
+                return "error"
+            return status
 
     return Counter(await asyncio.gather(*(one(i) for i in range(count))))
 
@@ -190,6 +197,7 @@ def run(database_url: str, var: Path, participants: int, trials: int = 4, worker
         "still_failing": len(again), "retry_rounds": rounds,
         "cut_off_by": dict(Counter(str(exc).rsplit(" ", 1)[-1] for _, exc in cut_off)), "served_by": served,
         "limited_passed": consents.get(302, 0), "limited_refused": consents.get(429, 0),
+        "limited_errors": consents.get("error", 0),
         "limit": limit, "elapsed_s": elapsed,
         "p50_ms": percentile(latencies, 50), "p99_ms": percentile(latencies, 99),
         **figures,

@@ -27,6 +27,9 @@ if [ -n "${STUDY_ACCEL_REDIRECT:-}" ]; then
   EXTRA=()
   [ "$(id -u)" = 0 ] && EXTRA+=(--user "${STUDY_NGINX_USER:-www-data}")
   for address in ${STUDY_NGINX_REAL_IP_FROM:-}; do EXTRA+=(--real-ip-from "$address"); done
+  if [ -n "${STUDY_NGINX_TLS_CERT:-}" ]; then
+    EXTRA+=(--tls-cert "$STUDY_NGINX_TLS_CERT" --tls-key "${STUDY_NGINX_TLS_KEY:?set STUDY_NGINX_TLS_KEY beside STUDY_NGINX_TLS_CERT}")
+  fi
 fi
 
 .venv/bin/python manage.py check --deploy --fail-level WARNING

@@ -178,9 +178,9 @@ http {{
         keepalive 32;
     }}
     server {{
-        listen {listen};
+        listen {listen}{ssl};
         client_max_body_size 1m;
-{real_ip}        location / {{
+{tls}{real_ip}        location / {{
             proxy_pass http://study_app;
             proxy_http_version 1.1;
             proxy_set_header Connection "";
@@ -198,25 +198,61 @@ http {{
             default_type application/octet-stream;
             access_log {fetch_log} study_fetch;
         }}
-    }}
+{s3}    }}
 }}
 """
+
+# With the media in an S3 bucket: the clip view's X-Accel-Redirect carries the path and
+# presigned query of the delivery's own object; nginx fetches it from the bucket's host
+# (the one the storage presigns for) and sends it on, logged as above.
+S3_LOCATION = """        location {location}s3/ {{
+            internal;
+            proxy_pass {endpoint}/;
+            proxy_set_header Host {host};
+            proxy_set_header Cookie "";
+            proxy_set_header Authorization "";
+            proxy_set_header X-Forwarded-For "";
+            proxy_ssl_server_name on;
+            proxy_buffering off;
+{hide}            access_log {fetch_log} study_fetch;
+        }}
+"""
+# What S3 (and S3-compatible stores) add that a participant has no use for.
+S3_HIDDEN = ["ETag", "Last-Modified", "Set-Cookie", "x-amz-request-id", "x-amz-id-2",
+             "x-amzn-requestid", "x-amz-version-id", "x-amz-server-side-encryption",
+             "x-amz-storage-class", "x-amz-expiration", "x-amz-checksum-crc32",
+             "x-amz-checksum-crc32c", "x-amz-checksum-sha256", "x-amz-meta-mtime",
+             "x-amz-mp-parts-count", "x-amz-tagging-count", "x-amz-replication-status",
+             "x-amz-restore", "x-amz-object-lock-mode", "x-amz-website-redirect-location"]
 
 
 def nginx_config(*, listen: str, upstream: str, media_root, fetch_log_path, run_dir,
                  location: str = "/protected-media/", workers: str = "auto",
                  access_log: str = "off", proto: str = "$scheme", user: str = "",
-                 real_ip_from=()) -> str:
+                 real_ip_from=(), tls_cert: str = "", tls_key: str = "",
+                 s3_endpoint: str = "") -> str:
     """Return an nginx.conf that serves the app from ``upstream`` (gunicorn's
     ``host:port``) on ``listen`` and the deliveries' files under ``location``; ``user``:
     the user of nginx's workers when it is started as root (they read the deliveries);
     ``real_ip_from``: addresses of a balancer in front (HAProxy) whose
-    ``X-Forwarded-For`` names the participant (the app's rate limits count that address)."""
+    ``X-Forwarded-For`` names the participant (the app's rate limits count that address);
+    ``tls_cert`` and ``tls_key``: nginx ends TLS itself on ``listen``; ``s3_endpoint``
+    (``scheme://host[:port]``): the bucket's host, when the media are in S3."""
+    if bool(tls_cert) != bool(tls_key):
+        raise ValueError("TLS needs both a certificate and its key")
+    tls = (f"        ssl_certificate {tls_cert};\n        ssl_certificate_key {tls_key};\n"
+           if tls_cert else "")
     real_ip = "".join(f"        set_real_ip_from {a};\n" for a in real_ip_from)
     if real_ip:
         real_ip += "        real_ip_header X-Forwarded-For;\n"
     location = "/" + location.strip("/") + "/"
-    return NGINX.format(
-        user=f"user {user};\n" if user else "", real_ip=real_ip, workers=workers, run=Path(run_dir), access=access_log, log_format=LOG_FORMAT,
+    s3 = ""
+    if s3_endpoint:
+        s3 = S3_LOCATION.format(
+            location=location, endpoint=s3_endpoint.rstrip("/"),
+            host=s3_endpoint.split("://", 1)[-1].rstrip("/"), fetch_log=Path(fetch_log_path),
+            hide="".join(f"            proxy_hide_header {h};\n" for h in S3_HIDDEN))
+    return NGINX.format(s3=s3, 
+        user=f"user {user};\n" if user else "", real_ip=real_ip, tls=tls, ssl=" ssl" if tls_cert else "", workers=workers, run=Path(run_dir), access=access_log, log_format=LOG_FORMAT,
         upstream=upstream, listen=listen, location=location, proto=proto,
         deliveries=Path(media_root) / "deliveries", fetch_log=Path(fetch_log_path))

@@ -20,6 +20,7 @@ import re
 import struct
 import tempfile
 from pathlib import Path
+from urllib.parse import urlsplit
 
 from django.core.files.storage import default_storage
 from django.http import HttpResponse, HttpResponseNotModified, StreamingHttpResponse
@@ -308,17 +309,45 @@ def write_delivery(name: str, token: str, ext: str, seed: bytes) -> None:
         raise
 
 
-def proxied(location: str) -> bool:
-    """Whether clips can be handed to the proxy under ``location`` (``STUDY_ACCEL_REDIRECT``):
-    a location is set and the media live in a folder of this machine (the file system
-    storage; with S3 the view streams the bytes itself)."""
-    if not location:
-        return False
+def local_media() -> bool:
+    """Whether the media live in a folder of this machine (not in a bucket)."""
     try:
         default_storage.path(DELIVERIES)
     except NotImplementedError:
         return False
     return True
+
+
+def proxied(location: str) -> bool:
+    """Whether clips are handed to the proxy under ``location`` (``STUDY_ACCEL_REDIRECT``):
+    from the media folder, or from an S3 bucket through a presigned URL of the delivery's
+    object (:func:`accel_response`)."""
+    return bool(location)
+
+
+def upload_delivery(name: str, token: str, ext: str, seed: bytes) -> str:
+    """Upload the delivery ``token``'s bytes of ``name`` as an object of its own (once;
+    remembered in the cache) and return its storage name."""
+    from django.core.cache import cache
+    from django.core.files.base import ContentFile
+
+    if not is_stimulus_name(name):
+        raise FileNotFoundError(f"not a stimulus name: {name!r}")
+    target = delivery_name(token, ext)
+    key = f"delivery:{target}"
+    try:
+        known = cache.get(key)
+    except Exception:  # the cache is down: ask the bucket
+        known = None
+    if not known and not default_storage.exists(target):
+        with default_storage.open(name, "rb") as f:
+            data = _read_all(f)
+        default_storage.save(target, ContentFile(delivered_bytes(data, ext, seed, name=name)))
+    try:
+        cache.set(key, 1, timeout=24 * 3600)
+    except Exception:
+        pass
+    return target
 
 
 def accel_response(request, name: str, content_type: str, token: str, ext: str, seed: bytes,
@@ -327,9 +356,17 @@ def accel_response(request, name: str, content_type: str, token: str, ext: str, 
     ``X-Accel-Redirect: <location><token>.<ext>``, an internal location (nginx consumes the
     header; the browser sees the opaque clip URL and the file's bytes only). nginx answers
     byte ranges and conditional requests; its access log of that location says which
-    bytes went out (:mod:`studyapp.participation.proxy_log`)."""
-    write_delivery(name, token, ext, seed)
+    bytes went out (:mod:`studyapp.participation.proxy_log`). With the media in an S3
+    bucket the delivery is an object of its own (``deliveries/<token>.<ext>``), fetched by
+    nginx with a presigned URL from its internal location ``<location>s3/``."""
     response = HttpResponse(content_type=content_type)
-    response["X-Accel-Redirect"] = f"{location}{token}.{ext}"
+    if local_media():
+        write_delivery(name, token, ext, seed)
+        response["X-Accel-Redirect"] = f"{location}{token}.{ext}"
+    else:
+        # A bucket: nginx fetches the delivery's object with a presigned URL valid for a
+        # minute (in the header, which nginx consumes) from its location <location>s3/.
+        url = urlsplit(default_storage.url(upload_delivery(name, token, ext, seed), expire=60))
+        response["X-Accel-Redirect"] = f"{location}s3{url.path}?{url.query}"
     response["Cache-Control"] = "private, max-age=86400"
     return response

@@ -6,6 +6,7 @@ theirs, so this runs on SQLite and on PostgreSQL alike.
 """
 
 import http.client
+import os
 import secrets
 import threading
 import time
@@ -153,3 +154,146 @@ def test_nginx_config_command_names_the_internal_location_and_its_log(tmp_path, 
     assert "location /protected-media/ {" in text and "internal;" in text
     assert f"access_log {tmp_path / 'f.log'} study_fetch;" in text
     assert f"alias {Path(settings.MEDIA_ROOT) / 'deliveries'}/;" in text
+    assert "ssl" not in text
+    out = StringIO()
+    call_command("nginx_config", "--run-dir", str(tmp_path), "--fetch-log", str(tmp_path / "f.log"),
+                 "--listen", "0.0.0.0:443", "--tls-cert", "/c.pem", "--tls-key", "/k.pem",
+                 "--real-ip-from", "10.0.0.2", stdout=out)
+    text = out.getvalue()
+    assert "listen 0.0.0.0:443 ssl;" in text and "ssl_certificate_key /k.pem;" in text
+    assert "set_real_ip_from 10.0.0.2;" in text and "real_ip_header X-Forwarded-For;" in text
+
+
+def test_only_responses_sent_whole_become_witnesses():
+    from studyapp.participation.fetch_log import parse_line
+    from studyapp.participation.proxy_log import witness_of
+
+    token = "AbCdEfGh12345678"
+    whole = witness_of(f"1796474588.570 200 1910 OK /protected-media/{token}.mp4 -")
+    assert whole[0] == token and parse_line(whole[1])[:4] == ("mp4", 0, 1909, 1910)
+    ranged = witness_of(f"1796474588.5 206 100 OK /protected-media/{token}.mp4 bytes 100-199/1910")
+    assert parse_line(ranged[1])[:4] == ("mp4", 100, 199, 1910)
+    assert parse_line(ranged[1])[4] == pytest.approx(1796474588.5)
+    for line in (
+        f"1796474588.5 200 900 - /protected-media/{token}.mp4 -",  # cut off
+        f"1796474588.5 206 50 - /protected-media/{token}.mp4 bytes 100-199/1910",  # cut off
+        f"1796474588.5 206 100 OK /protected-media/{token}.mp4 bytes 0-9/1910",  # sizes disagree
+        f"1796474588.5 206 300 OK /protected-media/{token}.mp4 -",  # several ranges at once
+        f"1796474588.5 304 0 OK /protected-media/{token}.mp4 -",
+        f"1796474588.5 200 0 OK /protected-media/{token}.mp4 -",  # HEAD
+        f"1796474588.5 200 1910 OK /protected-media/{token}.png -",  # a poster
+        "1796474588.5 200 1910 OK /protected-media/tok%24en.mp4 -",  # not a token
+        "garbage",
+    ):
+        assert witness_of(line) is None, line
+
+
+def test_the_log_is_read_once_from_where_it_stopped_and_anew_after_rotation(tmp_path, settings):
+    from studyapp.participation import fetch_log
+    from studyapp.participation.proxy_log import read_new
+
+    settings.STUDY_FETCH_LOG_URL = ""
+    settings.STUDY_FETCH_SPOOL = tmp_path / "spool"
+    log = tmp_path / "fetches.log"
+    line = "1796474588.5 200 1910 OK /protected-media/{}.mp4 -\n"
+    log.write_text(line.format("tokenAAAA") + line.format("tokenBBBB")[:20])  # one being written
+    assert read_new(log) == 1
+    assert read_new(log) == 0  # nothing new (the half line waits)
+    with open(log, "a") as f:
+        f.write(line.format("tokenBBBB")[20:])
+    assert read_new(log) == 1
+    log.rename(tmp_path / "fetches.log.1")  # rotated: a new file, read from its start
+    log.write_text(line.format("tokenCCCC"))
+    assert read_new(log) == 1
+    assert set(fetch_log.spool().tokens()) == {"tokenAAAA", "tokenBBBB", "tokenCCCC"}
+
+
+@pytest.fixture(scope="module")
+def built_clips(tmp_path_factory):
+    from tests.studyapp.rendered_clips import render_clips
+
+    return render_clips(tmp_path_factory.mktemp("audited"), catch_per_action=3)
+
+
+def test_the_deep_blindness_audit_passes_through_nginx(built_clips, stack, tmp_path):
+    """What a browser receives from nginx (sizes, headers, boxes, padding, hashes) tells
+    no source apart and recognises no repeated delivery: each has bytes of its own."""
+    from tests.studyapp.test_audit import audit
+
+    app, proxy, _ = stack
+    study = make_ranking_study(built_clips, slug="own-bytes", catch_trials=1)
+    result, text, error = audit(study, proxy.url, tmp_path)
+    assert error is None, text
+    assert result["source: delivery"]["passed"] and result["catch: delivery"]["passed"]
+    hashes = result["deliveries: hashes"]
+    assert hashes["passed"] and hashes["n"] == 2 * len(built_clips)
+
+
+def test_nginx_fetches_a_bucket_object_with_the_presigned_query_and_hides_s3(tmp_path):
+    """The S3 location of nginx_config in a real nginx, with a stand-in app (answers
+    X-Accel-Redirect as the clip view does with S3) and a stand-in bucket host (answers
+    the signed path with S3's headers; records what it was asked)."""
+    import http.server
+
+    from benchmarks.server import Proxy, free_port
+    from studyapp.participation.proxy_log import nginx_config, witness_of
+
+    require_service(Path(NGINX).exists(), f"nginx ({NGINX})")
+    body = bytes(range(256)) * 40
+    token = "S3tokenABCDEFGH1"
+    asked = []
+
+    class Bucket(http.server.BaseHTTPRequestHandler):
+        def do_GET(self):
+            asked.append((self.path, dict(self.headers)))
+            self.send_response(200)
+            for name, value in (("Content-Type", "video/mp4"), ("ETag", '"abc"'),
+                                ("Last-Modified", "Sat, 05 Dec 2026 10:00:00 GMT"),
+                                ("x-amz-request-id", "R1"), ("x-amz-id-2", "I2"),
+                                ("Server", "AmazonS3"), ("Content-Length", str(len(body)))):
+                self.send_header(name, value)
+            self.end_headers()
+            self.wfile.write(body)
+
+        def log_message(self, *args):
+            pass
+
+    class App(http.server.BaseHTTPRequestHandler):
+        def do_GET(self):
+            self.send_response(200)
+            self.send_header("X-Accel-Redirect", f"/protected-media/s3/bucket/media/deliveries/"
+                                                 f"{token}.mp4?Signature=s%2Fg&Expires=9")
+            self.send_header("Content-Length", "0")
+            self.end_headers()
+
+        def log_message(self, *args):
+            pass
+
+    servers = [http.server.ThreadingHTTPServer(("127.0.0.1", 0), cls) for cls in (Bucket, App)]
+    for server in servers:
+        threading.Thread(target=server.serve_forever, daemon=True).start()
+    bucket, app = (f"127.0.0.1:{s.server_address[1]}" for s in servers)
+    port = free_port()
+    config = nginx_config(listen=f"127.0.0.1:{port}", upstream=app, media_root=tmp_path,
+                          fetch_log_path=tmp_path / "fetches.log", run_dir=tmp_path,
+                          workers="1", s3_endpoint=f"http://{bucket}",
+                          user="root" if os.geteuid() == 0 else "")
+    (tmp_path / "nginx.conf").write_text(config)
+    proxy = Proxy([NGINX, "-p", str(tmp_path), "-c", str(tmp_path / "nginx.conf"), "-e",
+                   str(tmp_path / "error.log"), "-g", "daemon off;"], port)
+    proxy.start()
+    try:
+        status, headers, got = get(port, f"/c/{token}.mp4", {"Cookie": "sessionid=secret"})
+    finally:
+        proxy.stop()
+        for server in servers:
+            server.shutdown()
+    assert status == 200 and got == body
+    seen = " ".join(f"{k}: {v}" for k, v in headers.items()).lower()
+    for leak in ("amz", "bucket", "etag", "s3", "signature", "10:00:00"):
+        assert leak not in seen, leak
+    path, sent = asked[0]
+    assert path == f"/bucket/media/deliveries/{token}.mp4?Signature=s%2Fg&Expires=9"
+    assert sent["Host"] == bucket and "Cookie" not in sent
+    lines = (tmp_path / "fetches.log").read_text().splitlines()
+    assert witness_of(lines[-1])[0] == token  # sent whole: a witness

@@ -28,16 +28,16 @@ def test_two_nodes_one_killed_lose_nothing_store_nothing_twice_and_share_limits(
                     "(DATABASE_URL=postgres://...: the suite's PostgreSQL pass runs this)")
     require_service(redis_up(), "Redis on 127.0.0.1:6379")
     require_service(Path(HAPROXY).exists(), f"HAProxy ({HAPROXY})")
-    result = nodes.run(database_url(), tmp_path / "var", participants=24, trials=4,
+    result = nodes.run(database_url(), tmp_path / "var", participants=20, trials=4,
                        workers=2, kill_at=0.4, time_limit=120)
-    assert 0 < result["killed_at"] < 24 * 4  # killed mid-study
-    assert result["stored_participants"] == result["completed"] == 24
+    assert 0 < result["killed_at"] < 20 * 4  # killed mid-study
+    assert result["stored_participants"] == result["completed"] == 20
     assert result["participants_twice"] == 0
-    assert result["answered"] == result["trials"] == 24 * 4
+    assert result["answered"] == result["trials"] == 20 * 4
     assert result["items"] == result["trials"] * 3
     assert (result["missing"], result["duplicates"], result["bad_rankings"]) == (0, 0, 0)
     assert result["assigned_spread"] <= 1  # every trial shows every source: exact balance
-    # a per-study limit of 3 x 24 consents (bots that come back consent again)
-    assert (result["limited_passed"], result["limited_refused"]) == (72, 20)
+    # a per-study limit of 3 x 20 consents (bots that come back consent again)
+    assert (result["limited_passed"], result["limited_refused"]) == (60, 20)
     assert all(n > 0 for n in result["served_by"].values()) and len(result["served_by"]) == 2
     assert result["ok"], result

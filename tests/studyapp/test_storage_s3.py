@@ -221,3 +221,41 @@ def test_settings_pick_s3_when_a_bucket_is_set():
     backend, static_default, _, _ = run_settings()
     assert backend == "django.core.files.storage.filesystem.FileSystemStorage"
     assert static == static_default  # whitenoise (or plain in DEBUG) either way
+
+
+def test_behind_nginx_each_delivery_is_an_object_of_its_own_under_a_presigned_url(
+        db, s3, clips, client, settings, uploads):
+    from io import StringIO
+    from urllib.parse import urlsplit
+
+    import requests
+
+    from django.core.management import call_command
+
+    from studyapp.stimuli import media
+
+    settings.STUDY_ACCEL_REDIRECT = "/protected-media/"
+    study = make_ranking_study(clips)
+    stimulus = study.stimuli.first()
+    items = [shown_item(stimulus), shown_item(stimulus)]  # one clip, two deliveries
+    for item in items:
+        response = client.get(f"/c/{item.token}.mp4")
+        assert response.status_code == 200 and response.content == b""
+        target = response["X-Accel-Redirect"]
+        path, _, query = target.partition("?")
+        assert path.startswith("/protected-media/s3/")
+        assert path.endswith(f"{PREFIX}/deliveries/{item.token}.mp4")  # the token, nothing else
+        assert "Signature=" in query
+        # What nginx fetches from the bucket's host: this delivery's own bytes.
+        endpoint = urlsplit(default_storage.url("x"))
+        url = f"{endpoint.scheme}://{endpoint.netloc}/" + target.split("/s3/", 1)[1]
+        body = requests.get(url, timeout=10).content
+        stored = default_storage.open(stimulus.video).read()
+        assert body == media.delivered_bytes(stored, "mp4", media.delivery_seed(item.token))
+    client.get(f"/c/{items[0].token}.mp4")  # asked again: not uploaded again
+    assert uploads.count(f"deliveries/{items[0].token}.mp4") == 1
+    out = StringIO()
+    call_command("nginx_config", "--run-dir", "/tmp", "--fetch-log", "/tmp/f.log", stdout=out)
+    text = out.getvalue()
+    assert "location /protected-media/s3/ {" in text and "proxy_hide_header x-amz-request-id;" in text
+    assert f"proxy_set_header Host {urlsplit(default_storage.url('x')).netloc};" in text

@@ -1,9 +1,13 @@
 """Print an nginx.conf that serves the app and hands the clips' bytes to nginx."""
 
+from urllib.parse import urlsplit
+
 from django.conf import settings
+from django.core.files.storage import default_storage
 from django.core.management.base import BaseCommand
 
 from studyapp.participation import proxy_log
+from studyapp.stimuli import media
 
 
 class Command(BaseCommand):
@@ -11,7 +15,9 @@ class Command(BaseCommand):
         "Print an nginx configuration: nginx on --listen in front of gunicorn on "
         "--upstream, sending clips from the internal location STUDY_ACCEL_REDIRECT "
         "(the deliveries folder under MEDIA_ROOT) and logging them to --fetch-log for "
-        "follow_fetches. make serve writes it when STUDY_ACCEL_REDIRECT is set."
+        "follow_fetches; with the media in S3, also the location <that>s3/ that fetches a "
+        "delivery's own object with the presigned URL the view hands it. make serve writes "
+        "it when STUDY_ACCEL_REDIRECT is set."
     )
 
     def add_arguments(self, parser):
@@ -26,14 +32,22 @@ class Command(BaseCommand):
         parser.add_argument("--real-ip-from", action="append", default=[], metavar="ADDRESS",
                             help="A balancer in front (HAProxy) whose X-Forwarded-For names "
                                  "the participant; repeatable.")
+        parser.add_argument("--tls-cert", default="", help="End TLS in nginx: the certificate "
+                            "(chain) file; with --tls-key.")
+        parser.add_argument("--tls-key", default="")
         parser.add_argument("--proto", default="$scheme",
                             help="X-Forwarded-Proto sent to the app (behind a TLS proxy: "
                                  "$http_x_forwarded_proto).")
 
     def handle(self, *args, listen, upstream, run_dir, fetch_log, workers, proto, user, real_ip_from,
-               **options):
+               tls_cert, tls_key, **options):
         location = settings.STUDY_ACCEL_REDIRECT or "/protected-media/"
+        s3_endpoint = ""
+        if not media.local_media():  # the host the storage presigns the deliveries for
+            url = urlsplit(default_storage.url(media.delivery_name("x", "mp4"), expire=60))
+            s3_endpoint = f"{url.scheme}://{url.netloc}"
         self.stdout.write(proxy_log.nginx_config(
             listen=listen, upstream=upstream, media_root=settings.MEDIA_ROOT,
             fetch_log_path=fetch_log, run_dir=run_dir, location=location, workers=workers,
-            proto=proto, user=user, real_ip_from=real_ip_from), ending="")
+            proto=proto, user=user, real_ip_from=real_ip_from,
+            tls_cert=tls_cert, tls_key=tls_key, s3_endpoint=s3_endpoint), ending="")
