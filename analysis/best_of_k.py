@@ -15,10 +15,8 @@ reported as shares (with intervals over participants and clips), overall and per
 
 from __future__ import annotations
 
-import warnings
 import numpy as np
 import pandas as pd
-from scipy import sparse
 
 from analysis import crossed, mixed
 from analysis.counts import ranked_sources, source_counts
@@ -52,7 +50,7 @@ class Choices:
 
 
 def fit_top1(sets, chosen_one_hot, counts, prior: float = PRIOR, iterations: int = 5000,
-             tolerance: float = 1e-9, start=None) -> np.ndarray:
+             tolerance: float = 1e-9) -> np.ndarray:
     """Return log-worths ``(B, K)``, centred, for choice counts ``counts`` ``(B, E)``.
 
     Hunter's MM update for Luce choices: ``w_i <- wins_i / sum_e c_e n_ei / W_e`` (``W_e``
@@ -63,8 +61,6 @@ def fit_top1(sets, chosen_one_hot, counts, prior: float = PRIOR, iterations: int
     counts = np.atleast_2d(np.asarray(counts, dtype=float))
     wins = counts @ chosen_one_hot + prior  # (B, K)
     w = np.ones((len(counts), sets.shape[1]))
-    if start is not None:  # e.g. the estimate, for replicates near it: fewer iterations
-        w = w * np.exp(np.asarray(start, dtype=float) - np.max(start))
     for _ in range(iterations):
         shown = w @ sets.T  # (B, E)
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -81,43 +77,6 @@ def fit_top1(sets, chosen_one_hot, counts, prior: float = PRIOR, iterations: int
     return theta - theta.mean(axis=1, keepdims=True)
 
 
-def clip_worths(sets, chosen_one_hot, counts, start, prior: float = PRIOR,
-                iterations: int = 20) -> np.ndarray:
-    """Return ``(B, C)`` clip log-worths: each clip's own top-1 log-worth with the other
-    clips of its trials held at ``start`` ``(B, C)`` (their sources' fitted worths), a
-    one-dimensional Newton fit per clip (with the same prior as :func:`fit_top1`).
-
-    ``sets`` ``(E, C)`` how often each clip was shown at each distinct choice,
-    ``chosen_one_hot`` ``(E, C)`` the clip picked, ``counts`` ``(B, E)``. With two clips
-    per trial this is the logistic regression of the clip's wins on its opponents'
-    worths: unbounded, unlike the clip's share of wins."""
-    sets = np.asarray(sets, dtype=float)
-    choice, clip = np.nonzero(sets)
-    copies = sets[choice, clip]
-    gather = sparse.csr_matrix((np.ones(len(clip)), (np.arange(len(clip)), clip)),
-                               shape=(len(clip), sets.shape[1]))
-    counts = np.atleast_2d(np.asarray(counts, dtype=float))
-    wins = counts @ chosen_one_hot  # (B, C)
-    start = np.asarray(start, dtype=float)
-    total = (np.exp(start) @ sets.T)[:, choice]  # (B, nnz) worth shown at each choice
-    others = np.maximum(total - copies * np.exp(start[:, clip]), 1e-300)
-    weight = counts[:, choice]
-    theta = start.copy()
-    for _ in range(iterations):
-        mine = copies * np.exp(theta[:, clip])
-        p = mine / (mine + others)
-        expected = np.asarray(gather.T @ (weight * p).T).T
-        curvature = np.asarray(gather.T @ (weight * p * (1 - p)).T).T
-        sigma = 1.0 / (1.0 + np.exp(-theta))
-        gradient = wins - expected + prior * (1 - 2 * sigma)
-        hessian = curvature + 2 * prior * sigma * (1 - sigma)
-        step = np.clip(gradient / np.maximum(hessian, 1e-12), -2.0, 2.0)
-        theta = theta + step
-        if np.max(np.abs(step)) < 1e-8:
-            break
-    return theta
-
-
 def log_likelihood(sets, chosen, counts, theta) -> float:
     """Return the top-1 Plackett-Luce log-likelihood of ``theta`` ``(K,)`` (no prior)."""
     theta = np.asarray(theta, dtype=float)
@@ -126,45 +85,15 @@ def log_likelihood(sets, chosen, counts, theta) -> float:
     return float(np.asarray(counts, dtype=float) @ (theta[np.asarray(chosen)] - log_shown))
 
 
-def top1_worth(shown, chosen, rows: pd.DataFrame, config, clip_of=None) -> crossed.Crossed:
+def top1_worth(shown, chosen, rows: pd.DataFrame, config) -> crossed.Crossed:
     """Return the crossed bootstrap of the top-1 log-worths of the trials that picked a
     clip: ``shown`` ``(T, K)`` source counts, ``chosen`` ``(T,)`` the source picked, and
     ``rows`` those trials' rows (in the same trial order). Each trial is a unit, weighed
-    by its participant's and all its clips' draws, every replicate refitted at once.
+    by its participant's and all its clips' draws, every replicate refitted at once."""
+    choices = Choices(shown, chosen, np.arange(len(shown)), shown.shape[1], len(shown))
 
-    With ``clip_of`` (``(shown_clips, chosen_clip, source_of_clip)``: ``(T, C)`` clip
-    counts, ``(T,)`` the clip picked, ``(C,)`` each clip's source code) the worths are
-    fitted per clip and a source's value is the mean of its clips' log-worths, each
-    clip weighed by how often it was shown, centred over sources: the log-scale analogue
-    of a mean over clips, whose clip effects are close to normal where a source's
-    pooled worth averages bounded win rates (docs/STATISTICS.md)."""
-    if clip_of is None:
-        choices = Choices(shown, chosen, np.arange(len(shown)), shown.shape[1], len(shown))
-
-        def finish(counts):
-            return fit_top1(choices.sets, choices.one_hot, counts)
-    else:
-        shown_clips, chosen_clip, source_of_clip = clip_of
-        choices = Choices(shown_clips, chosen_clip, np.arange(len(shown_clips)),
-                          shown_clips.shape[1], len(shown_clips))
-        to_source = np.zeros((len(source_of_clip), shown.shape[1]))
-        to_source[np.arange(len(source_of_clip)), source_of_clip] = 1.0
-        # The sources' fit needs only the distinct choices between sources.
-        keyed = np.concatenate([choices.sets @ to_source, choices.one_hot @ to_source], axis=1)
-        distinct, which = np.unique(keyed, axis=0, return_inverse=True)
-        merge = np.zeros((len(keyed), len(distinct)))
-        merge[np.arange(len(keyed)), which.ravel()] = 1.0
-        source_sets, source_one_hot = distinct[:, :shown.shape[1]], distinct[:, shown.shape[1]:]
-
-        def finish(counts):
-            counts = np.atleast_2d(counts)
-            by_source = fit_top1(source_sets, source_one_hot, counts @ merge)
-            theta = clip_worths(choices.sets, choices.one_hot, counts, by_source[:, source_of_clip])
-            n = counts @ choices.sets  # (B, C) times each clip was shown
-            with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
-                warnings.simplefilter("ignore", RuntimeWarning)  # a source no clip shown
-                value = (n * theta) @ to_source / (n @ to_source)
-                return value - np.nanmean(value, axis=1, keepdims=True)
+    def finish(counts):
+        return fit_top1(choices.sets, choices.one_hot, counts)
 
     statistic = crossed.Linear(choices.counts, finish)
     return crossed.bootstrap(crossed.design(rows, unit="trial_key"), statistic, config)
@@ -249,18 +178,7 @@ class BestOfK(StudyAnalysis):
             raise AnalysisError('no trial picked a clip (every answer is "all good" or "all bad"): '
                                 "there is nothing to fit worths to")
         picked_rows = np.isin(trial, np.flatnonzero(picked))
-        # Worths per clip, averaged per source: the clips' effects are then on the
-        # log-worth scale, where a t test over 2 + 2 clips keeps its level (a source's
-        # pooled worth averages bounded win rates; docs/STATISTICS.md).
-        clip_code, clip_names = pd.factorize(rows["stimulus"])
-        shown_clips = np.zeros((n_trials, len(clip_names)), dtype=np.int64)
-        np.add.at(shown_clips, (trial, clip_code), 1)
-        chosen_clip = np.full(n_trials, -1)
-        chosen_clip[trial[is_best]] = clip_code[is_best]
-        source_of_clip = np.zeros(len(clip_names), dtype=np.int64)
-        source_of_clip[clip_code] = code
-        result = top1_worth(shown[picked], chosen[picked], rows.loc[picked_rows], config,
-                            clip_of=(shown_clips[picked], chosen_clip[picked], source_of_clip))
+        result = top1_worth(shown[picked], chosen[picked], rows.loc[picked_rows], config)
         shown_result = crossed.report(result, names, rows.loc[picked_rows], config)
         fitted = shown_result.scores
 
