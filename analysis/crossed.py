@@ -595,7 +595,7 @@ def one_clip_note(design: Design, fewest: float | None = None) -> str | None:
                  f"{'degree' if int(fewest) == 1 else 'degrees'} of freedom (the clips of the two "
                  f"sources it compares)")
         return (f"{rests}: the intervals are rough and may hold less often than stated (with 2 "
-                f"clips per source, 95 % intervals held as rarely as 0.90 of the time in simulations, "
+                f"clips per source, 95 % intervals held as rarely as 0.92 of the time in simulations, "
                 f"docs/STATISTICS.md); add clips (at least 4 per source and condition) for "
                 f"firmer verdicts")
     return (f"{int(np.sum(sizes < 2))} of {len(sizes)} source-and-condition groups have a single "
