@@ -114,17 +114,47 @@ def run(args) -> list[dict]:
 
 def markdown(results) -> str:
     """Return the results as a table: one row per cell."""
-    lines = ["| type | clip SD | clips | a - b | crossed coverage | crossed p < .05 | crossed width "
-             "| participants-only coverage | participants-only p < .05 | participants-only width |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| type | clip SD | clips | a - b | studies | crossed coverage | crossed p < .05 "
+             "| crossed width | participants-only coverage | participants-only p < .05 "
+             "| participants-only width |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     missing = {"coverage": float("nan"), "rejected": float("nan"), "width": float("nan")}
     for r in results:
         c, p = r.get("crossed", missing), r.get("participants", missing)
         effect = "0" if r["effect"] == 0 else f"{r['effect']:g} (true {r['truth']:.3g})"
+        studies = (f"{r['studies']} ({r['participants_studies']} participants only)"
+                   if "participants_studies" in r else f"{r['studies']}")
         lines.append(f"| `{r['study_type']}` | {r['clip_sd']:g} | {r['clips']} | {effect} | "
+                     f"{studies} | "
                      f"{c['coverage']:.3f} | {c['rejected']:.3f} | {c['width']:.3g} | "
                      f"{p['coverage']:.3f} | {p['rejected']:.3f} | {p['width']:.3g} |")
     return "\n".join(lines) + "\n"
+
+
+def pooled(paths) -> list[dict]:
+    """Return the cells of the JSON results in ``paths``, the runs of one cell and method
+    pooled (their rates weighed by their studies), in the order first seen; a cell's
+    ``studies`` are its crossed method's (or the other's when it has none)."""
+    cells, counts = {}, {}
+    for path in paths:
+        for r in json.loads(Path(path).read_text()):
+            key = (r["study_type"], r["clip_sd"], r["clips"], r["effect"])
+            cell = cells.setdefault(key, {k: v for k, v in r.items()
+                                          if k not in ("crossed", "participants")})
+            for label in ("crossed", "participants"):
+                if label not in r:
+                    continue
+                before = counts.get((key, label), 0)
+                total = before + r["studies"]
+                old = cell.get(label, {k: 0.0 for k in r[label]})
+                cell[label] = {k: (old[k] * before + r[label][k] * r["studies"]) / total
+                               for k in r[label]}
+                counts[(key, label)] = total
+            cell["studies"] = counts.get((key, "crossed"), counts.get((key, "participants"), 0))
+            if "crossed" in cell and "participants" in cell and \
+                    counts[(key, "crossed")] != counts[(key, "participants")]:
+                cell["participants_studies"] = counts[(key, "participants")]
+    return list(cells.values())
 
 
 def parse(argv=None):
@@ -148,6 +178,8 @@ def parse(argv=None):
                         default=("crossed", "participants"),
                         help="crossed (clips random), participants (clips fixed), or both")
     parser.add_argument("--json", help="write the results here as they come")
+    parser.add_argument("--from-json", nargs="+", help="print the table of these results "
+                        "(runs pooled cell by cell when they have different seeds) and exit")
     parser.add_argument("--markdown", help="write the table here at the end")
     return parser.parse_args(argv)
 
@@ -155,7 +187,7 @@ def parse(argv=None):
 def main(argv=None):
     warnings.simplefilter("ignore")
     args = parse(argv)
-    results = run(args)
+    results = pooled(args.from_json) if args.from_json else run(args)
     table = markdown(results)
     if args.markdown:
         Path(args.markdown).write_text(table)

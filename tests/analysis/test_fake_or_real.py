@@ -51,8 +51,13 @@ def test_generated_sources_are_tested_against_the_real_rate_over_clips():
     assert sources.loc[["a2m", "gru"], "p_holm"].tolist() == pytest.approx(holm(p))
     assert np.isnan(sources.loc["real", "p"])
     assert sources.loc["gru", "difference"] == pytest.approx(2 / 8 - 7 / 8)
-    assert sources.loc["gru", "diff_ci_low"] < 2 / 8 - 7 / 8 < sources.loc["gru", "diff_ci_high"]
+    # Tested on the clips' mean log-odds (0.5 added to both counts of each clip): gru's
+    # clips were called real 0, 0, 1 and 1 times of 2, the real ones 2, 2, 2 and 1.
+    by_hand = np.mean([np.log(0.5 / 2.5)] * 2 + [0.0] * 2) - np.mean([np.log(2.5 / 0.5)] * 3 + [0.0])
+    assert sources.loc["gru", "log_odds_difference"] == pytest.approx(by_hand)
+    assert sources.loc["gru", "diff_ci_low"] < by_hand < sources.loc["gru", "diff_ci_high"]
     differences = {t.name: t.frame for t in result.tables}["differences"].set_index(["a", "b"])
+    assert differences.loc[("gru", "real"), "difference"] == pytest.approx(by_hand)
     assert differences.loc[("gru", "real"), "p"] == pytest.approx(sources.loc["gru", "p"])
 
 

@@ -59,13 +59,18 @@ def test_logistic_model_of_fake_or_real():
     assert model["log_odds_difference"] < 0 and abs(model["log_odds_difference"]) >= 0.8 * abs(empirical)
     assert model["ci_low"] < model["log_odds_difference"] < model["ci_high"]
     assert "BinomialBayesMixedGLM" in result.methods()
-    # Its SD carries the clips' spread as the bootstrap's interval does (that interval of
-    # the difference of shares, turned to the log-odds scale by the slope p (1 - p)); the
-    # mean-field variational SD was a third of it here.
-    row = result.analysis.sources.loc["a"]
-    slope = np.mean([shares[s] * (1 - shares[s]) for s in ("a", "real")])
-    bootstrap_sd = (row["diff_ci_high"] - row["diff_ci_low"]) / (2 * 1.96) / slope
-    assert 0.5 < model["sd"] / bootstrap_sd < 2.0
+    # The bootstrap compares sources by their clips' mean log-odds (each clip's empirical
+    # log-odds), the scale of the model's conditional log-odds: the two estimates agree,
+    # and the model's SD carries the clips' spread as the bootstrap's standard error does
+    # (the mean-field variational SD was a third of it here).
+    differences = result.analysis.tests["differences"]
+    row = differences.loc[(differences["a"] == "a") & (differences["b"] == "real")].iloc[0]
+    assert row["difference"] == pytest.approx(model["log_odds_difference"], abs=0.4)
+    assert result.analysis.sources.loc["a", "log_odds_difference"] == pytest.approx(row["difference"])
+    assert 0.5 < model["sd"] / row["se"] < 2.0
+    # With 6 clips per source in one condition the Wald test takes the clips' 10 degrees
+    # of freedom (the participants' 29 are more).
+    assert model["df"] == 10
 
 
 def test_models_are_skipped_when_not_asked_for_or_too_large(monkeypatch):
