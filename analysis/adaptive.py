@@ -241,17 +241,24 @@ def plan_pairs(dist: dict, n_trials: int, clips: dict, shown: Counter, rng,
     all clips one condition). Sources missing from ``clips`` are never drawn. Fewer trials are returned only when
     no unseen pair of clips is left.
     """
-    pairs = [tuple(pair) for pair in dist["pairs"]]
-    weights = [float(p) for p in dist["p"]]
-    usable = [(pair, w) for pair, w in zip(pairs, weights)
-              if clips.get(pair[0]) and clips.get(pair[1])]
-    seen = {frozenset(pair) for pair in seen}
+    return _plan(dist["pairs"], dist["p"], _pick_pair, n_trials, clips, shown, rng, min_showings,
+                 seen, group_of, counterbalance)
+
+
+def _plan(members, weights, pick, n_trials, clips, shown, rng, min_showings, seen, group_of,
+          seat) -> list[tuple]:
+    """The loop of :func:`plan_pairs` and :func:`plan_sets`: ``n_trials`` draws of sources
+    by weight (those with a clip short of ``min_showings`` first), each turned into clips
+    by ``pick``, then seated by ``seat``."""
+    usable = [(tuple(m), float(w)) for m, w in zip(members, weights)
+              if all(clips.get(s) for s in m)]
+    seen = {frozenset(trial) for trial in seen}
     chosen = []
     for _ in range(n_trials):
         short = {s for s, ids in clips.items() if any(shown[c] < min_showings for c in ids)}
-        candidates = [(pair, w) for pair, w in usable if short & set(pair)] if short else []
-        trial = (_draw(candidates, clips, shown, seen, rng, group_of) if candidates else None) \
-            or _draw(usable, clips, shown, seen, rng, group_of)
+        candidates = [(m, w) for m, w in usable if short & set(m)] if short else []
+        trial = (_draw(candidates, pick, clips, shown, seen, rng, group_of) if candidates
+                 else None) or _draw(usable, pick, clips, shown, seen, rng, group_of)
         if trial is None:
             break
         seen.add(frozenset(trial))
@@ -259,11 +266,11 @@ def plan_pairs(dist: dict, n_trials: int, clips: dict, shown: Counter, rng,
             shown[clip] += 1
         chosen.append(trial)
     owner = {clip: source for source, ids in clips.items() for clip in ids}
-    return counterbalance(chosen, rng, owner.__getitem__)
+    return seat(chosen, rng, owner.__getitem__)
 
 
-def _draw(candidates, clips, shown, seen, rng, group_of=None):
-    """Draw a pair of sources by weight and its least-shown unseen pair of clips."""
+def _draw(candidates, pick, clips, shown, seen, rng, group_of=None):
+    """Draw sources by weight until ``pick`` finds them clips (None when none is left)."""
     candidates = list(candidates)
     while candidates:
         total = sum(w for _, w in candidates)
@@ -274,18 +281,27 @@ def _draw(candidates, clips, shown, seen, rng, group_of=None):
             while index < len(candidates) - 1 and x >= candidates[index][1]:
                 x -= candidates[index][1]
                 index += 1
-        (a, b), _ = candidates.pop(index)
+        members, _ = candidates.pop(index)
+        trial = pick(members, clips, shown, seen, rng, group_of)
+        if trial is not None:
+            return trial
+    return None
 
-        def by_use(ids):
-            return sorted(ids, key=lambda clip: (shown[clip], rng.random()))
 
-        # The least-shown clip of either source first, then its least-shown partner.
-        first, second = (a, b) if rng.random() < 0.5 else (b, a)
-        partners = by_use(clips[second])
-        for x in by_use(clips[first]):
-            for y in partners:
-                if frozenset((x, y)) not in seen and (group_of is None or group_of(x) == group_of(y)):
-                    return (x, y) if first == a else (y, x)
+def _by_use(ids, shown, rng):
+    return sorted(ids, key=lambda clip: (shown[clip], rng.random()))
+
+
+def _pick_pair(members, clips, shown, seen, rng, group_of):
+    """The least-shown unseen pair of clips of a pair of sources (one condition)."""
+    a, b = members
+    # The least-shown clip of either source first, then its least-shown partner.
+    first, second = (a, b) if rng.random() < 0.5 else (b, a)
+    partners = _by_use(clips[second], shown, rng)
+    for x in _by_use(clips[first], shown, rng):
+        for y in partners:
+            if frozenset((x, y)) not in seen and (group_of is None or group_of(x) == group_of(y)):
+                return (x, y) if first == a else (y, x)
     return None
 
 
@@ -485,58 +501,28 @@ def plan_sets(dist: dict, n_trials: int, clips: dict, shown: Counter, rng, min_s
     a source the least-shown clip of the trial's condition is taken; no participant sees
     the same clips together twice; and the seats are counterbalanced per participant
     (:func:`seat_sets`: each source's clips spread over the positions)."""
-    sets = [tuple(members) for members in dist["sets"]]
-    weights = [float(p) for p in dist["p"]]
-    usable = [(members, w) for members, w in zip(sets, weights) if all(clips.get(s) for s in members)]
-    seen = {frozenset(trial) for trial in seen}
-    chosen = []
-    for _ in range(n_trials):
-        short = {s for s, ids in clips.items() if any(shown[c] < min_showings for c in ids)}
-        candidates = [(m, w) for m, w in usable if short & set(m)] if short else []
-        trial = (_draw_set(candidates, clips, shown, seen, rng, group_of) if candidates else None) \
-            or _draw_set(usable, clips, shown, seen, rng, group_of)
-        if trial is None:
-            break
-        seen.add(frozenset(trial))
-        for clip in trial:
-            shown[clip] += 1
-        chosen.append(trial)
-    owner = {clip: source for source, ids in clips.items() for clip in ids}
-    return seat_sets(chosen, rng, owner.__getitem__)
+    return _plan(dist["sets"], dist["p"], _pick_set, n_trials, clips, shown, rng, min_showings,
+                 seen, group_of, seat_sets)
 
 
-def _draw_set(candidates, clips, shown, seen, rng, group_of=None):
-    """Draw a set of sources by weight and its least-shown unseen clips of one condition."""
-    candidates = list(candidates)
-    while candidates:
-        total = sum(w for _, w in candidates)
-        if total <= 0:
-            index = rng.randrange(len(candidates))
-        else:
-            x, index = rng.random() * total, 0
-            while index < len(candidates) - 1 and x >= candidates[index][1]:
-                x -= candidates[index][1]
-                index += 1
-        members, _ = candidates.pop(index)
-
-        def by_use(ids):
-            return sorted(ids, key=lambda clip: (shown[clip], rng.random()))
-
-        # The least-shown clip of a source of the set decides the condition; each other
-        # source then gives its least-shown clip of that condition.
-        lead = rng.choice(members)
-        for first in by_use(clips[lead]):
-            group = None if group_of is None else group_of(first)
-            trial = [first]
-            for source in members:
-                if source == lead:
-                    continue
-                fits = [c for c in by_use(clips[source]) if group is None or group_of(c) == group]
-                if not fits:
-                    break
-                trial.append(fits[0])
-            if len(trial) == len(members) and frozenset(trial) not in seen:
-                return tuple(trial)
+def _pick_set(members, clips, shown, seen, rng, group_of):
+    """The least-shown unseen clips of a set of sources, all of one condition."""
+    # The least-shown clip of a source of the set decides the condition; each other
+    # source then gives its least-shown clip of that condition.
+    lead = rng.choice(members)
+    for first in _by_use(clips[lead], shown, rng):
+        group = None if group_of is None else group_of(first)
+        trial = [first]
+        for source in members:
+            if source == lead:
+                continue
+            fits = [c for c in _by_use(clips[source], shown, rng)
+                    if group is None or group_of(c) == group]
+            if not fits:
+                break
+            trial.append(fits[0])
+        if len(trial) == len(members) and frozenset(trial) not in seen:
+            return tuple(trial)
     return None
 
 
