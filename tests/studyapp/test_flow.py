@@ -164,6 +164,33 @@ def test_each_participant_gets_their_own_order(media_root, make_bot):
 # Answers
 
 
+def test_an_answer_gets_the_next_trial_in_its_response(ranking_study, make_bot):
+    """One request per answer: the trial form's ``next`` field makes the answer's response
+    the next trial page (marked shown); after the last trial, and for a repeated submit,
+    the answer redirects as a form without the field does."""
+    bot = make_bot(ranking_study)
+    bot.join()
+    first = bot.participant().current_trial()
+    page = bot.trial_page()
+    assert b'name="next" value="trial"' in page.content
+    response = bot.answer(bot.answer_data(first) | {"next": "trial"})
+    assert response.status_code == 200
+    second = bot.participant().current_trial()
+    assert second.index == first.index + 1 and second.shown_at is not None
+    assert f'name="trial" value="{second.pk}"'.encode() in response.content
+    first.refresh_from_db()
+    assert first.answered_at is not None
+    again = bot.answer(bot.answer_data(first) | {"next": "trial"})
+    assert again.status_code == 302 and again["Location"].endswith("/trial/")
+    last = bot.participant().trials.count() - 1
+    while (trial := bot.participant().current_trial()) is not None:
+        bot.watch(trial)
+        response = bot.answer(bot.answer_data(trial) | {"next": "trial"})
+        assert response.status_code == (302 if trial.index == last else 200)
+    assert response["Location"].endswith(("/about-you/", "/done/"))
+    assert bot.participant().completed_at is not None
+
+
 def test_a_valid_ranking_is_stored(ranking_study, make_bot):
     bot = make_bot(ranking_study)
     bot.join()
