@@ -111,10 +111,14 @@ class DatabaseStore:
 
     def participant(self, request, study):
         """Return the participant of this browser (read with ``by_token``), or None."""
-        token = browser_state(request, study).get("p")
-        if not token:
-            return None
-        participant = Participant.objects.by_token(study, token)
+        for _ in range(2):
+            token = browser_state(request, study).get("p")  # the cookie of study.pk
+            participant = Participant.objects.by_token(study, token) if token else None
+            # ``study`` may be the row as this process kept it: by_token read its version.
+            kept_pk = study.pk
+            Study.objects.current(study, participant.study_version if participant else None)
+            if study.pk == kept_pk:
+                break  # else the slug's study was made anew: read its cookie
         if participant is not None:
             participant.study = study  # already read: spare the query
         return participant
@@ -487,11 +491,11 @@ def render_trial(request, store, study, trial, items, number, total, n_practice,
 def enter(request, study, store=None):
     """Start or resume a participant from the study link; return the redirect."""
     store = store or DatabaseStore()
+    participant = store.participant(request, study)  # first: it checks a kept study row
     try:
         ids, key = study.platform.read_ids(request.GET)
     except EntryRefused as refused:
         return unavailable(request, study, refused.reason, status=400, detail=refused.detail)
-    participant = store.participant(request, study)
     if participant is not None and key not in ("", participant.external_key):
         if study.platform.strict_ids and not store.preview:
             # This browser took part under another id: a made-up id to start again.
