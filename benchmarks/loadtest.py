@@ -459,6 +459,7 @@ def main(argv=None) -> int:
         study = make_study("load", var / "media", trials=args.trials, player=args.study)
         server = Server(env, workers=args.workers, settings="benchmarks.loadtest_settings",
                         log=var / "gunicorn.log", root=code)
+        server.start_timeout = 180  # workers importing Django on a busy machine
         server.collectstatic()
         bots = [AsyncParticipant("http://x:1", study.slug, f"load-{i}")
                 for i in range(args.participants)]

@@ -50,6 +50,7 @@ class Server:
                  root: Path = ROOT):
         self.env = dict(env, DJANGO_SETTINGS_MODULE=settings)
         self.root = Path(root)  # the checkout whose code is served
+        self.start_timeout = 30.0
         self.workers = workers
         self.port = port or free_port()
         self.url = f"http://127.0.0.1:{self.port}"
@@ -99,7 +100,7 @@ class Server:
                 self.kill()
 
     def __enter__(self):
-        return self.start()
+        return self.start(self.start_timeout)
 
     def __exit__(self, *exc):
         self.stop()
