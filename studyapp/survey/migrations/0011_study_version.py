@@ -1,5 +1,9 @@
 """``Study.version``: one more on every UPDATE of a study row (a trigger, so queryset
-updates, the admin and other nodes all count), for processes that keep the row."""
+updates, the admin and other nodes all count), for processes that keep the row.
+
+SQLite drops a table's triggers when a migration remakes the table (as it does to alter
+a column): a later migration that alters ``survey_study`` must create the trigger again
+(``test_a_kept_study_row_is_read_again_once_any_update_changes_it`` fails otherwise)."""
 
 from django.db import migrations, models
 

@@ -76,7 +76,9 @@ class StudyManager(models.Manager):
         Every participant page reads the study, so each process keeps the row; the page
         then checks it against the row's ``version`` in a statement it runs anyway
         (``Participant.objects.by_token``), or with :meth:`current` where it runs none.
-        A save on any node bumps ``version``, so no process keeps serving a changed study.
+        Any UPDATE of the row, on any node, moves ``version`` on, so no process keeps
+        serving a changed study (on SQLite ``lock``'s no-op UPDATE does too: each start
+        there makes processes read the row again, which costs a read, nothing more).
         """
         study = _CACHE.get(slug)
         if study is None:
