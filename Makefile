@@ -22,6 +22,8 @@ serve: setup
 	@bash scripts/serve.sh
 
 # 500 concurrent bots against gunicorn + a fresh PostgreSQL database (docs/BENCHMARKS.md, "Load");
-# add ARGS="--think 10" for participants who take about 10 s per trial.
+# add ARGS="--think 10" for participants who take about 10 s per trial, ARGS="--arrivals 2000
+# --over 300 --think 10" for a launch (participants arriving over 5 minutes), "--study webgl"
+# for clips played in the page.
 loadtest: setup
 	$(PY) benchmarks/loadtest.py --participants 500 --trials 6 --time-limit 600 $(ARGS)

@@ -1,15 +1,25 @@
-"""Load test: N concurrent bot participants against a real gunicorn + PostgreSQL server.
+"""Load test: N bot participants against a real gunicorn + PostgreSQL server.
 
 ``make loadtest`` (or ``.venv/bin/python benchmarks/loadtest.py --participants 500``):
-creates a fresh PostgreSQL database, a ranking study of tiny generated mp4s, starts
-gunicorn (production settings, several workers) on 127.0.0.1, and runs every
-participant as a coroutine of one light asyncio client process (enter, consent, start,
-answer every trial through the real pages, reporting each clip played once, optionally
-"watching" each trial for ``--think`` seconds first). It then stops the server and
-checks the database: stored answers == acknowledged answers (HTTP 302 to the next
-page), no duplicates, every stored ranking a permutation, judgements per stimulus
-balanced. The last line is
-``acknowledged=N stored=N duplicates=0 p50_ms=... p99_ms=... answers_per_s=...``.
+creates a fresh PostgreSQL database, a ranking study of tiny generated clips (``--study
+mp4``: videos; ``--study webgl``: the in-page player's motion payloads, the mp4 as
+fallback), starts gunicorn (production settings, several workers) on 127.0.0.1, and runs
+every participant as a coroutine of one light asyncio client process (enter, consent,
+start, answer every trial through the real pages, fetching each clip whole as a browser
+does and reporting it played once, optionally "watching" each trial for ``--think``
+seconds first). Participants run ``--concurrency`` at a time (a closed loop), or arrive
+over time as a crowd platform sends them (``--arrivals 2000 --over 300``: an open loop,
+see :func:`arrival_times`). The answer form's ``next`` field is posted as a browser posts
+it: a server that answers with the next trial saves the second request, one that
+redirects is followed. ``--code DIR`` serves the app code of another checkout (the same
+client and settings against, e.g., the previous release).
+
+It then stops the server and checks the database: stored answers == acknowledged
+answers, no duplicates, every stored ranking a permutation, judgements per stimulus
+balanced. It reports the answer's latency (the submit until the next page is in hand)
+apart from the clips' time to first byte, p50 and p99. The last line is
+``acknowledged=N stored=N duplicates=0 answer_p50_ms=... answer_p99_ms=...
+clip_ttfb_p50_ms=... clip_ttfb_p99_ms=... answers_per_s=...``.
 """
 
 import argparse
@@ -35,6 +45,7 @@ CSRF = re.compile(r'name="csrfmiddlewaretoken" value="([^"]+)"')
 TRIAL = re.compile(r'name="trial" value="(\d+)"')
 RANK = re.compile(r'name="rank_([A-Za-z0-9_-]+)"')
 CLIP = re.compile(r'<video src="(/c/[A-Za-z0-9_-]+\.mp4)"')
+MOTION = re.compile(r'<motion-player data-src="(/c/[A-Za-z0-9_-]+\.motion)"')
 TIMEOUT = 60
 # The server takes an answer only once the clips were fetched whole and have had time to
 # play (their length: the tiny load-test clips last 0.4 s) since the page was served.
@@ -63,6 +74,11 @@ class Bot:
         self.page = ""
         self.at = ""
         self.submits: list[tuple[int, int, float]] = []  # (trial id, status, seconds)
+        # Post the trial form's ``next`` field as a browser does: the next trial comes
+        # in the answer's response where the server supports it.
+        self.one_request = False
+        self.answer_seconds: list[float] = []  # submit until the next page is in hand
+        self.clip_ttfb: list[float] = []  # each clip: request until its first byte
 
     def path(self, name: str = "") -> str:
         return f"/s/{self.slug}/{name + '/' if name else ''}"
@@ -94,7 +110,7 @@ class Bot:
         trial = TRIAL.search(self.page).group(1)
         tokens = RANK.findall(self.page)
         ranks = self.rng.sample(range(1, len(tokens) + 1), len(tokens))
-        data = {"trial": trial}
+        data = {"trial": trial, **({"next": "trial"} if self.one_request else {})}
         for token, rank in zip(tokens, ranks):
             data[f"plays_{token}"] = "1"
             data[f"rank_{token}"] = str(rank)
@@ -104,8 +120,17 @@ class Bot:
         return self.at.endswith("/trial/")
 
     def clips(self) -> list[str]:
-        """Return the clip URLs of the trial on the page (fetched as a browser does)."""
-        return CLIP.findall(self.page)
+        """Return the clip URLs of the trial on the page as a browser fetches them: the
+        in-page player's payloads where the page has them (the videos are then not
+        preloaded), else the videos."""
+        return MOTION.findall(self.page) or CLIP.findall(self.page)
+
+    def next_page(self, status: int, text: str) -> bool | None:
+        """Return True when an answer's response is the next trial (one request), False
+        when it redirects (to follow), None when it was refused."""
+        if status == 200 and TRIAL.search(text):
+            return True
+        return False if status in (301, 302) else None
 
 
 class Participant(Bot):
@@ -182,11 +207,16 @@ class Participant(Bot):
         self.watch()
         data = self.answer_data()
         begun = time.perf_counter()
-        status, location = self.post(self.path("trial"), data)
+        status, location, text = self.request("POST", self.path("trial"), self.form(data))
         self.submits.append((int(data["trial"]), status, time.perf_counter() - begun))
-        if status != 302:
+        inline = self.next_page(status, text)
+        if inline is None:
             raise HttpError(f"answer to trial {data['trial']}: HTTP {status}")
-        self.page = self.get(location)
+        if inline:
+            self.page, location = text, self.path("trial")
+        else:
+            self.page = self.get(location)
+        self.answer_seconds.append(time.perf_counter() - begun)
         return location
 
 
@@ -196,7 +226,8 @@ class AsyncParticipant(Bot):
     workers close every connection), so hundreds run in one light client process."""
 
     async def request(self, method: str, path: str, data: dict | None = None):
-        """Return ``(status, location, body)``."""
+        """Return ``(status, location, body)``; a clip's time to first byte is noted."""
+        begun = time.perf_counter()
         sent, body = self.headers(data, {"Connection": "close"})
         payload = (body or "").encode()
         if body is not None:
@@ -209,6 +240,8 @@ class AsyncParticipant(Bot):
             status_line = await reader.readline()
             if not status_line:
                 raise HttpError(f"{method} {path}: the server closed the connection")
+            if path.startswith("/c/"):
+                self.clip_ttfb.append(time.perf_counter() - begun)
             status = int(status_line.split()[1])
             headers = []
             while (line := await reader.readline()) not in (b"\r\n", b"\n", b""):
@@ -255,16 +288,21 @@ class AsyncParticipant(Bot):
             await asyncio.sleep(max(wait, CLIP_SECONDS) - (time.monotonic() - shown))
             data = self.answer_data()
             begun = time.perf_counter()
-            status, location, _ = await self.request("POST", self.path("trial"), self.form(data))
+            status, location, text = await self.request("POST", self.path("trial"),
+                                                        self.form(data))
             self.submits.append((int(data["trial"]), status, time.perf_counter() - begun))
-            if status != 302:
+            inline = self.next_page(status, text)
+            if inline is None:
                 raise HttpError(f"answer to trial {data['trial']}: HTTP {status}")
-            self.page = await self.get(location)
+            self.page = text if inline else await self.get(location)
+            self.answer_seconds.append(time.perf_counter() - begun)
 
 
 def make_study(slug: str, media_root: Path, actions=("walk", "wave", "jump"),
-               sources=("real", "a2m", "cond_gru", "mdm"), trials: int = 6):
-    """Create an open ranking study of tiny generated clips (3 of 4 sources per trial)."""
+               sources=("real", "a2m", "cond_gru", "mdm"), trials: int = 6, player: str = "mp4"):
+    """Create an open ranking study of tiny generated clips (3 of 4 sources per trial);
+    ``player="webgl"``: each clip also has an in-page player payload of a tiny figure
+    (the study plays those, the mp4 stays the fallback)."""
     from django.conf import settings
 
     from studyapp.survey.models import Study
@@ -274,18 +312,42 @@ def make_study(slug: str, media_root: Path, actions=("walk", "wave", "jump"),
     settings.MEDIA_ROOT = media_root
     clips_dir = Path(tempfile.mkdtemp(prefix="loadtest-clips-"))
     rng = random.Random(0)
+    payloads = {}
+    if player == "webgl":
+        from rendering import Framing
+        from rendering.player import write_payloads
+        from tests.rendering.conftest import make_figure
+
+        figures = {(a, s): make_figure(frames=FRAMES, speed=0.5 + i / 8, phase=i / 3)
+                   for i, (a, s) in enumerate((a, s) for a in actions for s in sources)}
+        framing = Framing.from_motions(list(figures.values()))
+        written = write_payloads(list(figures.values()), clips_dir / "motion", framing)
+        payloads = {key: path for key, (path, _) in zip(figures, written)}
     clips = []
     for action in actions:
         for source in sources:
             path = clips_dir / f"{action}-{source}.mp4"
             write_clip(path, tuple(rng.randrange(30, 225) for _ in range(3)))
-            clips.append(Clip(action, source, path, FRAMES / FPS, motion_hash=f"{action}-{source}"))
+            clips.append(Clip(action, source, path, FRAMES / FPS, motion_hash=f"{action}-{source}",
+                              motion=payloads.get((action, source))))
     study = Study.objects.create_study(
         "ranking", slug, "Movement study", clips_per_trial=3, trials_per_participant=trials,
-        data_note="Synthetic load-test data.",
+        data_note="Synthetic load-test data.", player="stick" if payloads else "",
     )
     register_clips(study, clips)
     return study
+
+
+def arrival_times(n: int, over: float, seed: int = 0) -> list[float]:
+    """Return when each of ``n`` participants arrives, in seconds from the launch, sorted.
+
+    A crowd platform sends the most people at once when a study is published, fewer as
+    its places fill: arrivals here are independent with a density falling linearly from
+    twice the mean rate at the launch to none at ``over`` seconds (half of them arrive in
+    the first 29 % of the time).
+    """
+    rng = random.Random(seed)
+    return sorted(over * (1 - (1 - rng.random()) ** 0.5) for _ in range(n))
 
 
 def check(study, acknowledged: list[int]) -> dict:
@@ -356,20 +418,36 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--participants", type=int, default=500)
     parser.add_argument("--concurrency", type=int, default=500, help="Bots running at once.")
+    parser.add_argument("--arrivals", type=int, default=0,
+                        help="Participants arriving over --over seconds (an open loop, as a "
+                             "crowd platform sends them); replaces --participants/--concurrency.")
+    parser.add_argument("--over", type=float, default=300.0,
+                        help="Seconds over which the --arrivals arrive.")
+    parser.add_argument("--study", choices=("mp4", "webgl"), default="mp4",
+                        help="Clips as videos, or as the in-page player's motion payloads.")
     parser.add_argument("--trials", type=int, default=6, help="Trials per participant.")
     parser.add_argument("--workers", type=int, default=(os.cpu_count() or 1) * 2 + 1)
     parser.add_argument("--think", type=float, default=0.0,
                         help="Mean seconds a bot watches each trial before answering "
                              "(0: answer at once, a closed loop measuring throughput).")
-    parser.add_argument("--time-limit", type=float, default=300, help="Seconds before bots give up.")
+    parser.add_argument("--time-limit", type=float, default=300,
+                        help="Seconds before bots give up (counted from the launch).")
+    parser.add_argument("--code", type=Path, default=None,
+                        help="Serve the app code of this checkout (same client and settings).")
     parser.add_argument("--keep-db", action="store_true")
     args = parser.parse_args(argv)
+    if args.arrivals:
+        args.participants = args.concurrency = args.arrivals
+    code = (args.code or ROOT).resolve()
+    if code != ROOT:
+        sys.path.insert(0, str(code))  # its models and migrations, before Django loads
 
     name = f"loadtest_{os.getpid()}"
     var = Path(tempfile.mkdtemp(prefix="loadtest-var-"))
     url = create_database(name)
     env = server_env(url, var, STUDY_ENTRY_RATE_LIMIT="1000000/min",
                      STUDY_ENTRY_RATE_LIMIT_PER_STUDY="1000000/min")
+    env["PYTHONPATH"] = str(code)
     os.environ.update({k: env[k] for k in ("DATABASE_URL", "STUDY_DATABASE_URL", "STUDY_VAR_DIR")})
     os.environ.update(DJANGO_SETTINGS_MODULE="studyapp.settings", DJANGO_DEBUG="1")
     try:
@@ -378,15 +456,19 @@ def main(argv=None) -> int:
 
         django.setup()
         call_command("migrate", verbosity=0)
-        study = make_study("load", var / "media", trials=args.trials)
+        study = make_study("load", var / "media", trials=args.trials, player=args.study)
         server = Server(env, workers=args.workers, settings="benchmarks.loadtest_settings",
-                        log=var / "gunicorn.log")
+                        log=var / "gunicorn.log", root=code)
+        server.start_timeout = 180  # workers importing Django on a busy machine
         server.collectstatic()
         bots = [AsyncParticipant("http://x:1", study.slug, f"load-{i}")
                 for i in range(args.participants)]
+        starts = (arrival_times(args.participants, args.over) if args.arrivals
+                  else [0.0] * args.participants)
         errors: list[str] = []
 
-        async def play(bot, gate, deadline):
+        async def play(bot, gate, deadline, at):
+            await asyncio.sleep(max(0.0, at - (time.monotonic() - launch)))
             async with gate:
                 if time.monotonic() > deadline:
                     errors.append(f"{bot.person}: time limit")
@@ -397,13 +479,17 @@ def main(argv=None) -> int:
                     errors.append(f"{bot.person}: {type(exc).__name__}: {exc}")
 
         async def crowd():
+            nonlocal launch
             gate = asyncio.Semaphore(args.concurrency)
-            deadline = time.monotonic() + args.time_limit
-            await asyncio.gather(*(play(bot, gate, deadline) for bot in bots))
+            launch = time.monotonic()
+            deadline = launch + args.time_limit
+            await asyncio.gather(*(play(bot, gate, deadline, at) for bot, at in zip(bots, starts)))
 
+        launch = 0.0
         with server:
             for bot in bots:
                 bot.host, bot.port = "127.0.0.1", server.port
+                bot.one_request = True
             machine, client = cpu_seconds()
             by_command = cpu_by_command()
             begun = time.perf_counter()
@@ -415,11 +501,16 @@ def main(argv=None) -> int:
         busy = (machine_after - machine) / (elapsed * cores)
         own = (client_after - client) / (elapsed * cores)
         submits = [s for bot in bots for s in bot.submits]
-        acknowledged = [trial for trial, status, _ in submits if status == 302]
-        latencies = sorted(seconds * 1000 for _, status, seconds in submits if status == 302)
+        acknowledged = [trial for trial, status, _ in submits if status in (200, 302)]
+        answers = sorted(1000 * s for bot in bots for s in bot.answer_seconds)
+        posts = sorted(1000 * s for _, status, s in submits if status in (200, 302))
+        ttfb = sorted(1000 * s for bot in bots for s in bot.clip_ttfb)
+        one = sum(1 for _, status, _ in submits if status == 200)
         figures = check(study, acknowledged)
         completed = sum(1 for bot in bots if bot.submits and not bot.on_trial())
-        print(f"participants={args.participants} concurrency={args.concurrency} "
+        arrivals = f"arrivals={args.arrivals} over_s={args.over:g} " if args.arrivals else ""
+        print(f"code={'this checkout' if code == ROOT else code} study={args.study} "
+              f"participants={args.participants} {arrivals}concurrency={args.concurrency} "
               f"workers={args.workers} trials/participant={args.trials} completed={completed} "
               f"think_s={args.think:g} errors={len(errors)} elapsed_s={elapsed:.1f}")
         print(f"cpu of {cores} cores: {100 * busy:.0f}% busy, of which this client "
@@ -429,12 +520,18 @@ def main(argv=None) -> int:
             print("  error:", line)
         print(f"missing={figures['missing']} bad_rankings={figures['bad_rankings']} "
               f"assigned_per_stimulus_spread={figures['assigned_spread']} "
-              f"judged_per_stimulus={figures['judged_min']}..{figures['judged_max']}")
+              f"judged_per_stimulus={figures['judged_min']}..{figures['judged_max']} "
+              f"answers_with_the_next_trial={one}/{len(submits)} "
+              f"post_p50_ms={percentile(posts, 50):.1f} post_p99_ms={percentile(posts, 99):.1f} "
+              f"clip_fetches={len(ttfb)}")
         ok = (figures["stored"] == len(acknowledged) and figures["duplicates"] == 0
               and not figures["missing"] and not figures["bad_rankings"])
         print(f"acknowledged={len(acknowledged)} stored={figures['stored']} "
-              f"duplicates={figures['duplicates']} p50_ms={percentile(latencies, 50):.1f} "
-              f"p99_ms={percentile(latencies, 99):.1f} "
+              f"duplicates={figures['duplicates']} "
+              f"answer_p50_ms={percentile(answers, 50):.1f} "
+              f"answer_p99_ms={percentile(answers, 99):.1f} "
+              f"clip_ttfb_p50_ms={percentile(ttfb, 50):.1f} "
+              f"clip_ttfb_p99_ms={percentile(ttfb, 99):.1f} "
               f"answers_per_s={len(acknowledged) / elapsed:.0f}")
         return 0 if ok and not errors else 1
     finally:

@@ -46,8 +46,11 @@ class Server:
     """A gunicorn master and its workers in their own process group."""
 
     def __init__(self, env: dict, workers: int = 3, port: int | None = None,
-                 settings: str = "studyapp.settings", log: Path | None = None):
+                 settings: str = "studyapp.settings", log: Path | None = None,
+                 root: Path = ROOT):
         self.env = dict(env, DJANGO_SETTINGS_MODULE=settings)
+        self.root = Path(root)  # the checkout whose code is served
+        self.start_timeout = 30.0
         self.workers = workers
         self.port = port or free_port()
         self.url = f"http://127.0.0.1:{self.port}"
@@ -57,7 +60,7 @@ class Server:
     def collectstatic(self) -> None:
         subprocess.run(
             [sys.executable, "manage.py", "collectstatic", "--noinput", "--verbosity", "0"],
-            cwd=ROOT, env=self.env, check=True,
+            cwd=self.root, env=self.env, check=True,
         )
 
     def start(self, timeout: float = 30) -> "Server":
@@ -66,7 +69,7 @@ class Server:
             [str(GUNICORN), "studyapp.wsgi", "--bind", f"127.0.0.1:{self.port}",
              "--workers", str(self.workers), "--timeout", "30", "--backlog", "2048",
              "--graceful-timeout", "5"],
-            cwd=ROOT, env=self.env, stdout=out, stderr=subprocess.STDOUT,
+            cwd=self.root, env=self.env, stdout=out, stderr=subprocess.STDOUT,
             start_new_session=True,  # its own process group: kill -9 reaches every worker
         )
         deadline = time.monotonic() + timeout
@@ -97,7 +100,7 @@ class Server:
                 self.kill()
 
     def __enter__(self):
-        return self.start()
+        return self.start(self.start_timeout)
 
     def __exit__(self, *exc):
         self.stop()

@@ -37,6 +37,9 @@ MAX_COOKIE_BYTES = 3000
 SHORT_ID_LENGTH = 30
 COOKIE_SALT = "studyapp.survey.participant"
 COOKIE_AGE_S = 60 * 60 * 24 * 30
+# A trial form posting this field gets the next trial in the answer's response (no
+# redirect); without it the answer is followed by a redirect to the page to show.
+INLINE_FIELD = "next"
 
 log = logging.getLogger(__name__)
 
@@ -108,10 +111,14 @@ class DatabaseStore:
 
     def participant(self, request, study):
         """Return the participant of this browser (read with ``by_token``), or None."""
-        token = browser_state(request, study).get("p")
-        if not token:
-            return None
-        participant = Participant.objects.by_token(study, token)
+        for _ in range(2):
+            token = browser_state(request, study).get("p")  # the cookie of study.pk
+            participant = Participant.objects.by_token(study, token) if token else None
+            # ``study`` may be the row as this process kept it: by_token read its version.
+            kept_pk = study.pk
+            Study.objects.current(study, participant.study_version if participant else None)
+            if study.pk == kept_pk:
+                break  # else the slug's study was made anew: read its cookie
         if participant is not None:
             participant.study = study  # already read: spare the query
         return participant
@@ -138,7 +145,8 @@ class DatabaseStore:
 
     def current_trial(self, request, participant):
         """Return ``(trial, items, number, total)`` of the first unanswered trial."""
-        trial, items = self.trial_with_items(participant, participant.current_id)
+        trial, items = (getattr(participant, "next_trial", None)
+                        or self.trial_with_items(participant, participant.current_id))
         if trial is None:
             return None, [], None, 0
         Trial.objects.mark_shown(trial)
@@ -163,6 +171,26 @@ class DatabaseStore:
         for item in items:
             item.trial = trial
         return trial, items
+
+    def advance(self, participant, trial) -> bool:
+        """After ``trial`` was answered, read the next trial and its items in one query for
+        ``current_trial`` (trials are answered in index order, so it is the next index);
+        return False when there is none to show now (the caller redirects instead)."""
+        items = list(
+            TrialItem.objects.filter(trial__participant=participant, trial__index=trial.index + 1,
+                                     trial__answered_at__isnull=True)
+            .select_related("trial", "stimulus")
+            .order_by("position")
+        )
+        if not items:
+            return False
+        following = items[0].trial
+        following.participant = participant
+        for item in items:
+            item.trial = following
+        participant.current_id = following.pk
+        participant.next_trial = (following, items)
+        return True
 
     def posted_trial(self, request, participant):
         """Return ``(trial, items, problem)`` of the trial a POST answers."""
@@ -335,6 +363,11 @@ class Trials(Page):
         if problems:
             return bad_answer(request, store, study, problems)
         store.record_answer(request, trial, form.answer(), items)
+        # One request per answer: a page that asks for it (the trial form does) gets the
+        # next trial in this response, rather than a redirect and a second request.
+        if (request.POST.get(INLINE_FIELD) and current_page(participant) is self
+                and store.advance(participant, trial)):
+            return self.get(request, store, study, participant)
         return super().post(request, store, study, participant)
 
     def bot_fill(self, fields, form, bot):
@@ -458,11 +491,11 @@ def render_trial(request, store, study, trial, items, number, total, n_practice,
 def enter(request, study, store=None):
     """Start or resume a participant from the study link; return the redirect."""
     store = store or DatabaseStore()
+    participant = store.participant(request, study)  # first: it checks a kept study row
     try:
         ids, key = study.platform.read_ids(request.GET)
     except EntryRefused as refused:
         return unavailable(request, study, refused.reason, status=400, detail=refused.detail)
-    participant = store.participant(request, study)
     if participant is not None and key not in ("", participant.external_key):
         if study.platform.strict_ids and not store.preview:
             # This browser took part under another id: a made-up id to start again.

@@ -101,6 +101,9 @@ class PreviewStore:
         trial, items = unsaved_trial(participant, participant.state["trials"][index], index)
         return trial, items, None
 
+    def advance(self, participant, trial) -> bool:
+        return True  # ``record_answer`` moved the index on
+
     def clip_url(self, item, ext="mp4") -> str:
         return item.stimulus.preview_url(ext)
 

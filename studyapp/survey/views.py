@@ -16,10 +16,22 @@ CONTENT_TYPES = {"mp4": "video/mp4", "png": "image/png", "motion": "application/
 FILES = {"mp4": "video", "png": "poster", "motion": "motion"}
 
 
+def kept_study(slug):
+    """Return the study ``slug`` as this process keeps it (``flow.DatabaseStore.participant``
+    checks its version before use), or raise Http404."""
+    try:
+        return Study.objects.cached(slug)
+    except Study.DoesNotExist:
+        raise Http404("no such study") from None
+
+
 @never_cache
 @require_safe
 def entry(request, slug):
-    response = flow.enter(request, get_object_or_404(Study, slug=slug))
+    try:
+        response = flow.enter(request, kept_study(slug))
+    except Study.DoesNotExist:  # deleted since this process read it
+        raise Http404("no such study") from None
     return flow.keep_browser_state(request, response)
 
 
@@ -28,7 +40,10 @@ def entry(request, slug):
 def page(request, slug, name):
     if name not in flow.PAGES:
         raise Http404("no such page")
-    response = flow.show(request, get_object_or_404(Study, slug=slug), name)
+    try:
+        response = flow.show(request, kept_study(slug), name)
+    except Study.DoesNotExist:
+        raise Http404("no such study") from None
     return flow.keep_browser_state(request, response)
 
 

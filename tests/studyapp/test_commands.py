@@ -54,6 +54,26 @@ def test_bots_take_every_type_through_the_real_pages(study_of, live_server, stud
     assert len(participants_frame(study)) == 2
 
 
+def test_bots_get_the_next_trial_in_the_answers_response(study_of, live_server, monkeypatch):
+    """Bots post the trial form as a browser does (its ``next`` field too): no answer is
+    followed by a redirect to the next trial, only the last one by a redirect onwards."""
+    import urllib.request
+
+    study = study_of("ranking", trials_per_participant=3)
+    redirects = []
+    follow = urllib.request.HTTPRedirectHandler.redirect_request
+
+    def counted(self, req, fp, code, msg, headers, newurl):
+        redirects.append((req.full_url.rsplit("/", 2)[-2], newurl.rsplit("/", 2)[-2]))
+        return follow(self, req, fp, code, msg, headers, newurl)
+
+    monkeypatch.setattr(urllib.request.HTTPRedirectHandler, "redirect_request", counted)
+    out = simulate_run(study, live_server.url, n=1, policy="random", seed=6)
+    assert "1 of 1 simulated participants completed" in out
+    assert ("trial", "trial") not in redirects
+    assert [r for r in redirects if r[0] == "trial"] == [("trial", "done")]
+
+
 def test_prefer_real_bots_answer_by_the_source_from_the_database(study_of, live_server):
     study = study_of("fake_or_real", catch=True)
     simulate_run(study, live_server.url, n=2, policy="prefer-real", seed=1)

@@ -136,11 +136,16 @@ class ParticipantManager(models.Manager):
 
     @staticmethod
     def _by_token_sql() -> str:
+        """The statement of ``by_token``; it also reads the study's ``version`` (as
+        ``study_version``): a process keeping the study row checks it for free."""
         quote = connection.ops.quote_name
         p, t = quote(Participant._meta.db_table), quote(Trial._meta.db_table)
+        s = quote(Study._meta.db_table)
         trials = f"FROM {t} WHERE {t}.{quote('participant_id')} = {p}.{quote('id')}"
         return (
             f"SELECT {p}.*, "
+            f"(SELECT {s}.{quote('version')} FROM {s} WHERE {s}.{quote('id')} = "
+            f"{p}.{quote('study_id')}) AS study_version, "
             f"(SELECT COUNT(*) {trials}) AS n_trials, "
             f"(SELECT COUNT(*) {trials} AND {t}.{quote('kind')} = '{Trial.Kind.PRACTICE}') "
             f"AS n_practice, "

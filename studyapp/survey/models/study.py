@@ -1,6 +1,8 @@
 """A study: its type, options, texts, places, crowd settings and duration."""
 
+import copy
 import secrets
+import threading
 from datetime import timedelta
 
 from django.apps import apps
@@ -55,7 +57,65 @@ def _count(queryset, group: str):
     return Coalesce(Subquery(counted[:1]), 0)
 
 
+def new_version() -> int:
+    """Return the first ``Study.version`` of a row: random, so a study made again under a
+    slug (or a reused id) does not match a copy a process kept of the one before."""
+    return secrets.randbits(40)
+
+
+# The process's copies of study rows by slug (``StudyManager.cached``).
+_CACHE: dict[str, "Study"] = {}
+_CACHE_LOCK = threading.Lock()
+
+
 class StudyManager(models.Manager):
+    def cached(self, slug: str) -> "Study":
+        """Return the study ``slug`` as this process last read it, unchecked (a copy of its
+        own for the request), or read it now; Study.DoesNotExist when there is none.
+
+        Every participant page reads the study, so each process keeps the row; the page
+        then checks it against the row's ``version`` in a statement it runs anyway
+        (``Participant.objects.by_token``), or with :meth:`current` where it runs none.
+        Any UPDATE of the row, on any node, moves ``version`` on, so no process keeps
+        serving a changed study (on SQLite ``lock``'s no-op UPDATE does too: each start
+        there makes processes read the row again, which costs a read, nothing more).
+        """
+        study = _CACHE.get(slug)
+        if study is None:
+            return self.remember(self.get(slug=slug))
+        return copy.copy(study)
+
+    def remember(self, study: "Study") -> "Study":
+        """Keep a copy of ``study`` (just read) for ``cached``; return ``study``."""
+        with _CACHE_LOCK:
+            if len(_CACHE) > 1000:
+                _CACHE.clear()
+            _CACHE[study.slug] = copy.copy(study)
+        return study
+
+    def current(self, study: "Study", version=None) -> "Study":
+        """Make ``study`` (from ``cached``) the stored row, in place, and return it.
+
+        ``version`` is the row's as read with the participant (same id); None: read the
+        id and version of the row of ``study.slug`` now (a study deleted and made again
+        under the slug has another id). Study.DoesNotExist when the slug names none.
+        """
+        slug = study.slug
+        if version is None:
+            row = self.filter(slug=slug).values_list("pk", "version").first()
+            if row is None:
+                _CACHE.pop(slug, None)
+                raise self.model.DoesNotExist(f"no study {slug!r}")
+            stale = row != (study.pk, study.version)
+        else:
+            stale = version != study.version
+        if stale:
+            _CACHE.pop(slug, None)
+            fresh = self.get(slug=slug)
+            study.__dict__.update(fresh.__dict__)
+            self.remember(study)
+        return study
+
     def create_study(self, study_type: str, slug: str, title: str, **fields) -> "Study":
         """Create a study of a registered type, filling in its default texts and options."""
         kind = STUDY_TYPES.get(study_type)()
@@ -200,6 +260,10 @@ class Study(models.Model):
         "clips built with render.player: webgl.",
     )
     created_at = models.DateTimeField(auto_now_add=True)
+    # Random when the row is made, and one more on every UPDATE of it, whoever runs it (a
+    # database trigger: migration 0013), so processes that keep the row
+    # (StudyManager.cached) see that it changed, on every node.
+    version = models.BigIntegerField(default=new_version, editable=False)
 
     objects = StudyManager()
 

@@ -35,6 +35,12 @@
   }
 
   function setupTrial(form) {
+    // The answer's response is the next trial page (one request per answer): make this
+    // history entry a plain visit of the page, so a reload or the back button asks the
+    // server for the current trial instead of posting the last answer again.
+    if (window.history && window.history.replaceState) {
+      window.history.replaceState(null, "", window.location.href);
+    }
     var log = eventLog(form);
     var cards = Array.prototype.slice.call(form.querySelectorAll("[data-clip-card]"));
     var gated = cards.filter(function (card) { return card.hasAttribute("data-required"); });
