@@ -48,8 +48,14 @@ def http_fetcher(base_url: str):
 def view_fetcher():
     """Return ``fetch(path)`` that asks the clip view in this process (no server needed;
     what the view sends is what a participant receives, less the headers every response
-    of the site has alike)."""
+    of the site has alike).
+
+    Behind nginx (``STUDY_ACCEL_REDIRECT``) the view sends no bytes itself; here it streams
+    them as it does without a proxy: the same delivery bytes nginx would send (the
+    delivery's seeded file), and no delivery file is written. What nginx adds is audited
+    through it with :func:`http_fetcher`."""
     from django.test import RequestFactory
+    from django.test.utils import override_settings
     from django.urls import resolve
 
     from django.http import Http404
@@ -59,7 +65,8 @@ def view_fetcher():
     def fetch(path):
         match = resolve(path)
         try:
-            response = match.func(factory.get(path), **match.kwargs)
+            with override_settings(STUDY_ACCEL_REDIRECT=""):
+                response = match.func(factory.get(path), **match.kwargs)
         except Http404:
             return 404, {}, b""
         body = b"".join(response.streaming_content) if response.streaming else response.content

@@ -93,6 +93,22 @@ def test_deliveries_with_the_same_bytes_fail_the_deep_audit(built_clips, media_r
 
 
 @pytest.mark.django_db
+def test_the_in_process_audit_reads_the_delivery_bytes_behind_nginx(built_clips, media_root,
+                                                                     settings):
+    """With STUDY_ACCEL_REDIRECT the clip view answers with an empty body for nginx; the
+    audit without a server (``arena add``, ``analyze``) still compares the bytes each
+    delivery carries, and writes no delivery file doing so."""
+    from studyapp.results.audit import audit_study, view_fetcher
+
+    settings.STUDY_ACCEL_REDIRECT = "/protected-media/"
+    study = make_study("ranking", built_clips, slug="behind-nginx", catch_trials=1)
+    result = audit_study(study, view_fetcher(), "deep")
+    hashes = result["deliveries: hashes"]
+    assert hashes["passed"] and hashes["n"] == 2 * len(built_clips)
+    assert not (media_root / "deliveries").exists()
+
+
+@pytest.mark.django_db
 def test_analyze_reports_the_audit(leaky_clips, media_root, make_bot, tmp_path):
     study = make_study("ranking", leaky_clips, slug="leaky-report", trials_per_participant=2)
     for _ in range(2):
