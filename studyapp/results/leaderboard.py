@@ -30,24 +30,34 @@ from django.views.decorators.http import require_GET
 from analysis.study import AnalysisConfig, analyse
 from analysis.tables import AnalysisError
 from studyapp.participation.arena import is_arena, retired, settings
-from studyapp.participation.adaptive import answered_main
 from studyapp.results.export import responses_frame
-from studyapp.survey.models import Stimulus, Study
+from studyapp.survey.models import Participant, Stimulus, Study, Trial
 from studyapp.survey.tasks import run_job
 
 BOOTSTRAP = 1000
 
 
+def completed_answers(study) -> int:
+    """The main trials answered by participants who completed the study: the only answers a
+    board counts. A session still running never moves the board, so nobody can answer a
+    trial, reload the board and read which two sources they were just shown."""
+    return Trial.objects.filter(participant__study=study, kind=Trial.Kind.MAIN,
+                                answered_at__isnull=False,
+                                participant__outcome=Participant.Outcome.COMPLETED).count()
+
+
 def compute(study, bootstrap: int = BOOTSTRAP) -> dict:
-    """Compute the leaderboard of ``study`` now and store it."""
+    """Compute the leaderboard of ``study`` now, from completed participants only, and
+    store it."""
     chosen = settings(study)
-    answers = answered_main(study)
+    answers = completed_answers(study)
     names = sorted(set(Stimulus.objects.judged().filter(study=study)
                        .values_list("source", flat=True)))
     rows, note, measure, differences = {}, "", "", None
     table = responses_frame(study)
     if len(table):
         config = AnalysisConfig(max_failed_catch=study.max_failed_catch, bootstrap=bootstrap,
+                                completed_only=True,
                                 type_options={k: study.option(k) for k in study.kind.options})
         try:
             result = analyse(table, config)
@@ -126,7 +136,7 @@ def stored(study) -> dict | None:
     period = settings(study)["refresh_seconds"]
     if board is not None and board["computed_at"] >= state.get("changed_at", ""):
         age = (now - datetime.fromisoformat(board["computed_at"])).total_seconds()
-        if age < period or answered_main(study) == board["answers"]:
+        if age < period or completed_answers(study) == board["answers"]:
             return board
     asked = state.get("board_requested")
     if asked and (now - datetime.fromisoformat(asked)).total_seconds() < max(period, 1):

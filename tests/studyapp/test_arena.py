@@ -237,6 +237,16 @@ def test_the_leaderboard_page_and_json_are_public_and_computed_in_the_background
     assert versus["ci_low"] <= versus["difference"] <= versus["ci_high"]
     html = client.get(f"/arena/{SLUG}/").content.decode()
     assert "model_a" in html and "anchor: baseline" in html and "Votes" in html
+    # A session still running never moves the board (one could answer a trial, reload
+    # the board and read which sources one was shown): here one bot is put back mid-study.
+    from studyapp.survey.models import Participant
+
+    one = Participant.objects.filter(study__slug=SLUG, outcome="completed").first()
+    Participant.objects.filter(pk=one.pk).update(outcome="", completed_at=None)
+    call_command("arena", "board", "--study", SLUG, "--bootstrap", "50", stdout=StringIO())
+    running = client.get(f"/arena/{SLUG}.json").json()
+    assert running["answers"] == 6
+    assert sum(r["votes"] for r in running["sources"]) < sum(r["votes"] for r in rows.values())
     assert client.get("/arena/no-such-arena/").status_code == 404
 
 
