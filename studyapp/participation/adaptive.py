@@ -121,8 +121,10 @@ def answered_main(study) -> int:
 
 def request_recompute(study) -> bool:
     """Start the recomputation in the background when ``every`` main trials were answered
-    since the last one (computed or asked for); called with the study row locked."""
-    if study.stopped:
+    since the last one (computed or asked for); called with the study row locked. A study
+    its stopping rule closed asks no more while closed; opened again by its staff, its
+    design is recomputed again (the rule, already met, does not close it twice)."""
+    if study.stopped and study.status != study.Status.OPEN:
         return False
     stored = study.sampling or {}
     last = max(stored.get("answers", -1), stored.get("requested", -1))

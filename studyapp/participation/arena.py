@@ -38,10 +38,11 @@ def retired(study) -> list[str]:
     return sorted(((study.arena_state or {}).get("retired") or {}) if study.arena else {})
 
 
-def check(arena, design: str, supported: bool) -> tuple[dict, str | None]:
+def check(arena, design: str, supported: bool, stop_when=None) -> tuple[dict, str | None]:
     """Return the arena settings with their defaults and what is wrong with them (or None).
 
-    ``supported``: whether the study type offers an adaptive design."""
+    ``supported``: whether the study type offers an adaptive design of pairs;
+    ``stop_when``: the study's stopping rule (an arena stands: it has none)."""
     if arena in (None, {}, False):
         return {}, None
     if arena is True:
@@ -59,6 +60,10 @@ def check(arena, design: str, supported: bool) -> tuple[dict, str | None]:
             return {}, f"arena.{name}: {value!r} must be a source's name (or null)"
     if not supported:
         return {}, "arena: needs a type with a worth model of pairs (its adaptive design)"
+    if stop_when:
+        return {}, ("arena: an arena stands while sources join and leave, so it takes no "
+                    "stopping rule; remove study.stop_when (or make it a study that is not an "
+                    "arena)")
     if design != "adaptive":
         return {}, ("arena: an arena runs an adaptive design, so that a source added later is "
                     "brought up to precision first; set design: adaptive")

@@ -307,7 +307,8 @@ def _study(raw, conditions=None, clip_seconds=None) -> tuple[str, dict, dict, li
     if options.get("arena") is not None:  # arena: {} is an arena of the default settings
         options["arena"], problem = arena.check(options["arena"] or True,
                                                 options.get("design") or "balanced",
-                                                adaptive.supports(study_type))
+                                                adaptive.model(study_type) == "pairs",
+                                                options.get("stop_when"))
         if problem:
             raise ConfigError(f"study.{problem}")
     given = "catch_trials" in options or "instructed_checks" in options

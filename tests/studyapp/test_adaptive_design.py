@@ -247,6 +247,30 @@ def test_the_config_and_the_study_check_the_stopping_rule():
         Study.objects.create_study(PAIRS[0], "bad-stop", "Bad", stop_when={"interval_width": -1})
 
 
+@pytest.mark.parametrize("kind", OTHERS)
+def test_a_budget_is_checked_for_types_that_plan_their_own_trials(kind, media_root, clips,
+                                                                  extra_clips, make_bot,
+                                                                  monkeypatch,
+                                                                  django_capture_on_commit_callbacks):
+    """Types without an adaptive design, some with their own main-trial planning, still ask
+    for the stopping rule's check once their budget of judgements is reached."""
+    from tests.studyapp.conftest import make_study
+
+    started = []
+    monkeypatch.setattr(adaptive, "run_job", lambda kind, **params: started.append(params))
+    study = make_study(kind, clips, extra_clips, stop_when={"judgements": 1},
+                       trials_per_participant=1)
+    with django_capture_on_commit_callbacks(execute=True):
+        first = make_bot(study)
+        first.join()
+    first.finish()
+    assert len(started) == 1  # the first start asks for the first check
+    with django_capture_on_commit_callbacks(execute=True):
+        make_bot(study).join()
+    # The budget was reached since: asked again, although fewer than `every` answers.
+    assert len(started) == 2 and started[-1]["name"] == "adaptive_design"
+
+
 @pytest.mark.parametrize("design", ["adaptive", "balanced"])
 def test_a_budget_stops_the_study_and_closes_its_places(design, media_root, clips, extra_clips,
                                                         make_bot, monkeypatch,

@@ -77,13 +77,22 @@ def test_settings_are_checked_in_the_config_and_on_the_study():
     config = load_config(base, ["study.design=adaptive", "study.arena={}"])
     assert config.study_options["arena"] == arena_settings.DEFAULTS
     # The admin and every save check them too.
-    paired = next(name for name in list_study_types() if adaptive.supports(name))
+    paired = next(name for name in list_study_types() if adaptive.model(name) == "pairs")
     with pytest.raises(ValidationError, match="set design: adaptive"):
         Study.objects.create_study(paired, "not-adaptive", "X", arena={"min_votes": 3})
-    other = next(name for name in list_study_types() if not adaptive.supports(name))
-    with pytest.raises(ValidationError, match="worth model"):
-        Study.objects.create_study(other, "no-worth", "X", design="adaptive",
-                                   arena={"min_votes": 3})
+    # An arena stands: a stopping rule would close it for every source added later.
+    with pytest.raises(ConfigError, match="no stopping rule"):
+        load_config(base, ["study.design=adaptive", "study.arena={}",
+                           "study.stop_when={judgements: 100}"])
+    with pytest.raises(ValidationError, match="no stopping rule"):
+        Study.objects.create_study(paired, "stopping", "X", design="adaptive",
+                                   arena={"min_votes": 3},
+                                   stop_when={"judgements": 100})
+    # Sets of sources (best of k, ranking) and types without a worth model are refused.
+    for other in [name for name in list_study_types() if adaptive.model(name) != "pairs"]:
+        with pytest.raises(ValidationError, match="worth model"):
+            Study.objects.create_study(other, f"no-worth-{other}".replace("_", "-"), "X",
+                                       design="adaptive", arena={"min_votes": 3})
 
 
 def test_a_source_added_from_results_npy_is_rendered_blind_registered_and_aimed_at(

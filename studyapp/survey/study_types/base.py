@@ -208,7 +208,8 @@ class StudyType:
         problem = adaptive.check(study.design, study.adaptive, self.name)
         if problem:
             errors["adaptive" if problem.startswith("adaptive") else "design"] = problem
-        _, problem = arena.check(study.arena, study.design, adaptive.supports(self.name))
+        _, problem = arena.check(study.arena, study.design, adaptive.model(self.name) == "pairs",
+                                 study.stop_when)
         if problem:
             errors["arena"] = problem
         problem = adaptive.check_stop(study.stop_when, self.name)
@@ -257,6 +258,11 @@ class StudyType:
         so the practice, catch, instructed and repeated trials never change which clips
         a participant judges. Catch and instructed checks are placed alike (never first).
         """
+        if study.stop_when and study.design != "adaptive":
+            # The stopping rule is checked where the adaptive design is recomputed (an
+            # adaptive study asks from its planning); here for every type, whatever
+            # planning it brings.
+            adaptive.request_recompute(study)
         pool = assignment.Pool.of(study)
         main = self.plan_main(study, pool, rng)
         practice = self.plan_practice(study, pool, rng) if study.practice else None
@@ -287,8 +293,6 @@ class StudyType:
             drawn = adaptive.plan_main(study, pool, rng)
             if drawn is not None:
                 return [TrialPlan(action, seats) for action, seats in drawn]
-        elif study.stop_when:
-            adaptive.request_recompute(study)  # the stopping rule is checked there
         n = self.items_per_trial(study)
         actions = rng.sample(sorted(pool.table), len(pool.table))
         per_action = self.trials_per_action(study, pool.table)
