@@ -1,5 +1,6 @@
 """The training path of a build's method sources: schedules, training seeds, metrics, reports."""
 
+import itertools
 import json
 from pathlib import Path
 
@@ -148,13 +149,19 @@ def test_clips_come_from_every_training_seed_in_turn_and_carry_it(tmp_path, medi
 
 @pytest.mark.django_db
 def test_the_report_shows_the_checkpoints_beside_the_human_scores(tmp_path, media_root,
-                                                                   make_bot, settings):
+                                                                   make_bot, settings,
+                                                                   monkeypatch):
     settings.VAR_DIR = tmp_path / "var"
+    # Participants' plans come from random seeds: a few participants could be shown clips
+    # of one training seed only, and then no seed is redrawn. Seeds 1, 2, ... instead.
+    seeds = itertools.count(1)
+    monkeypatch.setattr("studyapp.survey.models.participation.secrets.randbits",
+                        lambda bits: next(seeds))
     raw = config(train={"iters": 4, "preset": "tiny", "seeds": [0, 1]},
                  sources=["real", "cond_gru"], study={"type": "ranking", "practice": False})
     result = build_stimuli(parse(raw, tmp_path), tmp_path / "var" / "stimuli" / "seeds-ranking",
                            cache=tmp_path / "cache")
-    for _ in range(2):
+    for _ in range(4):
         bot = make_bot(result.study)
         bot.join()
         bot.finish()
