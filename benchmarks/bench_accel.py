@@ -1,17 +1,21 @@
-"""Clip fetches streamed by gunicorn against sent by nginx (X-Accel-Redirect), side by side.
+"""Clip fetches streamed by gunicorn, sent by nginx after the view (X-Accel-Redirect), and sent
+by nginx from files their pages wrote ahead, side by side.
 
 ``.venv/bin/python benchmarks/bench_accel.py`` (docs/BENCHMARKS.md, "Clips sent by
 nginx"): a fresh PostgreSQL database, a ranking study of generated mp4s grown to
 ``--clip-kb`` (300 kB, as a few seconds of a rendered clip), and two
 servers on it with the same gunicorn workers: A streams every clip through the view (as
-without ``STUDY_ACCEL_REDIRECT``), B is the same app with ``STUDY_ACCEL_REDIRECT`` behind
-nginx (``manage.py nginx_config``) with ``follow_fetches`` beside it. ``--participants``
-bots start the study (3 clips each); then every clip URL is fetched whole ``--rounds``
-times, ``--concurrency`` at once, from A and from B in turn (A, B, A, B, ...). Reported
-per server: time to first byte and to the last byte (p50, p99), fetches per second, CPU
-seconds of gunicorn, of nginx and of the follower, and whether every clip was recorded
-as fetched whole (B: from nginx's log; A: by the view; each server fetches the clips
-of participants of its own).
+without ``STUDY_ACCEL_REDIRECT``), the other is the same app with ``STUDY_ACCEL_REDIRECT``
+behind two nginx (``manage.py nginx_config``), each with ``follow_fetches`` beside it:
+B asks the view for every clip (``--no-ahead``: it authorises the token and answers
+``X-Accel-Redirect``), C sends the files the trial pages wrote ahead without asking the
+app (the default). ``--participants`` bots per arm start the study (3 clips each; C's
+through C, so their pages write the files); then every clip URL is fetched whole
+``--rounds`` times, ``--concurrency`` at once, from A, B and C in turn. Reported per arm:
+time to first byte and to the last byte (p50, p99), fetches per second, CPU seconds of
+gunicorn, of nginx and of the follower, and whether every clip was recorded as fetched
+whole (B, C: from nginx's log; A: by the view; each arm fetches the clips of
+participants of its own).
 """
 
 from __future__ import annotations
@@ -94,7 +98,7 @@ def main(argv=None) -> int:
     url = create_database(name)
     os.environ.update(DATABASE_URL=url, STUDY_DATABASE_URL=url, STUDY_VAR_DIR=str(var),
                       DJANGO_SETTINGS_MODULE="studyapp.settings", DJANGO_DEBUG="1")
-    servers, proxy, follower = [], None, None
+    servers, proxies, followers = [], {}, {}
     try:
         import django
         from django.core.management import call_command
@@ -114,15 +118,24 @@ def main(argv=None) -> int:
                        log=var / "accel.log")
         streamed.collectstatic()
         servers = [streamed.start(timeout=180), accel.start(timeout=180)]
-        proxy = nginx(dict(accel_env, DJANGO_SETTINGS_MODULE="studyapp.settings"),
-                      var / "nginx", f"127.0.0.1:{accel.port}").start()
-        follower = subprocess.Popen(
-            [sys.executable, "manage.py", "follow_fetches", "--log", str(var / "nginx" / "fetches.log")],
-            cwd=ROOT, env=dict(accel_env, DJANGO_SETTINGS_MODULE="studyapp.settings"),
-            start_new_session=True)
+        nginx_env = dict(accel_env, DJANGO_SETTINGS_MODULE="studyapp.settings")
+        proxies = {"nginx after the view": nginx(nginx_env, var / "nginx-view",
+                                                 f"127.0.0.1:{accel.port}", ahead=False).start(),
+                   "nginx, written ahead": nginx(nginx_env, var / "nginx-ahead",
+                                                 f"127.0.0.1:{accel.port}").start()}
+        followers = {label: subprocess.Popen(
+            [sys.executable, "manage.py", "follow_fetches", "--log",
+             str(Path(p.log).parent / "fetches.log")],
+            cwd=ROOT, env=nginx_env, start_new_session=True) for label, p in proxies.items()}
 
-        bots = [AsyncParticipant(streamed.url, study.slug, f"accel-{i}")
-                for i in range(2 * args.participants)]
+        half = args.participants  # each arm's own deliveries: its records are its own
+        arms = {"gunicorn streams": streamed.url, **{k: p.url for k, p in proxies.items()}}
+        ports = {"gunicorn streams": streamed.port, **{k: p.port for k, p in proxies.items()}}
+        # A's and B's pages come from the server that writes nothing ahead; C's from C.
+        entry = {"gunicorn streams": streamed.url, "nginx after the view": streamed.url,
+                 "nginx, written ahead": arms["nginx, written ahead"]}
+        bots = {label: [AsyncParticipant(entry[label], study.slug, f"accel-{k}-{i}")
+                        for i in range(half)] for k, label in enumerate(arms)}
 
         async def start_all():
             gate = asyncio.Semaphore(20)
@@ -133,28 +146,28 @@ def main(argv=None) -> int:
                     await bot.step("consent", {"agree": "1"})
                     await bot.step("instructions", {})
 
-            await asyncio.gather(*(one(b) for b in bots))
+            await asyncio.gather(*(one(b) for group in bots.values() for b in group))
 
         asyncio.run(start_all())
-        half = args.participants  # each server's own deliveries: its records are its own
-        paths = {"gunicorn streams": [p for bot in bots[:half] for p in bot.clips()],
-                 "nginx sends": [p for bot in bots[half:] for p in bot.clips()]}
-        results = {"gunicorn streams": [], "nginx sends": []}
-        cpu = {"gunicorn streams": 0.0, "nginx sends": 0.0}
-        nginx_cpu = follow_cpu = 0.0
-        elapsed = {"gunicorn streams": 0.0, "nginx sends": 0.0}
+        paths = {label: [p for bot in group for p in bot.clips()] for label, group in bots.items()}
+        results = {label: [] for label in arms}
+        cpu = {label: 0.0 for label in arms}
+        nginx_cpu = {label: 0.0 for label in arms}
+        follow_cpu = {label: 0.0 for label in arms}
+        elapsed = {label: 0.0 for label in arms}
         for _ in range(args.rounds):
-            for label, port, _ in (("gunicorn streams", streamed.port, streamed),
-                                      ("nginx sends", proxy.port, accel)):
-                before, follow_before = cpu_by_command(), cpu_of(follower.pid)
+            for label in arms:
+                follower = followers.get(label)
+                before = cpu_by_command()
+                follow_before = cpu_of(follower.pid) if follower else 0.0
                 begun = time.perf_counter()
-                results[label] += asyncio.run(fetch_all(port, paths[label], args.concurrency))
+                results[label] += asyncio.run(fetch_all(ports[label], paths[label], args.concurrency))
                 elapsed[label] += time.perf_counter() - begun
                 used = cpu_by_command() - before
                 cpu[label] += used.get("gunicorn", 0.0)
-                if label == "nginx sends":
-                    nginx_cpu += used.get("nginx", 0.0)
-                    follow_cpu += cpu_of(follower.pid) - follow_before
+                if follower:
+                    nginx_cpu[label] += used.get("nginx", 0.0)
+                    follow_cpu[label] += cpu_of(follower.pid) - follow_before
         from studyapp.participation import fetch_log
         from studyapp.survey.models import TrialItem
 
@@ -168,10 +181,11 @@ def main(argv=None) -> int:
             return out
 
         until = time.monotonic() + 30  # the follower's last lines (it may start late)
-        while (whole := recorded())["nginx sends"][0] < len(paths["nginx sends"]) and (
-                time.monotonic() < until):
+        whole = recorded()
+        while any(w < n for w, n in whole.values()) and time.monotonic() < until:
             time.sleep(0.5)
-        print(f"{len(paths['nginx sends'])} clips of {args.clip_kb} kB a server "
+            whole = recorded()
+        print(f"{len(paths['gunicorn streams'])} clips of {args.clip_kb} kB an arm "
               f"({args.participants} participants x 3), "
               f"each fetched whole {args.rounds} times, {args.concurrency} at once; "
               f"{args.workers} gunicorn workers a server")
@@ -181,18 +195,18 @@ def main(argv=None) -> int:
             total = sorted(r[1] * 1000 for r in rows)
             rate = len(rows) / elapsed[label]
             base = base or rate
-            extra = (f", nginx {nginx_cpu:.1f} s, follow_fetches {follow_cpu:.1f} s"
-                     if label == "nginx sends" else "")
+            extra = (f", nginx {nginx_cpu[label]:.1f} s, follow_fetches {follow_cpu[label]:.1f} s"
+                     if label in followers else "")
             print(f"{label}: ttfb p50 {percentile(ttfb, 50):.1f} ms p99 {percentile(ttfb, 99):.1f} ms; "
                   f"whole p50 {percentile(total, 50):.1f} ms p99 {percentile(total, 99):.1f} ms; "
                   f"{rate:.0f} fetches/s ({rate / base:.2f}x); CPU gunicorn {cpu[label]:.1f} s{extra}; "
                   f"recorded whole {whole[label][0]}/{whole[label][1]}")
         return 0
     finally:
-        if follower is not None:
+        for follower in followers.values():
             follower.terminate()
             follower.wait(10)
-        if proxy is not None:
+        for proxy in proxies.values():
             proxy.stop()
         for server in servers:
             server.stop()

@@ -39,7 +39,7 @@ from urllib.parse import urlencode, urlsplit
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.server import Server, create_database, drop_database, server_env  # noqa: E402
+from benchmarks.server import Server, create_database, drop_database, nginx, server_env  # noqa: E402
 
 CSRF = re.compile(r'name="csrfmiddlewaretoken" value="([^"]+)"')
 TRIAL = re.compile(r'name="trial" value="(\d+)"')
@@ -77,6 +77,7 @@ class Bot:
         # Post the trial form's ``next`` field as a browser does: the next trial comes
         # in the answer's response where the server supports it.
         self.one_request = False
+        self.press = 0.0  # seconds after the clips' time before the answer goes
         self.answer_seconds: list[float] = []  # submit until the next page is in hand
         self.clip_ttfb: list[float] = []  # each clip: request until its first byte
 
@@ -285,7 +286,7 @@ class AsyncParticipant(Bot):
                 if status != 200:
                     raise HttpError(f"GET {url}: HTTP {status}")
             wait = self.rng.uniform(0.5, 1.5) * think if think else 0.0
-            await asyncio.sleep(max(wait, CLIP_SECONDS) - (time.monotonic() - shown))
+            await asyncio.sleep(max(wait, CLIP_SECONDS) - (time.monotonic() - shown) + self.press)
             data = self.answer_data()
             begun = time.perf_counter()
             status, location, text = await self.request("POST", self.path("trial"),
@@ -414,6 +415,45 @@ def percentile(values: list[float], q: float) -> float:
     return statistics.quantiles(values, n=100, method="inclusive")[q - 1] if len(values) > 1 else values[0]
 
 
+class Proxied:
+    """With ``on``: Debian's nginx in front of ``server`` (``manage.py nginx_config``) and
+    ``follow_fetches`` reading its clip log; otherwise the server itself."""
+
+    def __init__(self, on: bool, env: dict, var: Path, server):
+        self.on, self.env, self.var, self.server = on, env, var, server
+        self.proxy = self.follower = None
+        self.port = server.port
+
+    def __enter__(self):
+        if self.on:
+            import subprocess
+
+            env = dict(self.env, DJANGO_SETTINGS_MODULE="studyapp.settings")
+            self.proxy = nginx(env, self.var / "nginx", f"127.0.0.1:{self.server.port}").start()
+            self.follower = subprocess.Popen(
+                [sys.executable, "manage.py", "follow_fetches", "--log",
+                 str(self.var / "nginx" / "fetches.log")], cwd=ROOT, env=env,
+                start_new_session=True)
+            self.port = self.proxy.port
+            # Ready when the follower has read the log once (it keeps its place beside it).
+            log = self.var / "nginx" / "fetches.log"
+            with open(log, "ab") as f:
+                f.write(b"\n")
+            until = time.monotonic() + 120
+            while not log.with_name(log.name + ".offset").exists():
+                if time.monotonic() > until or self.follower.poll() is not None:
+                    raise RuntimeError("follow_fetches did not start")
+                time.sleep(0.1)
+        return self
+
+    def __exit__(self, *exc):
+        if self.follower is not None:
+            self.follower.terminate()
+            self.follower.wait(10)
+        if self.proxy is not None:
+            self.proxy.stop()
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--participants", type=int, default=500)
@@ -434,6 +474,10 @@ def main(argv=None) -> int:
                         help="Seconds before bots give up (counted from the launch).")
     parser.add_argument("--code", type=Path, default=None,
                         help="Serve the app code of this checkout (same client and settings).")
+    parser.add_argument("--nginx", action="store_true",
+                        help="Serve as `make serve` does: Debian's nginx in front "
+                             "(STUDY_ACCEL_REDIRECT; clips written ahead by their pages sent "
+                             "by nginx) with follow_fetches beside it.")
     parser.add_argument("--keep-db", action="store_true")
     args = parser.parse_args(argv)
     if args.arrivals:
@@ -448,6 +492,8 @@ def main(argv=None) -> int:
     env = server_env(url, var, STUDY_ENTRY_RATE_LIMIT="1000000/min",
                      STUDY_ENTRY_RATE_LIMIT_PER_STUDY="1000000/min")
     env["PYTHONPATH"] = str(code)
+    if args.nginx:
+        env.update(STUDY_ACCEL_REDIRECT="/protected-media/")
     os.environ.update({k: env[k] for k in ("DATABASE_URL", "STUDY_DATABASE_URL", "STUDY_VAR_DIR")})
     os.environ.update(DJANGO_SETTINGS_MODULE="studyapp.settings", DJANGO_DEBUG="1")
     try:
@@ -486,10 +532,13 @@ def main(argv=None) -> int:
             await asyncio.gather(*(play(bot, gate, deadline, at) for bot, at in zip(bots, starts)))
 
         launch = 0.0
-        with server:
+        with server, Proxied(args.nginx, env, var, server) as front:
             for bot in bots:
-                bot.host, bot.port = "127.0.0.1", server.port
+                bot.host, bot.port = "127.0.0.1", front.port
                 bot.one_request = True
+                # Behind nginx a fetch is known from its log, read every 50 ms: a bot
+                # presses 200 ms after the clips' time, as a person does.
+                bot.press = 0.2 if args.nginx else 0.0
             machine, client = cpu_seconds()
             by_command = cpu_by_command()
             begun = time.perf_counter()
@@ -510,6 +559,7 @@ def main(argv=None) -> int:
         completed = sum(1 for bot in bots if bot.submits and not bot.on_trial())
         arrivals = f"arrivals={args.arrivals} over_s={args.over:g} " if args.arrivals else ""
         print(f"code={'this checkout' if code == ROOT else code} study={args.study} "
+              f"{'behind nginx ' if args.nginx else ''}"
               f"participants={args.participants} {arrivals}concurrency={args.concurrency} "
               f"workers={args.workers} trials/participant={args.trials} completed={completed} "
               f"think_s={args.think:g} errors={len(errors)} elapsed_s={elapsed:.1f}")

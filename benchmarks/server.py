@@ -166,17 +166,19 @@ class Proxy:
         self.stop()
 
 
-def nginx(env: dict, folder: Path, upstream: str, port: int | None = None) -> Proxy:
+def nginx(env: dict, folder: Path, upstream: str, port: int | None = None,
+          ahead: bool = True) -> Proxy:
     """Return nginx (not started) in front of gunicorn at ``upstream``, configured by
-    ``manage.py nginx_config`` with the settings of ``env``; its clip log is
-    ``folder/fetches.log``."""
+    ``manage.py nginx_config`` with the settings of ``env`` (``ahead`` False: the clip
+    view is asked for every clip); its clip log is ``folder/fetches.log``."""
     port = port or free_port()
     folder.mkdir(parents=True, exist_ok=True)
     user = ["--user", "root"] if os.geteuid() == 0 else []
     config = subprocess.run(
         [sys.executable, "manage.py", "nginx_config", "--listen", f"127.0.0.1:{port}",
          "--upstream", upstream, "--run-dir", str(folder), "--fetch-log",
-         str(folder / "fetches.log"), "--workers", "1", *user],
+         str(folder / "fetches.log"), "--workers", "1", *user,
+         *([] if ahead else ["--no-ahead"])],
         cwd=ROOT, env=env, check=True, capture_output=True, text=True).stdout
     (folder / "nginx.conf").write_text(config)
     return Proxy([NGINX, "-p", str(folder), "-c", str(folder / "nginx.conf"),

@@ -30,6 +30,7 @@ from studyapp.crowd.platform import EntryRefused
 from studyapp.participation import fetch_log
 from studyapp.participation.answers import TrialForm, field_name
 from studyapp.participation.forms import ConsentForm, DemographicsForm
+from studyapp.stimuli import media
 from studyapp.survey.models import Participant, Study, Trial, TrialItem, Unavailable
 
 # Browsers drop cookies over 4 KB; crowd ids are short, so longer ones are cut further.
@@ -210,6 +211,9 @@ class DatabaseStore:
         return trial, items, None
 
     def clip_url(self, item, ext="mp4") -> str:
+        # Behind nginx with the media on this machine, the delivery's file is written now:
+        # nginx then sends it without asking a worker (media.deliver_ahead).
+        media.deliver_ahead(item.stimulus, item.token, ext)
         return item.clip_url(ext)
 
     def watch_problems(self, trial, items, labels) -> list[str]:

@@ -1,13 +1,17 @@
 """Clips sent by nginx: its configuration, and its access log read into fetch witnesses.
 
-With ``STUDY_ACCEL_REDIRECT`` set the clip view (``survey.views.clip``) only authorises
-the opaque token and writes that delivery's file once
-(:func:`studyapp.stimuli.media.accel_response`); nginx sends the bytes from an
-``internal`` location, so no gunicorn worker is held while a clip goes out. The browser
-sees the clip URL it asked for and the file's bytes: nginx consumes the
-``X-Accel-Redirect`` header, and the internal location cannot be asked for from outside.
+With ``STUDY_ACCEL_REDIRECT`` set (and the media in a local folder) the request that
+sends a trial page writes its clips' delivery files first
+(:func:`studyapp.stimuli.media.deliver_ahead`), and nginx's clip location sends each
+from there without asking the app: no token lookup, no Python, no gunicorn worker. A clip
+URL with no such file (an S3 bucket, a write that failed) goes to the clip view
+(``survey.views.clip``), which authorises the opaque token, writes the file once
+(:func:`studyapp.stimuli.media.accel_response`) and hands it to nginx's ``internal``
+location. The browser sees the clip URL it asked for and the file's bytes: nginx
+consumes the ``X-Accel-Redirect`` header, and the internal location cannot be asked for
+from outside.
 
-The server still decides who watched. That location has an access log of its own
+The server still decides who watched. Both locations have an access log of their own
 (:data:`LOG_FORMAT`) that nginx writes when a response is over, with the bytes it sent
 and whether the response was sent whole (``$request_completion``). :func:`follow`
 (``manage.py follow_fetches``, started beside nginx by ``make serve``) reads new lines
@@ -33,7 +37,7 @@ from studyapp.participation import fetch_log
 
 log = logging.getLogger(__name__)
 
-# One line per response of the internal location: when it ended, what was sent.
+# One line per response of a clip location: when it ended, what was sent.
 LOG_FORMAT = "$msec $status $body_bytes_sent $request_completion $uri $sent_http_content_range"
 CONTENT_RANGE = re.compile(r"^bytes (\d+)-(\d+)/(\d+)$")
 
@@ -155,8 +159,8 @@ def follow(path, poll: float = 0.05, flush_every: float | None = None, stop=None
 
 NGINX = """\
 # Written by `manage.py nginx_config` (make serve): nginx in front of gunicorn; clips'
-# bytes from the internal location {location} (X-Accel-Redirect), logged for
-# `manage.py follow_fetches`.
+# bytes from the files their pages wrote ahead, else from the internal location
+# {location} (X-Accel-Redirect), logged for `manage.py follow_fetches`.
 {user}worker_processes {workers};
 pid {run}/nginx.pid;
 error_log {run}/error.log warn;
@@ -181,14 +185,10 @@ http {{
         listen {listen}{ssl};
         client_max_body_size 1m;
 {tls}{real_ip}        location / {{
-            proxy_pass http://study_app;
-            proxy_http_version 1.1;
-            proxy_set_header Connection "";
-            proxy_set_header Host $http_host;
-            proxy_set_header X-Forwarded-For $proxy_add_x_forwarded_for;
-            proxy_set_header X-Forwarded-Proto {proto};
-        }}
-        # Reached only through the clip view's X-Accel-Redirect: a request from
+{app}        }}
+        location @app {{
+{app}        }}
+{ahead}        # Reached only through the clip view's X-Accel-Redirect: a request from
         # outside gets 404. Files named by the delivery's opaque token only.
         location {location} {{
             internal;
@@ -200,6 +200,22 @@ http {{
         }}
 {s3}    }}
 }}
+"""
+
+# A clip whose delivery file the page's request wrote ahead (media.deliver_ahead) is sent
+# from it without asking the app; any other clip URL goes to the clip view.
+AHEAD_LOCATION = """\
+        # Clips written ahead by their page: sent without asking the app.
+        location ~ "^/c/(?<delivery>[A-Za-z0-9_-]{{8,64}}\\.(?:mp4|png|motion))$" {{
+            root {media_root};
+            try_files /deliveries/$delivery @app;
+            limit_except GET {{ deny all; }}
+            etag off;
+            add_header Cache-Control "private, max-age=86400";
+            types {{ video/mp4 mp4; image/png png; application/octet-stream motion; }}
+            default_type application/octet-stream;
+            access_log {fetch_log} study_fetch;
+        }}
 """
 
 # With the media in an S3 bucket: the clip view's X-Accel-Redirect carries the path and
@@ -230,14 +246,17 @@ def nginx_config(*, listen: str, upstream: str, media_root, fetch_log_path, run_
                  location: str = "/protected-media/", workers: str = "auto",
                  access_log: str = "off", proto: str = "$scheme", user: str = "",
                  real_ip_from=(), tls_cert: str = "", tls_key: str = "",
-                 s3_endpoint: str = "") -> str:
+                 s3_endpoint: str = "", ahead: bool | None = None) -> str:
     """Return an nginx.conf that serves the app from ``upstream`` (gunicorn's
     ``host:port``) on ``listen`` and the deliveries' files under ``location``; ``user``:
     the user of nginx's workers when it is started as root (they read the deliveries);
     ``real_ip_from``: addresses of a balancer in front (HAProxy) whose
     ``X-Forwarded-For`` names the participant (the app's rate limits count that address);
     ``tls_cert`` and ``tls_key``: nginx ends TLS itself on ``listen``; ``s3_endpoint``
-    (``scheme://host[:port]``): the bucket's host, when the media are in S3."""
+    (``scheme://host[:port]``): the bucket's host, when the media are in S3; ``ahead``
+    (default: with the media in a local folder): clips the pages wrote ahead
+    (:func:`studyapp.stimuli.media.deliver_ahead`) are sent straight from the deliveries
+    folder, the clip view asked only for the others."""
     if bool(tls_cert) != bool(tls_key):
         raise ValueError("TLS needs both a certificate and its key")
     tls = (f"        ssl_certificate {tls_cert};\n        ssl_certificate_key {tls_key};\n"
@@ -252,7 +271,17 @@ def nginx_config(*, listen: str, upstream: str, media_root, fetch_log_path, run_
             location=location, endpoint=s3_endpoint.rstrip("/"),
             host=s3_endpoint.split("://", 1)[-1].rstrip("/"), fetch_log=Path(fetch_log_path),
             hide="".join(f"            proxy_hide_header {h};\n" for h in S3_HIDDEN))
-    return NGINX.format(s3=s3, 
+    app = (f"            proxy_pass http://study_app;\n"
+           f"            proxy_http_version 1.1;\n"
+           f"            proxy_set_header Connection \"\";\n"
+           f"            proxy_set_header Host $http_host;\n"
+           f"            proxy_set_header X-Forwarded-For $proxy_add_x_forwarded_for;\n"
+           f"            proxy_set_header X-Forwarded-Proto {proto};\n")
+    if ahead is None:
+        ahead = not s3_endpoint
+    ahead_location = (AHEAD_LOCATION.format(media_root=Path(media_root),
+                                            fetch_log=Path(fetch_log_path)) if ahead else "")
+    return NGINX.format(s3=s3, app=app, ahead=ahead_location, 
         user=f"user {user};\n" if user else "", real_ip=real_ip, tls=tls, ssl=" ssl" if tls_cert else "", workers=workers, run=Path(run_dir), access=access_log, log_format=LOG_FORMAT,
         upstream=upstream, listen=listen, location=location, proto=proto,
         deliveries=Path(media_root) / "deliveries", fetch_log=Path(fetch_log_path))

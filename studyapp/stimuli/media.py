@@ -272,6 +272,8 @@ def merge_ranges(ranges) -> list[list[int]]:
 # --- bytes sent by the proxy (X-Accel-Redirect) -------------------------------------------
 
 DELIVERIES = "deliveries"
+# The stimulus field holding each kind of clip file a page names.
+STIMULUS_FILES = {"mp4": "video", "png": "poster", "motion": "motion"}
 
 
 def delivery_name(token: str, ext: str) -> str:
@@ -307,6 +309,31 @@ def write_delivery(name: str, token: str, ext: str, seed: bytes) -> None:
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise
+
+
+def deliver_ahead(stimulus, token: str, ext: str) -> bool:
+    """Write the delivery ``token``'s ``ext`` file before the page naming it is sent, when
+    nginx sends the clips from this machine's media folder (``STUDY_ACCEL_REDIRECT``).
+
+    nginx's clip location (:func:`studyapp.participation.proxy_log.nginx_config`) tries
+    that file first, so the participant's fetch never waits for an app worker (no token
+    lookup, no Python); only a fetch whose file is missing goes on to the clip view
+    (:func:`accel_response`). Return whether the file is there. A failed write is logged
+    and leaves the view to try again (the page is not lost for it)."""
+    from django.conf import settings
+
+    if not proxied(getattr(settings, "STUDY_ACCEL_REDIRECT", "")) or not local_media():
+        return False
+    name = getattr(stimulus, STIMULUS_FILES[ext], "")
+    if not name:
+        return False
+    try:
+        write_delivery(name, token, ext, delivery_seed(token))
+    except (OSError, ValueError, PaddingError, PayloadError) as error:
+        logger.warning("could not write delivery %s.%s ahead (%s); its clip view will try again",
+                    token, ext, error)
+        return False
+    return True
 
 
 def local_media() -> bool:

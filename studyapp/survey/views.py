@@ -13,7 +13,7 @@ from studyapp.stimuli import media
 from studyapp.survey.models import Stimulus, Study, TrialItem
 
 CONTENT_TYPES = {"mp4": "video/mp4", "png": "image/png", "motion": "application/octet-stream"}
-FILES = {"mp4": "video", "png": "poster", "motion": "motion"}
+FILES = media.STIMULUS_FILES
 
 
 def kept_study(slug):

@@ -153,6 +153,51 @@ def test_nginx_sends_each_delivery_and_only_whole_fetches_count(clips, stack):
         follower.join(10)
 
 
+def test_the_page_writes_its_clips_ahead_and_nginx_sends_them_without_the_app(clips, stack):
+    """The trial page's request writes its clips' delivery files; nginx sends them with no
+    app worker asked (here: with gunicorn stopped), and its log still makes the witness."""
+    from studyapp.participation import fetch_log
+    from studyapp.stimuli import media
+    from studyapp.survey.models import TrialItem
+
+    app, proxy, fetches = stack
+    study = make_ranking_study(clips, trials_per_participant=3)
+    bot = Participant(proxy.url, study.slug, "ahead-1")
+    bot.enter()
+    bot.consent()
+    bot.start()
+    urls = bot.clips()
+    tokens = [Path(url).stem for url in urls]
+    deliveries = Path(media.default_storage.path(media.DELIVERIES))
+    assert all((deliveries / f"{t}.mp4").exists() for t in tokens)  # before any fetch
+    app.stop()  # from here on only nginx answers
+
+    status, headers, body = get(proxy.port, urls[0])
+    item = TrialItem.objects.select_related("stimulus").get(token=tokens[0])
+    with open(Path(media.default_storage.path(item.stimulus.video)), "rb") as f:
+        stored = f.read()
+    assert status == 200
+    assert body == media.delivered_bytes(stored, "mp4", media.delivery_seed(item.token))
+    seen = " ".join(f"{k}: {v}" for k, v in headers.items()).lower()
+    assert "etag" not in seen and "deliveries" not in seen and "x-accel" not in seen
+    assert headers.get("Content-Type") == "video/mp4"
+    assert headers["Cache-Control"] == "private, max-age=86400"
+    assert headers.get("Last-Modified", "Thu, 01 Jan 1970 00:00:00 GMT").endswith("1970 00:00:00 GMT")
+    status, _, body = get(proxy.port, urls[1], {"Range": "bytes=0-99"})
+    assert (status, len(body)) == (206, 100)
+    # No file (a token never written ahead): the clip view is asked, and it is down.
+    assert get(proxy.port, "/c/AAAAAAAAAAAAAAAAAAAA.mp4")[0] == 502
+    assert get(proxy.port, "/c/x.mp4")[0] != 200  # not a token: the app's 404 route
+
+    call_command("follow_fetches", "--log", str(fetches), "--once")
+    items = list(TrialItem.objects.filter(token__in=tokens[:2]))
+    fetch_log.witness(items)
+    by_token = {i.token: i for i in items}
+    assert by_token[tokens[0]].fetched_at is not None  # whole, from the direct location
+    assert by_token[tokens[1]].fetched_at is None
+    assert by_token[tokens[1]].fetched == {"mp4": [[0, 99]]}
+
+
 def test_nginx_config_command_names_the_internal_location_and_its_log(tmp_path, settings):
     from io import StringIO
 

@@ -38,3 +38,23 @@ def test_a_tiny_launch_reports_answers_and_clip_fetches_apart_and_loses_nothing(
     assert figures["clip_fetches"] == str(4 * 2 * 3)  # the motion payloads, each whole
     for name in ("answer_p99_ms", "clip_ttfb_p99_ms"):
         assert float(figures[name]) > 0
+
+
+@pytest.mark.slow
+def test_a_tiny_launch_behind_nginx_takes_every_answer_from_its_log(tmp_path):
+    """As `make serve` runs: clips written ahead by their pages, sent by nginx, watched
+    as its log says (follow_fetches); every answer taken, nothing lost."""
+    from benchmarks.server import NGINX
+    from tests.studyapp.conftest import require_service
+
+    require_service(Path(NGINX).exists(), f"nginx ({NGINX})")
+    run = subprocess.run(
+        [sys.executable, "benchmarks/loadtest.py", "--arrivals", "4", "--over", "1",
+         "--trials", "2", "--workers", "2", "--study", "webgl", "--time-limit", "120", "--nginx"],
+        cwd=ROOT, capture_output=True, text=True, timeout=300,
+    )
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    figures = dict(re.findall(r"(\w+)=(\S+)", run.stdout))
+    assert "behind nginx" in run.stdout
+    assert figures["acknowledged"] == figures["stored"] == "8" and figures["errors"] == "0"
+    assert figures["clip_fetches"] == str(4 * 2 * 3)

@@ -13,7 +13,8 @@ from studyapp.stimuli import media
 class Command(BaseCommand):
     help = (
         "Print an nginx configuration: nginx on --listen in front of gunicorn on "
-        "--upstream, sending clips from the internal location STUDY_ACCEL_REDIRECT "
+        "--upstream, sending clips straight from the files their pages wrote ahead, and "
+        "the others from the internal location STUDY_ACCEL_REDIRECT "
         "(the deliveries folder under MEDIA_ROOT) and logging them to --fetch-log for "
         "follow_fetches; with the media in S3, also the location <that>s3/ that fetches a "
         "delivery's own object with the presigned URL the view hands it. make serve writes "
@@ -35,12 +36,16 @@ class Command(BaseCommand):
         parser.add_argument("--tls-cert", default="", help="End TLS in nginx: the certificate "
                             "(chain) file; with --tls-key.")
         parser.add_argument("--tls-key", default="")
+        parser.add_argument("--no-ahead", dest="ahead", action="store_false",
+                            help="Ask the clip view for every clip, also those whose pages "
+                                 "wrote their files ahead (default with local media: nginx "
+                                 "sends those straight from the deliveries folder).")
         parser.add_argument("--proto", default="$scheme",
                             help="X-Forwarded-Proto sent to the app (behind a TLS proxy: "
                                  "$http_x_forwarded_proto).")
 
     def handle(self, *args, listen, upstream, run_dir, fetch_log, workers, proto, user, real_ip_from,
-               tls_cert, tls_key, **options):
+               tls_cert, tls_key, ahead, **options):
         location = settings.STUDY_ACCEL_REDIRECT or "/protected-media/"
         s3_endpoint = ""
         if not media.local_media():  # the host the storage presigns the deliveries for
@@ -50,4 +55,5 @@ class Command(BaseCommand):
             listen=listen, upstream=upstream, media_root=settings.MEDIA_ROOT,
             fetch_log_path=fetch_log, run_dir=run_dir, location=location, workers=workers,
             proto=proto, user=user, real_ip_from=real_ip_from,
-            tls_cert=tls_cert, tls_key=tls_key, s3_endpoint=s3_endpoint), ending="")
+            tls_cert=tls_cert, tls_key=tls_key, s3_endpoint=s3_endpoint,
+            ahead=ahead and not s3_endpoint), ending="")
