@@ -20,8 +20,10 @@ replicate two pairwise studies of the same clips, one ``design: adaptive`` and o
   the real pages: every clip fetched whole, the clips' time waited, as the server's watch
   rule asks), each clip's quality its source's log strength plus a fixed normal draw
   (``--clip-sd``, :func:`studyapp.participation.bots.clip_effect`: from the clip's
-  stimulus id and the replicate's seed, the same for both designs). ``--concurrency`` bots
-  per study at once; new ones start until the study has stopped.
+  stimulus id and the replicate's seed). The two studies of a replicate hold the same
+  files but as stimuli of their own, so their clips' draws are independent: the designs
+  are compared over the same distribution of clips, not the same clips. ``--concurrency``
+  bots per study at once; new ones start until the study has stopped.
 - The design and the stop run as in production: when a participant starts and ``every``
   main trials were answered since the last look, the server starts the ``adaptive_design``
   job in the background (a thread of the gunicorn worker: no Celery broker here), which
@@ -48,6 +50,7 @@ server is stopped at the end whatever happens. The last lines are a Markdown tab
 from __future__ import annotations
 
 import argparse
+import http.cookiejar
 import json
 import os
 import random
@@ -55,6 +58,7 @@ import sys
 import tempfile
 import threading
 import time
+import urllib.request
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from pathlib import Path
 
@@ -68,6 +72,18 @@ from benchmarks.bench_adaptive import STRENGTHS, truth  # noqa: E402
 
 SOURCES = tuple(f"m{i}" for i in range(1, len(STRENGTHS) + 1))
 DESIGNS = ("adaptive", "balanced")
+
+
+def browser_opener(bot) -> urllib.request.OpenerDirector:
+    """Return ``bot``'s opener with a cookie jar that sends Secure cookies over plain
+    HTTP: the production settings mark the session and CSRF cookies Secure, and this
+    server has no TLS in front of it (as ``benchmarks/loadtest.py``'s bots keep cookies
+    by hand for the same reason)."""
+    policy = http.cookiejar.DefaultCookiePolicy(secure_protocols=("https", "wss", "http"))
+    opener = urllib.request.build_opener(
+        urllib.request.HTTPCookieProcessor(http.cookiejar.CookieJar(policy)))
+    opener.addheaders = list(bot.opener.addheaders)
+    return opener
 
 
 def write_clips(folder: Path, clips: int, seed: int = 0) -> list:
@@ -87,14 +103,44 @@ def write_clips(folder: Path, clips: int, seed: int = 0) -> list:
     return out
 
 
+class _Prefers(Exception):
+    pass
+
+
+def choice_type() -> str:
+    """Return the study type of pairs whose bots answer by preferring one clip of the two
+    (``Policy.prefer``: the Bradley-Terry choice itself), asked of the registry: no file
+    outside a type names its key (tests/test_plugins.py)."""
+    from studyapp.participation.adaptive import model
+    from studyapp.participation.bots import Policy, TrialPage
+    from studyapp.survey.study_types import get_study_type, list_study_types
+
+    class Probe(Policy):
+        def prefer(self, left, right, ties):
+            raise _Prefers
+
+    page = TrialPage({}, ["a", "b"], ["left", "right"], sources={"a": "x", "b": "y"})
+    for name in list_study_types():
+        if model(name) != "pairs":
+            continue
+        try:
+            get_study_type(name).bot_answer(page, Probe(random.Random(0)))
+        except _Prefers:
+            return name
+        except Exception:  # a type of pairs answered otherwise (a graded scale)
+            continue
+    raise RuntimeError("no study type of pairs answered by a preference is registered")
+
+
 def make_study(slug: str, design: str, clips: list, target: str, width: float,
                trials: int, every: int):
-    """Create an open pairwise study of ``clips`` with the design and stopping rule."""
+    """Create an open study of pairs (:func:`choice_type`) of ``clips`` with the design and
+    stopping rule."""
     from studyapp.survey.models import Study
     from studyapp.stimuli.clips import register_clips
 
     study = Study.objects.create_study(
-        "pairwise", slug, "Movement study", clips_per_trial=2, trials_per_participant=trials,
+        choice_type(), slug, "Movement study", clips_per_trial=2, trials_per_participant=trials,
         design=design, adaptive={"every": every, "target": target},
         stop_when={"interval_width": width}, data_note="Synthetic benchmark data (bots).")
     register_clips(study, clips)
@@ -120,6 +166,7 @@ def take_part(study, url: str, seed: int, clip_sd: float, concurrency: int, budg
         rng = random.Random(f"{seed}-{study.slug}-{i}")
         policy = POLICIES.get("bt")(rng, strengths, SOURCES, clip_sd=clip_sd, clip_seed=seed)
         bot = Bot(study, policy, rng)
+        bot.opener = browser_opener(bot)
         try:
             bot.run(entry_url(study, url, person_id(f"{study.slug}-{seed}", i)))
         except SimulationError as error:
@@ -136,8 +183,12 @@ def take_part(study, url: str, seed: int, clip_sd: float, concurrency: int, budg
             if Study.objects.filter(pk=study.pk).values_list("stopped", flat=True).first():
                 reason = "stopped"
                 break
-            if answered_main(study) >= budget:
+            answered = answered_main(study)
+            if answered >= budget:
                 reason = "budget"
+                break
+            if not answered and len(errors) >= 2 * concurrency:
+                reason = "failing"
                 break
             while len(running) < concurrency:
                 running.add(pool.submit(one, started))
@@ -225,6 +276,7 @@ def measure(study, run: dict, target: str, clip_sd: float, seed: int, bootstrap:
         "rule_width_at_stop": stopped.get("width"),
         "judgements_in_the_end": answered_main(study),
         "participants": run["participants"], "bot_errors": len(run["errors"]),
+        "bot_error_samples": run["errors"][:3],
         "seconds": run["seconds"],
         "report_width": max(r["ci_high"] - r["ci_low"] for r in intervals),
         "covered_population": all(r["covers_population"] for r in intervals),
@@ -248,7 +300,7 @@ def run_pair(url: str, clips: list, seed: int, *, target="top_two", width=1.2, t
     def arm(k):
         runs[k] = take_part(studies[k], url, seed, clip_sd, concurrency, budget, time_limit)
 
-    threads = [threading.Thread(target=arm, args=(k,)) for k in range(len(studies))]
+    threads = [threading.Thread(target=arm, args=(k,), daemon=True) for k in range(len(studies))]
     for thread in threads:
         thread.start()
     for thread in threads:
@@ -297,13 +349,15 @@ def table(rows: list[dict], target: str, width: float) -> str:
             f"| {target} ({width}) | {r['design']} | {r['reached']}/{r['studies']} | {each} | "
             f"{fmt(r['median_at_stop'])} | {fmt(r['mean_at_stop'])} | {versus} | "
             f"{r['mean_in_the_end']:.0f} | {r['mean_report_width']:.2f} | "
-            f"{r['covered_population']}/{r['studies']} | {r['covered_these_clips']}/{r['studies']} |")
+            f"{r['covered_population']}/{r['studies']} | "
+            f"{r['covered_these_clips']}/{r['studies']} |")
     return "\n".join(lines)
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--studies", type=int, default=3, help="Replicates (one study per design each).")
+    parser.add_argument("--studies", type=int, default=3,
+                        help="Replicates (one study per design each).")
     parser.add_argument("--target", choices=("top_two", "order"), default="top_two")
     parser.add_argument("--width", type=float, default=1.2,
                         help="stop_when: {interval_width: W} (logit scale).")
