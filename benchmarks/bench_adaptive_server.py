@@ -42,7 +42,7 @@ replicate two pairwise studies of the same clips, one ``design: adaptive`` and o
 
 The run is bounded: a study stops at ``--budget`` answered main trials or after
 ``--time-limit`` seconds, whichever comes first (then it counts as not reached), and the
-server is stopped at the end whatever happens. The last lines are a Markdown table.
+server is stopped, and its database and folder removed, at the end whatever happens. The last lines are a Markdown table.
 ``tests/studyapp/test_bench_adaptive_server.py`` runs :func:`run_pair` at a tiny size
 (against the test live server, in-process).
 """
@@ -54,6 +54,7 @@ import http.cookiejar
 import json
 import os
 import random
+import shutil
 import sys
 import tempfile
 import threading
@@ -434,6 +435,7 @@ def main(argv=None) -> int:
         connections.close_all()
         if args.database == "postgres":
             drop_database(name)
+        shutil.rmtree(var, ignore_errors=True)
 
 
 if __name__ == "__main__":
