@@ -24,6 +24,10 @@ Policies (``POLICIES``):
   ``round(3 + 1.5 (log s - c) + e)``, ``e ~ N(0, 0.6)``, clipped to 1..5.
   Best of K and MUSHRA read each clip's utility (log strength, centred, plus a Gumbel
   draw): the clip of highest utility is picked; a slider is set to ``50 + 25 (u - 1)``.
+  With ``--clip-sd SD`` clips vary about their source: a clip's log strength is its
+  source's plus a fixed normal draw of standard deviation ``SD`` (:func:`clip_effect`, from
+  the clip's stimulus id and ``--clip-seed``), in every answer above; catch clips do not
+  vary. Without it (the default) every clip of a source is alike.
 - ``inattentive``: at random, except that every catch trial is answered wrongly (the
   broken clip treated as the best) and every instructed check with another answer than
   the one asked for: the participant ends with the failed-attention outcome.
@@ -148,13 +152,35 @@ class TrialPage:
                    form["radios"])
 
 
+class ClipSource(str):
+    """A clip's source name that also carries the clip (``stimulus``: its stimulus id).
+
+    Study types pass it to the policy as the source's name (it compares, hashes and
+    prints as that name); a policy that lets clips of one source differ reads
+    ``stimulus``."""
+
+    stimulus: int | None = None
+
+    def __new__(cls, source: str, stimulus: int | None = None):
+        made = super().__new__(cls, source)
+        made.stimulus = stimulus
+        return made
+
+
 def item_info(tokens) -> dict[str, tuple]:
-    """Return ``{item token: (source, role, duration)}`` from the database; catch clips
-    read as ``CATCH``."""
+    """Return ``{item token: (source, role, duration)}`` from the database, the source a
+    :class:`ClipSource` naming the clip; catch clips read as ``CATCH``."""
     rows = TrialItem.objects.filter(token__in=tokens).values_list(
-        "token", "role", "stimulus__source", "stimulus__role", "stimulus__duration")
-    return {token: (CATCH if stimulus_role == Stimulus.Role.CATCH else source, role, duration)
-            for token, role, source, stimulus_role, duration in rows}
+        "token", "role", "stimulus__source", "stimulus__role", "stimulus__duration", "stimulus_id")
+    return {token: (CATCH if stimulus_role == Stimulus.Role.CATCH else ClipSource(source, stimulus),
+                    role, duration)
+            for token, role, source, stimulus_role, duration, stimulus in rows}
+
+
+def clip_effect(stimulus: int, sd: float, seed: int = 0) -> float:
+    """Return clip ``stimulus``'s fixed deviation from its source's log strength: a normal
+    draw of standard deviation ``sd``, the same for every bot of every run with ``seed``."""
+    return sd * random.Random(f"clip-{seed}-{stimulus}").gauss(0.0, 1.0)
 
 
 def instruction_of(tokens) -> dict:
@@ -264,14 +290,22 @@ class ScreenOut(Policy):
 
 
 class BradleyTerry(Policy):
-    def __init__(self, rng, strengths=None, sources=()):
+    """Strengths per source; with ``clip_sd`` each clip's log strength is its source's plus
+    :func:`clip_effect` (read from a :class:`ClipSource`; a plain name varies not)."""
+
+    def __init__(self, rng, strengths=None, sources=(), clip_sd: float = 0.0, clip_seed: int = 0):
         super().__init__(rng)
         self.strengths = {CATCH: CATCH_STRENGTH, **(strengths or {})}
+        self.clip_sd, self.clip_seed = clip_sd, clip_seed
         logs = [math.log(self.strength(s)) for s in sources] or [0.0]
         self.centre = sum(logs) / len(logs)
 
     def strength(self, source):
-        return self.strengths.get(source, 1.0)
+        base = self.strengths.get(source, 1.0)
+        stimulus = getattr(source, "stimulus", None)
+        if self.clip_sd and stimulus is not None:
+            return base * math.exp(clip_effect(stimulus, self.clip_sd, self.clip_seed))
+        return base
 
     def utility(self, source):
         """Log strength, centred, plus a Gumbel draw (a Plackett-Luce/BT choice)."""

@@ -1,6 +1,7 @@
 """simulate_participants (bots over real HTTP against the live server) and studies."""
 
 import json
+import math
 from io import StringIO
 
 import pytest
@@ -202,3 +203,29 @@ def test_a_bots_study_reports_what_ran_and_that_it_was_simulated(study_of, live_
     assert "a practice trial came first" in lowered
     assert (tmp_path / "supplement.pdf").read_bytes().startswith(b"%PDF")
     assert (tmp_path / "headline_sources.tex").is_file()
+
+
+def test_clip_variation_is_fixed_per_clip_and_off_by_default():
+    import random
+
+    clip_a, clip_b = bots.ClipSource("real", 11), bots.ClipSource("real", 12)
+    assert clip_a == "real" and hash(clip_a) == hash("real") and clip_a.stimulus == 11
+    plain = bots.BradleyTerry(random.Random(0), {"real": 2.0}, ["real"])
+    assert plain.strength(clip_a) == plain.strength(clip_b) == plain.strength("real") == 2.0
+    varied = bots.BradleyTerry(random.Random(0), {"real": 2.0}, ["real"], clip_sd=0.3, clip_seed=7)
+    again = bots.BradleyTerry(random.Random(9), {"real": 2.0}, ["real"], clip_sd=0.3, clip_seed=7)
+    assert varied.strength(clip_a) == again.strength(clip_a) != varied.strength(clip_b)
+    assert varied.strength(clip_a) == pytest.approx(2.0 * math.exp(bots.clip_effect(11, 0.3, 7)))
+    assert varied.strength("real") == 2.0 and varied.strength(bots.CATCH) == bots.CATCH_STRENGTH
+    effects = [bots.clip_effect(i, 0.3, 1) for i in range(4000)]
+    assert abs(sum(effects) / len(effects)) < 0.03
+    assert 0.27 < (sum(e * e for e in effects) / len(effects)) ** 0.5 < 0.33
+
+
+def test_bradley_terry_bots_answer_by_the_clip_with_clip_variation(study_of, live_server):
+    study = study_of("pairwise", trials_per_participant=2)
+    with pytest.raises(CommandError, match="bt policy only"):
+        simulate_run(study, live_server.url, n=1, clip_sd=0.3)
+    simulate_run(study, live_server.url, n=2, policy="bt", seed=3, clip_sd=0.3, clip_seed=1,
+                 strengths="real=2")
+    assert len(responses_frame(study)) == 2 * 2 * 2

@@ -40,6 +40,13 @@ class Command(BaseCommand):
             "--strengths", default="", metavar="SRC=S,...", help="bt: e.g. real=4,a2m=3,cond_gru=1"
         )
         parser.add_argument(
+            "--clip-sd", type=float, default=0.0, metavar="SD",
+            help="bt: clips vary about their source, each clip's log strength its source's "
+                 "plus a fixed normal draw of this SD (from the clip's id and --clip-seed; "
+                 "default 0: every clip of a source alike).")
+        parser.add_argument("--clip-seed", type=int, default=0,
+                            help="bt with --clip-sd: the seed of the clips' draws.")
+        parser.add_argument(
             "--pace", type=float, default=1.0, metavar="FACTOR",
             help="Wait FACTOR x the longest clip before each answer (at least 1: the server "
                  "takes no answer before the clips could have played through).",
@@ -51,10 +58,13 @@ class Command(BaseCommand):
                                  "refuses these bots: a check of the watch rule).")
 
     def handle(self, *args, study, n, url, policy, seed, strengths, pace, concurrency,
-               no_watch, **options):
+               no_watch, clip_sd=0.0, clip_seed=0, **options):
         study = get_study(study)
         if n < 1 or pace < 0 or concurrency < 1:
             raise CommandError("--n and --concurrency must be at least 1 and --pace at least 0")
+        if clip_sd < 0 or (clip_sd and policy != "bt"):
+            raise CommandError("--clip-sd must be at least 0, and is for the bt policy only")
+        clips = {"clip_sd": clip_sd, "clip_seed": clip_seed} if clip_sd else {}
         try:
             strengths = parse_strengths(strengths)
         except ValueError as error:
@@ -71,7 +81,7 @@ class Command(BaseCommand):
 
         def one(i):
             rng = random.Random(f"{run}-{i}")
-            bot = Bot(study, POLICIES.get(policy)(rng, strengths, sources), rng, pace=pace,
+            bot = Bot(study, POLICIES.get(policy)(rng, strengths, sources, **clips), rng, pace=pace,
                       watch=not no_watch)
             person = person_id(run, i)
             try:

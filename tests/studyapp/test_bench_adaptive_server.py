@@ -1,0 +1,32 @@
+"""benchmarks/bench_adaptive_server.py at a tiny size: one adaptive and one balanced study
+taken at once by bots of known strengths (clips varying) through the live server's pages,
+the background job recomputing the design and checking the stop, the report's intervals
+measured. Its figures are not checked (too few judgements to mean anything), only that
+every step still runs."""
+
+import pytest
+
+from benchmarks import bench_adaptive_server as bench
+
+pytestmark = pytest.mark.django_db(transaction=True)
+
+
+def test_the_benchmark_runs_both_designs_through_the_real_pages(media_root, live_server,
+                                                                  tmp_path):
+    clips = bench.write_clips(tmp_path / "clips", clips=2)
+    results = bench.run_pair(live_server.url, clips, seed=1, width=4.0, trials=4, every=8,
+                             concurrency=3, budget=48, time_limit=45, bootstrap=20)
+    assert [r["design"] for r in results] == ["adaptive", "balanced"]
+    for result in results:
+        assert result["ended_by"] in ("stopped", "budget")
+        assert result["judgements_in_the_end"] >= 8 and result["participants"] >= 2
+        assert not result["reached"] or result["judgements_at_stop"] >= 8
+        (interval,) = result["intervals"]  # the top two
+        assert interval["ci_low"] <= interval["difference"] <= interval["ci_high"]
+        assert {"truth_population", "truth_these_clips"} <= set(interval)
+    from studyapp.survey.models import Study
+
+    adaptive = Study.objects.get(slug=results[0]["study"])
+    assert adaptive.sampling.get("pairs") and "stop" in adaptive.sampling  # the job ran
+    rows = bench.summary(results)
+    assert "| top_two (4.0) | adaptive |" in bench.table(rows, "top_two", 4.0)
