@@ -475,9 +475,10 @@ def main(argv=None):
                 "width": float(np.mean(widths)) if widths else float("nan"),
             })
     width = {"top_two": args.top_width, "order": args.order_width}
-    print(f"{args.studies} studies per design, 8 sources, "
-          f"{(f'rankings of {args.sets}' if args.ranking else f'best of {args.sets}') if args.sets else 'pairs'}, "
-          f"{args.clips} clips per source "
+    trial = "pairs"
+    if args.sets:
+        trial = f"rankings of {args.sets}" if args.ranking else f"best of {args.sets}"
+    print(f"{args.studies} studies per design, 8 sources, {trial}, {args.clips} clips per source "
           f"(clip SD {args.clip_sd}), {args.trials} trials per participant, looks every "
           f"{args.every} judgements; {seconds:.0f} s")
     extra = (" steady coverage |" if args.sets else "") + (
