@@ -588,34 +588,77 @@ def spread(post: Posterior, winner, loser, clip_w=None, clip_l=None, who=None) -
     model = difference_variance(post.cov)
     if clip_w is None or len(winner) == 0:
         return Spread(model)
-    k = post.n_sources
     winner, loser = np.asarray(winner, dtype=np.int64), np.asarray(loser, dtype=np.int64)
-    clips, codes = np.unique(np.concatenate([np.asarray(clip_w), np.asarray(clip_l)]).astype(str),
-                             return_inverse=True)
-    codes = codes.ravel()
-    clip_w, clip_l = codes[:len(winner)], codes[len(winner):]
-    who = np.unique(np.asarray(who).astype(str), return_inverse=True)[1].ravel()
     theta = post.mean
     p = expit(theta[winner] - theta[loser])
     rows = np.arange(len(winner))
-    g = np.zeros((len(winner), k))
+    g = np.zeros((len(winner), post.n_sources))
     g[rows, winner] = 1 - p
     g[rows, loser] = -(1 - p)
-    n_clips, n_people = len(clips), int(who.max()) + 1
+    return _clustered(post, g, np.concatenate([rows, rows]),
+                      np.concatenate([np.asarray(clip_w), np.asarray(clip_l)]),
+                      np.concatenate([winner, loser]), who)
 
-    def meat(keys, n_keys):
+
+def choice_spread(post: Posterior, chosen, among, among_clips=None, who=None,
+                  weight=None) -> Spread:
+    """Return the :class:`Spread` of a Plackett-Luce posterior of Luce choices
+    (:func:`choice_posterior`: ``chosen[e]`` among the sources ``among[e]``); with the
+    clips shown at each choice ``among_clips[e]`` (aligned with ``among[e]``) and its
+    participant ``who[e]`` (any labels), also the sandwich variance clustered by
+    participant and by clip and the steady one, as :func:`spread` for pairs. Each choice
+    gives the score ``1 - p`` to its chosen source and ``-p`` to every other one shown
+    (``p`` the softmax of the posterior mean over the set); it belongs to every clip shown
+    at it (a ranking's later choices to the clips still unranked there)."""
+    model = difference_variance(post.cov)
+    if among_clips is None or len(chosen) == 0:
+        return Spread(model)
+    k = post.n_sources
+    chosen = np.asarray(chosen, dtype=np.int64)
+    sizes = [len(members) for members in among]
+    events = np.repeat(np.arange(len(chosen)), sizes)
+    members = np.concatenate([np.asarray(list(m), dtype=np.int64) for m in among])
+    clips = np.concatenate([np.asarray(list(c), dtype=object) for c in among_clips])
+    if len(clips) != len(members):
+        raise ValueError("among_clips must name one clip per source of each choice")
+    shown = np.zeros((len(chosen), k))
+    np.add.at(shown, (events, members), 1.0)
+    e = shown * np.exp(post.mean - post.mean.max())[None, :]
+    g = -e / e.sum(axis=1, keepdims=True)
+    g[np.arange(len(chosen)), chosen] += 1.0
+    if weight is not None:
+        g *= np.asarray(weight, dtype=float)[:, None]
+    return _clustered(post, g, events, clips, members, who)
+
+
+def _clustered(post: Posterior, g, events, clip_labels, clip_sources, who) -> Spread:
+    """The clustered part of :func:`spread` and :func:`choice_spread`: ``g`` ``(E, K)`` the
+    score of each event (a comparison or a choice) at the posterior mean; each event
+    ``events[i]`` showed the clip ``clip_labels[i]`` of the source ``clip_sources[i]``;
+    ``who`` ``(E,)`` each event's participant. The sandwich clusters by participant and by
+    clip (an event belongs to every clip it showed; CR1 factors); the steady variance is
+    the model's plus one clip variance pooled over every pair of sources, times each
+    source's lean on single clips (the sum of squared shares of its clips' showings)."""
+    model = difference_variance(post.cov)
+    k = post.n_sources
+    clips, codes = np.unique(np.asarray(clip_labels).astype(str), return_inverse=True)
+    codes = codes.ravel()
+    who = np.unique(np.asarray(who).astype(str), return_inverse=True)[1].ravel()
+    n_clips, n_people = len(clips), int(who.max()) + 1
+    scores = g[events]
+
+    def meat(key, n_keys, values):
         sums = np.zeros((n_keys, k))
-        for key in keys:
-            np.add.at(sums, key, g)
+        np.add.at(sums, key, values)
         return sums.T @ sums
 
-    clips_part = meat([clip_w, clip_l], n_clips)
-    both = meat([who * n_clips + clip_w, who * n_clips + clip_l], n_people * n_clips)
-    middle = (meat([who], n_people) * n_people / max(n_people - 1, 1)
+    clips_part = meat(codes, n_clips, scores)
+    both = meat(who[events] * n_clips + codes, n_people * n_clips, scores)
+    middle = (meat(who, n_people, g) * n_people / max(n_people - 1, 1)
               + (clips_part - both) * n_clips / max(n_clips - 1, 1))
     sandwich = difference_variance(post.cov @ middle @ post.cov)
     source_of = np.zeros(n_clips, dtype=np.int64)
-    source_of[clip_w], source_of[clip_l] = winner, loser
+    source_of[codes] = clip_sources
     showings = np.bincount(codes, minlength=n_clips).astype(float)
     per_source = np.bincount(source_of, weights=showings, minlength=k)
     lean = np.bincount(source_of, weights=showings ** 2, minlength=k) / np.maximum(per_source, 1) ** 2

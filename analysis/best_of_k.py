@@ -132,13 +132,19 @@ class BestOfK(StudyAnalysis):
 
     def worth_choices(self, rows):
         """Return one Luce choice per trial that picked a clip: its source among the
-        sources of the trial's clips ("all good" and "all bad" pick none)."""
-        sources = rows.groupby("trial_key", sort=False)["source"].agg(tuple)
+        sources of the trial's clips ("all good" and "all bad" pick none), with the
+        trial's clips (``among_clips``, aligned with ``among``) and its participant."""
+        trials = rows.groupby("trial_key", sort=False)
         best = rows.loc[rows["pick"].astype(str).to_numpy() == "best"]
         best = best.drop_duplicates("trial_key")
-        return pd.DataFrame({"chosen": best["source"].to_numpy(),
-                             "among": sources.reindex(best["trial_key"]).to_numpy(),
-                             "weight": 1.0})
+        keys = best["trial_key"]
+        choices = pd.DataFrame({"chosen": best["source"].to_numpy(),
+                                "among": trials["source"].agg(tuple).reindex(keys).to_numpy(),
+                                "weight": 1.0})
+        if {"stimulus", "pcode"} <= set(rows.columns):
+            choices["among_clips"] = trials["stimulus"].agg(tuple).reindex(keys).to_numpy()
+            choices["participant"] = best["pcode"].to_numpy()
+        return choices
 
     def answered(self, rows):
         """Return the rows of trials with a valid answer: one clip ``best`` and the rest

@@ -122,16 +122,27 @@ class Ranking(StudyAnalysis):
 
     def worth_choices(self, rows):
         """Return a ranking's Luce choices: rank 1 among all the trial's sources, rank 2
-        among the rest, and so on (Plackett-Luce); ``rows`` as :meth:`answered` leaves them."""
-        chosen, among = [], []
+        among the rest, and so on (Plackett-Luce); ``rows`` as :meth:`answered` leaves them.
+        Each choice also names the clips it was among (``among_clips``, aligned with
+        ``among``) and its participant."""
+        chosen, among, among_clips, participant = [], [], [], []
+        named = {"stimulus", "pcode"} <= set(rows.columns)
         for _, trial in rows.sort_values(["trial_key", "rank"], kind="stable").groupby(
                 "trial_key", sort=False):
             order = tuple(trial["source"])
+            clips = tuple(trial["stimulus"]) if named else ()
             for place in range(len(order) - 1):
                 chosen.append(order[place])
                 among.append(order[place:])
-        return pd.DataFrame({"chosen": chosen, "among": pd.Series(among, dtype=object),
-                             "weight": 1.0})
+                if named:
+                    among_clips.append(clips[place:])
+                    participant.append(trial["pcode"].iloc[0])
+        choices = pd.DataFrame({"chosen": chosen, "among": pd.Series(among, dtype=object),
+                                "weight": 1.0})
+        if named:
+            choices["among_clips"] = pd.Series(among_clips, dtype=object)
+            choices["participant"] = participant
+        return choices
 
     def answered(self, rows):
         """Return ranked rows sorted by trial and rank, ranks renumbered 1..m within the trial.

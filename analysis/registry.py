@@ -111,8 +111,10 @@ class StudyAnalysis:
     def worth_choices(self, rows: pd.DataFrame) -> pd.DataFrame | None:
         """Return the Luce choices of answered main ``rows``: ``chosen`` (a source),
         ``among`` (a tuple of the sources it was chosen among, itself included) and
-        ``weight``, for a Plackett-Luce posterior over sets of sources; None when this type
-        has no such model (then its adaptive design, if any, is of pairs,
+        ``weight`` (optionally ``among_clips``, the clips of ``among`` in its order, and
+        ``participant``, with which a stopping rule's intervals count clips and
+        participants as random), for a Plackett-Luce posterior over sets of sources; None
+        when this type has no such model (then its adaptive design, if any, is of pairs,
         :meth:`worth_comparisons`)."""
         return None
 

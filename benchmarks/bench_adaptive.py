@@ -4,7 +4,7 @@
         [--top-width 0.6] [--order-width 0.7] [--budget 20000] [--targets top_two,order]
         [--designs balanced,top_two,order,order_batch] [--interval larger|sandwich]
         [--stop-on larger|information|sandwich] [--rules reported,app] [--crossed
-        [--bootstrap 1000]] [--json out.json]
+        [--bootstrap 1000]] [--sets 4 [--ranking]] [--json out.json]
 
 Each simulated study has 8 sources with a spread of Bradley-Terry strengths
 (:data:`STRENGTHS`), ``--clips`` clips per source whose qualities vary about their
@@ -53,6 +53,17 @@ studies reaching the target within ``--budget``, the coverage of the true differ
 (those of infinitely many clips and judgements, balanced: :func:`truth`) by the reported
 intervals at the stopping time, the share of studies whose intervals all covered, and the
 mean reported width at the stop.
+
+``--sets k`` simulates sets of sources instead: each trial shows ``k`` clips of ``k``
+sources (:func:`analysis.adaptive.plan_sets`), answered by a pick of the best (a
+Plackett-Luce first choice of the clips' qualities) or with ``--ranking`` by a full
+ranking (``k - 1`` choices); the adaptive designs draw sets
+(:func:`analysis.adaptive.set_distribution`). The rule is the app's, on the
+Plackett-Luce posterior's steady interval (:func:`analysis.adaptive.choice_spread`:
+clips counted as random); the reported interval is the larger of it and the sandwich,
+and the truth the Plackett-Luce worths of infinitely many answers and clips, balanced
+(:func:`set_truth`). ``--crossed`` there runs the best-of-k or ranking analysis's own
+crossed bootstrap at the stop (:func:`set_crossed_intervals`).
 """
 
 from __future__ import annotations
@@ -245,48 +256,134 @@ def run_study(design, strength, clip_quality, args, seed):
     return done
 
 
+def set_truth(strength, clip_sd, size, depth, draws=20_000, seed=0):
+    """Return the centred Plackett-Luce worths of infinitely many answers on every set of
+    ``size`` sources alike (``depth`` choices each: 1 best of k, ``size - 1`` a ranking)
+    with infinitely many clips per source: the estimand of every design of sets. Each
+    order's chance is averaged over ``draws`` draws of the set's clip qualities (exact
+    given the clips), and the choices it makes are fitted without a prior."""
+    import itertools
+
+    sets = adaptive.all_sets(len(strength), size)
+    rng = np.random.default_rng(seed)
+    quality = strength[sets][:, None, :] + rng.normal(0, clip_sd, (len(sets), draws, size))
+    e = np.exp(quality - quality.max(axis=2, keepdims=True))
+    chosen, among, weight = [], [], []
+    for order in itertools.permutations(range(size)):
+        chance = np.ones(e.shape[:2])
+        for place in range(depth):
+            chance *= e[..., order[place]] / e[..., list(order[place:])].sum(axis=2)
+        chance = chance.mean(axis=1)
+        for members, p in zip(sets, chance):
+            for place in range(depth):
+                chosen.append(members[order[place]])
+                among.append(members[list(order[place:])])
+                weight.append(p * 1e6)
+    return adaptive.choice_posterior(len(strength), chosen, among, weight, prior_sd=1e3).mean
+
+
+def set_crossed_intervals(n_sources, trials, pairs, seed, bootstrap=1000, confidence=0.95,
+                          ranking=False):
+    """Return the study's own intervals of the differences ``pairs`` (``a - b``) of sets:
+    the best-of-k analysis's top-1 worths (:func:`analysis.best_of_k.top1_worth`) or the
+    ranking analysis's Plackett-Luce worths (:func:`analysis.ranking.plackett_luce`), each
+    with the crossed bootstrap of participants and clips; ``trials`` holds one ``(clips
+    best first, their sources, participant)`` per trial."""
+    import pandas as pd
+
+    from analysis import crossed
+    from analysis.study import AnalysisConfig
+
+    config = AnalysisConfig(bootstrap=bootstrap, seed=seed, confidence=confidence)
+    rows = pd.DataFrame([{"trial_key": t, "pcode": who, "stimulus": clip, "source": source,
+                          "rank": place + 1, "action": "walk"}
+                         for t, (clips, sources, who) in enumerate(trials)
+                         for place, (clip, source) in enumerate(zip(clips, sources))])
+    names = list(range(n_sources))
+    if ranking:
+        from analysis.ranking import plackett_luce
+
+        result = plackett_luce(rows, names, config)
+    else:
+        from analysis.best_of_k import top1_worth
+
+        shown = np.zeros((len(trials), n_sources), dtype=np.int64)
+        np.add.at(shown, (rows["trial_key"].to_numpy(), rows["source"].to_numpy()), 1)
+        chosen = np.array([sources[0] for _, sources, _ in trials])
+        result = top1_worth(shown, chosen, rows, config)
+    table = crossed.differences(result, names, confidence)
+    out = {}
+    for row in table.itertuples():
+        out[(row.a, row.b)] = (row.difference, row.ci_low, row.ci_high)
+        out[(row.b, row.a)] = (-row.difference, -row.ci_high, -row.ci_low)
+    return {pair: out[pair] for pair in pairs}
+
+
 def run_sets_study(design, strength, clip_quality, args, seed):
     """Return, for best of ``--sets`` k (one Luce choice per trial among its k sources'
-    clips, Plackett-Luce with clip qualities), the judgements until the Plackett-Luce
-    posterior's interval of the target (the model's alone: no clip term for sets) is at
-    most the width, and whether the intervals there covered the truth (the sources'
-    strengths: the estimand of infinitely many clips, up to the clips' spread)."""
+    clips) or with ``--ranking`` a ranking of them (``k - 1`` choices; Plackett-Luce with
+    the clips' qualities), the judgements (trials) until the app's stopping rule is met on
+    the Plackett-Luce posterior's steady interval (clips counted as random:
+    :func:`analysis.adaptive.choice_spread`), and whether the intervals there covered the
+    truth (:func:`set_truth`)."""
     k = len(strength)
+    depth = args.sets - 1 if args.ranking else 1
     rng = random.Random(seed)
     answers = np.random.default_rng(seed + 10_000)
     clips = {s: list(range(s * args.clips, (s + 1) * args.clips)) for s in range(k)}
     source_of = np.repeat(np.arange(k), args.clips)
-    true = strength - strength.mean()
+    true = args.set_truth
     dist = adaptive.balanced_sets(k, args.sets)
     shown = Counter()
-    chosen, among = [], []
-    done, queue, n = {}, [], 0
+    chosen, among, among_clips, who, trials = [], [], [], [], []
+    done, queue, n, participant = {}, [], 0, -1
     while n < args.budget and len(done) < len(args.targets):
         if not queue:
+            participant += 1
             queue = adaptive.plan_sets(dist, args.trials, clips, shown, rng,
                                        min_showings=args.min_showings)
-        trial = queue.pop(0)
-        utility = clip_quality[list(trial)] + answers.gumbel(size=len(trial))
-        chosen.append(source_of[trial[int(np.argmax(utility))]])
-        among.append([source_of[c] for c in trial])
+        trial = np.array(queue.pop(0))
+        order = trial[np.argsort(-(clip_quality[trial] + answers.gumbel(size=len(trial))))]
+        for place in range(depth):
+            chosen.append(source_of[order[place]])
+            among.append(source_of[order[place:]])
+            among_clips.append(order[place:])
+            who.append(participant)
+        trials.append((order, source_of[order], participant))
         n += 1
         if n % args.every:
             continue
         post = adaptive.choice_posterior(k, chosen, among)
+        spread = adaptive.choice_spread(post, chosen, among, among_clips, who)
+        level = stats.t.ppf(0.975, spread.df)
+        reported = level * np.sqrt(np.maximum(spread.sandwich, spread.steady))
+        steady = level * np.sqrt(spread.steady)
         for target in args.targets:
             limit = args.top_width if target == "top_two" else args.order_width
-            state = adaptive.stop_state(post, {"interval_width": limit}, target, n, draws=200, seed=n)
-            if target not in done and state["met"]:
-                half = 1.959964 * np.sqrt(adaptive.difference_variance(post.cov))
-                pairs = [tuple(pair) for pair in state["pairs"]]
-                done[target] = {"n": n, "width": state["width"],
-                                "covered": [abs(post.mean[a] - post.mean[b] - (true[a] - true[b]))
-                                            <= half[a, b] for a, b in pairs]}
+            if target in done:
+                continue
+            state = adaptive.stop_state(post, {"interval_width": limit}, target, n, spread,
+                                        draws=200, seed=n)
+            if not state["met"]:
+                continue
+            pairs = [tuple(pair) for pair in state["pairs"]]
+            error = {(a, b): abs(post.mean[a] - post.mean[b] - (true[a] - true[b])) for a, b in pairs}
+            done[target] = {"n": n, "width": max(2 * reported[a, b] for a, b in pairs),
+                            "rule_width": state["width"],
+                            "covered": [error[a, b] <= reported[a, b] for a, b in pairs],
+                            "steady_covered": [error[a, b] <= steady[a, b] for a, b in pairs]}
+            if args.crossed:
+                own = set_crossed_intervals(k, trials, pairs, seed + n, args.bootstrap,
+                                            ranking=args.ranking)
+                done[target]["crossed_covered"] = [
+                    low <= true[a] - true[b] <= high for (a, b), (_, low, high) in own.items()]
+                done[target]["crossed_width"] = max(high - low for _, low, high in own.values())
         if design != "balanced":
-            dist = adaptive.set_distribution(post, args.sets, design, depth=1, floor=args.floor,
+            dist = adaptive.set_distribution(post, args.sets, design,
+                                             depth=None if args.ranking else 1, floor=args.floor,
                                              sharpness=args.sharpness, focus=args.focus, seed=seed + n)
     for target in ("top_two", "order"):
-        done.setdefault(target, {"n": None, "covered": []})
+        done.setdefault(target, {"n": None, "covered": [], "steady_covered": []})
     return done
 
 
@@ -324,7 +421,9 @@ def main(argv=None):
     parser.add_argument("--bootstrap", type=int, default=1000)
     parser.add_argument("--sets", type=int, default=0,
                         help="best of this many sources per trial instead of pairs (Plackett-Luce; "
-                        "the app's rule on the model's interval; no --crossed)")
+                        "the app's rule on the steady interval, clips counted as random)")
+    parser.add_argument("--ranking", action="store_true",
+                        help="with --sets: each trial a full ranking of its clips instead of a pick")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
     designs = args.designs.split(",")
@@ -332,6 +431,9 @@ def main(argv=None):
     args.rules = args.rules.split(",") if args.rules else [args.rule]
     results = {d: [] for d in designs}
     started = time.perf_counter()
+    if args.sets:
+        args.set_truth = set_truth(STRENGTHS, args.clip_sd, args.sets,
+                                   args.sets - 1 if args.ranking else 1)
     for study in range(args.studies):
         seed = args.first_seed + study
         clip_rng = np.random.default_rng(seed)
@@ -354,6 +456,7 @@ def main(argv=None):
             mean = float(np.mean(reached)) if reached else float("nan")
             if design == "balanced":
                 base = mean
+            steady_cov = [c for r in results[design] for c in r[key].get("steady_covered", [])]
             crossed_cov = [c for r in results[design] for c in r[key].get("crossed_covered", [])]
             crossed_w = [r[key]["crossed_width"] for r in results[design] if "crossed_width" in r[key]]
             rows.append({
@@ -366,21 +469,27 @@ def main(argv=None):
                 "mean": mean,
                 "vs_balanced": mean / base - 1 if base else float("nan"),
                 "coverage": float(np.mean(covered)) if covered else float("nan"),
+                "steady_coverage": float(np.mean(steady_cov)) if steady_cov else float("nan"),
                 "all_covered": float(np.mean(all_covered)) if all_covered else float("nan"),
                 "intervals": len(covered),
                 "width": float(np.mean(widths)) if widths else float("nan"),
             })
     width = {"top_two": args.top_width, "order": args.order_width}
-    print(f"{args.studies} studies per design, 8 sources, "
-          f"{f'best of {args.sets}' if args.sets else 'pairs'}, {args.clips} clips per source "
+    trial = "pairs"
+    if args.sets:
+        trial = f"rankings of {args.sets}" if args.ranking else f"best of {args.sets}"
+    print(f"{args.studies} studies per design, 8 sources, {trial}, {args.clips} clips per source "
           f"(clip SD {args.clip_sd}), {args.trials} trials per participant, looks every "
           f"{args.every} judgements; {seconds:.0f} s")
-    extra = " crossed coverage | crossed width |" if args.crossed else ""
+    extra = (" steady coverage |" if args.sets else "") + (
+        " crossed coverage | crossed width |" if args.crossed else "")
     print("| target (width) | stop | design | reached | median judgements | mean | vs balanced | "
           "coverage (intervals) | all covered | width at stop |" + extra)
-    print("|---|---|---|---|---|---|---|---|---|---|" + ("---|---|" if args.crossed else ""))
+    print("|---|---|---|---|---|---|---|---|---|---|" + ("---|" if args.sets else "")
+          + ("---|---|" if args.crossed else ""))
     for row in rows:
-        more = (f" {row['crossed_coverage']:.3f} | {row['crossed_width']:.2f} |" if args.crossed else "")
+        more = ((f" {row['steady_coverage']:.3f} |" if args.sets else "")
+                + (f" {row['crossed_coverage']:.3f} | {row['crossed_width']:.2f} |" if args.crossed else ""))
         print(f"| {row['target']} ({width[row['target']]}) | {row['rule']} | {row['design']} | {row['reached']} | "
               f"{row['median']:.0f} | {row['mean']:.0f} | {row['vs_balanced']:+.0%} | "
               f"{row['coverage']:.3f} ({row['intervals']}) | {row['all_covered']:.2f} | "

@@ -43,6 +43,7 @@ def fit(study, names, main=None):
     index = {name: i for i, name in enumerate(names)}
     if kind == "sets":
         chosen, among, weight = [], [], []
+        clips = None
         decided = analysis.worth_choices(main) if main is not None else None
         if decided is not None and len(decided):
             known = decided["among"].map(lambda members: all(m in index for m in members))
@@ -50,8 +51,12 @@ def fit(study, names, main=None):
             chosen = decided["chosen"].map(index).to_numpy()
             among = [[index[m] for m in members] for members in decided["among"]]
             weight = decided["weight"].to_numpy(float)
+            if {"among_clips", "participant"} <= set(decided.columns):
+                clips = (list(decided["among_clips"]), decided["participant"].to_numpy())
         post = adaptive.choice_posterior(len(names), chosen, among, weight if len(weight) else None)
-        return post, len(chosen), adaptive.spread(post, chosen, chosen)
+        spread = adaptive.choice_spread(post, chosen, among, *(clips or ()),
+                                        weight=weight if clips else None)
+        return post, len(chosen), spread
     winner, loser, weight = [], [], []
     clips = None
     decided = analysis.worth_comparisons(main) if main is not None else None

@@ -322,3 +322,67 @@ def test_a_batch_spreads_over_the_pairs_that_lower_different_variances():
     assert counts.max() < 50
     dist = adaptive.distribution(post, "order", floor=0.2, focus=2.0, batch=100)
     np.testing.assert_allclose(dist["p"], 0.2 / 10 + 0.8 * counts / 100)
+
+
+def test_choice_spread_of_pairs_is_the_pairs_spread():
+    winner, loser = comparisons(np.array([1.0, 0.4, 0.0, -0.6]), 800, seed=2)
+    rng = np.random.default_rng(2)
+    clip_w, clip_l = winner * 3 + rng.integers(0, 3, 800), loser * 3 + rng.integers(0, 3, 800)
+    who = np.arange(800) // 16
+    post = adaptive.posterior(4, winner, loser)
+    pairs = adaptive.spread(post, winner, loser, clip_w, clip_l, who)
+    choices = adaptive.choice_spread(post, winner, list(zip(winner, loser)),
+                                     list(zip(clip_w, clip_l)), who)
+    assert np.allclose(choices.sandwich, pairs.sandwich, rtol=1e-10, atol=1e-15)
+    assert np.allclose(choices.steady, pairs.steady) and choices.df == pairs.df
+    assert adaptive.choice_spread(post, winner, list(zip(winner, loser))).steady is None
+
+
+@pytest.mark.parametrize("depth", [1, None])
+def test_choice_spread_counts_clips_as_random_for_best_of_k_and_ranking(depth):
+    rng = np.random.default_rng(7)
+    k, per, trials = 5, 4, 1500
+    quality = np.repeat([1.0, 0.5, 0.0, -0.5, -1.0], per) + rng.normal(0, 0.6, k * per)
+    chosen, among, among_clips, who = [], [], [], []
+    for trial in range(trials):
+        sources = rng.choice(k, 4, replace=False)
+        shown = sources * per + rng.integers(0, per, 4)
+        order = np.argsort(-(quality[shown] + rng.gumbel(size=4)))
+        for place in range(1 if depth == 1 else 3):
+            chosen.append(sources[order[place]])
+            among.append(sources[order[place:]])
+            among_clips.append(shown[order[place:]])
+            who.append(trial // 10)
+    post = adaptive.choice_posterior(k, chosen, among)
+    spread = adaptive.choice_spread(post, chosen, among, among_clips, who)
+    # Few clips of a large spread: the clips' share dwarfs the choices'.
+    assert spread.steady[0, 1] > 3 * spread.model[0, 1] and spread.df == 2 * per - 2
+    assert spread.stopping is spread.steady
+    state = adaptive.stop_state(post, {"interval_width": 0.5}, "top_two", trials, spread)
+    assert state["interval"] == "clips"
+    assert state["width"] > adaptive.stop_state(post, {}, "top_two", trials)["width"]
+
+
+@pytest.mark.parametrize("ranking", [False, True])
+def test_the_benchmark_of_sets_stops_on_the_interval_that_counts_clips(ranking):
+    """A fast version of ``bench_adaptive.py --sets 3 [--ranking]``: its truth is the
+    sources' strengths when clips do not vary, and a study stops with the rule's steady
+    interval (clips counted) and the wider reported one checked against the truth."""
+    import argparse
+
+    from benchmarks import bench_adaptive as bench
+
+    strength = np.array([1.0, 0.6, 0.0, -0.8])
+    depth = 2 if ranking else 1
+    assert np.allclose(bench.set_truth(strength, 0.0, 3, depth, draws=4), strength - strength.mean(),
+                       atol=1e-3)
+    args = argparse.Namespace(clips=6, budget=2000, every=100, trials=20, min_showings=1,
+                              targets=["top_two", "order"], top_width=1.2, order_width=1.5,
+                              crossed=False, floor=0.2, sharpness=2.0, focus=2.0, sets=3,
+                              ranking=ranking, set_truth=bench.set_truth(strength, 0.3, 3, depth))
+    quality = np.repeat(strength, 6) + np.random.default_rng(1).normal(0, 0.3, 24)
+    done = bench.run_sets_study("order", strength, quality, args, seed=1)
+    assert done["top_two"]["n"] and done["order"]["n"]
+    assert len(done["order"]["covered"]) == len(done["order"]["steady_covered"]) == 3
+    # The reported interval (the larger of the sandwich and the steady one) holds the rule's.
+    assert done["order"]["rule_width"] <= 1.5 and done["order"]["width"] >= done["order"]["rule_width"] - 1e-3

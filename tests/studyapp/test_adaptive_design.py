@@ -375,3 +375,34 @@ def test_a_failed_stop_on_prolific_says_how_to_retry(monkeypatch):
     assert "STOP failed" in said and "PROLIFIC_TOKEN" in said and "prolific stop --study s" in said
     assert "nothing sent" in make_platform({"platform": "prolific", "codes": {
         "completed": "C1A2B3C4"}}).stop_recruiting(Study(slug="s"))
+
+
+@pytest.mark.parametrize("study_type", SETS)
+def test_the_stopping_rule_of_sets_counts_clips_and_participants(study_type, media_root, clips,
+                                                                 extra_clips, make_bot):
+    """Best of k and ranking: the choices name their clips and participants, so the
+    rule reads the interval that counts clips as random, as for pairs."""
+    from django.core.management import call_command
+
+    from analysis.registry import get_analysis
+    from studyapp.results.adaptive import fit, main_rows
+    from studyapp.survey.models import Trial
+    from tests.studyapp.conftest import make_study
+
+    study = make_study(study_type, clips, extra_clips, design="adaptive",
+                       adaptive={"every": 2}, trials_per_participant=3, clips_per_trial=3,
+                       stop_when={"interval_width": 0.01})
+    for _ in range(4):
+        bot = make_bot(study)
+        bot.join()
+        bot.finish()
+    Trial.objects.update(time_ms=60_000)
+    call_command("adaptive_design", study.slug, stdout=open("/dev/null", "w"))
+    study.refresh_from_db()
+    stop = study.sampling["stop"]
+    assert stop["interval"] == "clips" and stop["met"] == "" and study.status != Study.Status.CLOSED
+    main = main_rows(study)
+    choices = get_analysis(study_type).worth_choices(main)
+    assert all(len(c) == len(s) for c, s in zip(choices["among_clips"], choices["among"]))
+    _, _, spread = fit(study, study.sampling["sources"], main)
+    assert spread.steady is not None and spread.df >= 1
