@@ -363,8 +363,8 @@ def test_choice_spread_counts_clips_as_random_for_best_of_k_and_ranking(depth):
     assert state["width"] > adaptive.stop_state(post, {}, "top_two", trials)["width"]
 
 
-@pytest.mark.parametrize("ranking", [False, True])
-def test_the_benchmark_of_sets_stops_on_the_interval_that_counts_clips(ranking):
+@pytest.mark.parametrize("full", [False, True])
+def test_the_benchmark_of_sets_stops_on_the_interval_that_counts_clips(full):
     """A fast version of ``bench_adaptive.py --sets 3 [--ranking]``: its truth is the
     sources' strengths when clips do not vary, and a study stops with the rule's steady
     interval (clips counted) and the wider reported one checked against the truth."""
@@ -373,13 +373,13 @@ def test_the_benchmark_of_sets_stops_on_the_interval_that_counts_clips(ranking):
     from benchmarks import bench_adaptive as bench
 
     strength = np.array([1.0, 0.6, 0.0, -0.8])
-    depth = 2 if ranking else 1
+    depth = 2 if full else 1  # whole orders of the set, or the best of it
     assert np.allclose(bench.set_truth(strength, 0.0, 3, depth, draws=4), strength - strength.mean(),
                        atol=1e-3)
     args = argparse.Namespace(clips=6, budget=2000, every=100, trials=20, min_showings=1,
                               targets=["top_two", "order"], top_width=1.2, order_width=1.5,
                               crossed=False, floor=0.2, sharpness=2.0, focus=2.0, sets=3,
-                              ranking=ranking, set_truth=bench.set_truth(strength, 0.3, 3, depth))
+                              ranking=full, set_truth=bench.set_truth(strength, 0.3, 3, depth))
     quality = np.repeat(strength, 6) + np.random.default_rng(1).normal(0, 0.3, 24)
     done = bench.run_sets_study("order", strength, quality, args, seed=1)
     assert done["top_two"]["n"] and done["order"]["n"]

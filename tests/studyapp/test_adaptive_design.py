@@ -379,9 +379,11 @@ def test_a_failed_stop_on_prolific_says_how_to_retry(monkeypatch):
 
 @pytest.mark.parametrize("study_type", SETS)
 def test_the_stopping_rule_of_sets_counts_clips_and_participants(study_type, media_root, clips,
-                                                                 extra_clips, make_bot):
+                                                                 extra_clips, make_bot, monkeypatch):
     """Best of k and ranking: the choices name their clips and participants, so the
     rule reads the interval that counts clips as random, as for pairs."""
+    import itertools
+
     from django.core.management import call_command
 
     from analysis.registry import get_analysis
@@ -392,6 +394,8 @@ def test_the_stopping_rule_of_sets_counts_clips_and_participants(study_type, med
     study = make_study(study_type, clips, extra_clips, design="adaptive",
                        adaptive={"every": 2}, trials_per_participant=3, clips_per_trial=3,
                        stop_when={"interval_width": 0.01})
+    seeds = itertools.count(1)  # participants' plans seeded: the same trials every run
+    monkeypatch.setattr("studyapp.survey.models.participation.secrets.randbits", lambda bits: next(seeds))
     for _ in range(4):
         bot = make_bot(study)
         bot.join()
