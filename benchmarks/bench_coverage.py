@@ -17,8 +17,9 @@ scale) x clips per source and condition {2, 8} x equal strengths (a = b) or uneq
 Measured per cell and method, on the difference a - b of the type's headline statistic:
 
 - coverage: the share of 95 % intervals holding the true difference (0 at equal
-  strengths; at unequal strengths the difference of a study of ``TRUTH_CLIPS`` clips per
-  source and condition and ``TRUTH_PARTICIPANTS`` participants, no bootstrap);
+  strengths; at unequal strengths the mean difference of ``--truth-repeats`` studies of
+  ``TRUTH_CLIPS`` clips per source and condition and ``TRUTH_PARTICIPANTS`` participants,
+  no bootstrap), with its Wilson 95 % interval over the cell's studies;
 - false positives (equal strengths): the share of p < 0.05;
 - power (unequal strengths): the share of p < 0.05;
 - the mean width of the interval.
@@ -40,6 +41,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from analysis.simulate import STUDY_TYPES, simulate  # noqa: E402
+from analysis.stats import wilson_interval  # noqa: E402
 from analysis.study import AnalysisConfig, analyse  # noqa: E402
 
 CLIP_SDS = (0.0, 0.5, 1.5)
@@ -124,9 +126,15 @@ def markdown(results) -> str:
         effect = "0" if r["effect"] == 0 else f"{r['effect']:g} (true {r['truth']:.3g})"
         studies = (f"{r['studies']} ({r['participants_studies']} participants only)"
                    if "participants_studies" in r else f"{r['studies']}")
+        covered = c["coverage"]
+        if covered == covered:  # with its Wilson interval over the cell's studies
+            low, high = wilson_interval(round(covered * r["studies"]), r["studies"])
+            covered = f"{covered:.3f} [{low:.3f}, {high:.3f}]"
+        else:
+            covered = "nan"
         lines.append(f"| `{r['study_type']}` | {r['clip_sd']:g} | {r['clips']} | {effect} | "
                      f"{studies} | "
-                     f"{c['coverage']:.3f} | {c['rejected']:.3f} | {c['width']:.3g} | "
+                     f"{covered} | {c['rejected']:.3f} | {c['width']:.3g} | "
                      f"{p['coverage']:.3f} | {p['rejected']:.3f} | {p['width']:.3g} |")
     return "\n".join(lines) + "\n"
 
@@ -171,7 +179,8 @@ def parse(argv=None):
     parser.add_argument("--effect", type=float, default=0.8,
                         help="a's strength above b's at unequal strengths (logit scale)")
     parser.add_argument("--bootstrap", type=int, default=200, help="resamples per scheme")
-    parser.add_argument("--truth-repeats", type=int, default=2)
+    parser.add_argument("--truth-repeats", type=int, default=20,
+                        help="large studies whose mean difference is the truth at unequal strengths")
     parser.add_argument("--first-seed", type=int, default=0,
                         help="seed of the first study (runs of different seeds can be pooled)")
     parser.add_argument("--methods", type=lambda s: tuple(s.split(",")),
