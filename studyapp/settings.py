@@ -134,6 +134,10 @@ STUDY_FETCH_WRITE_WAIT_S = float(os.environ.get("STUDY_FETCH_WRITE_WAIT_S", "0.0
 STUDY_ACCEL_REDIRECT = os.environ.get("STUDY_ACCEL_REDIRECT", "").strip()
 if STUDY_ACCEL_REDIRECT:
     STUDY_ACCEL_REDIRECT = "/" + STUDY_ACCEL_REDIRECT.strip("/") + "/"
+# Behind nginx with local media: the request sending a trial page writes its clips'
+# delivery files first and nginx sends them without asking the app (nginx_config's
+# clip location). "0": every clip goes through the clip view (nginx_config --no-ahead).
+STUDY_DELIVER_AHEAD = os.environ.get("STUDY_DELIVER_AHEAD", "1") != "0"
 
 
 def check_nodes(nodes: int, cache_url: str, fetch_log_url: str) -> None:

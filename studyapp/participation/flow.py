@@ -150,6 +150,7 @@ class DatabaseStore:
                         or self.trial_with_items(participant, participant.current_id))
         if trial is None:
             return None, [], None, 0
+        self.write_ahead(participant.study, items)
         Trial.objects.mark_shown(trial)
         practice = participant.n_practice
         total = participant.n_trials - practice
@@ -211,10 +212,22 @@ class DatabaseStore:
         return trial, items, None
 
     def clip_url(self, item, ext="mp4") -> str:
-        # Behind nginx with the media on this machine, the delivery's file is written now:
-        # nginx then sends it without asking a worker (media.deliver_ahead).
-        media.deliver_ahead(item.stimulus, item.token, ext)
         return item.clip_url(ext)
+
+    @staticmethod
+    def write_ahead(study, items) -> None:
+        """Behind nginx with the media on this machine, write the delivery files the trial
+        page makes the browser fetch, so nginx sends them without asking a worker
+        (media.deliver_ahead): each clip's payload where the page plays one, else its
+        video, and its poster. Done before the trial is marked shown, so the time of a
+        write is not counted as the participant's."""
+        if not media.writes_ahead():
+            return
+        player = page_player(study, items)
+        for item in items:
+            media.deliver_ahead(item.stimulus, item.token, "motion" if player else "mp4")
+            if item.stimulus.poster:
+                media.deliver_ahead(item.stimulus, item.token, "png")
 
     def watch_problems(self, trial, items, labels) -> list[str]:
         """Return why the server cannot take an answer yet: clips not fetched to their
@@ -451,12 +464,16 @@ class Question:
         self.trial_name = field_name(kind.trial_answer, index, criterion) if kind.trial_answer else ""
 
 
+def page_player(study, items) -> str:
+    """Return the in-page player of a trial page: the study's, when every clip has its
+    payload (the mp4 stays the fallback where WebGL 2 is missing), else ""."""
+    return study.player if all(item.stimulus.motion for item in items) else ""
+
+
 def render_trial(request, store, study, trial, items, number, total, n_practice, **extra):
     """Render a trial page; ``number`` is None for a practice trial."""
     kind = study.kind
-    # The motion itself is played in the page when the study says so and every clip has
-    # its payload (the mp4 stays the fallback where WebGL 2 is missing).
-    player = study.player if all(item.stimulus.motion for item in items) else ""
+    player = page_player(study, items)
     for item in items:
         item.label = shown_label(study, item)
         item.url = store.clip_url(item)

@@ -19,6 +19,7 @@ import urllib.request
 from django.db import transaction
 
 from analysis.blindness import ClipRecord, assess, passed  # noqa: F401 (passed: for callers)
+from studyapp.stimuli import media
 from studyapp.survey.models import Participant, Stimulus, Trial, TrialItem
 
 AUDIT_KEY = "audit:blindness"
@@ -42,6 +43,9 @@ def http_fetcher(base_url: str):
         except urllib.error.HTTPError as error:
             return error.code, dict(error.headers.items()), error.read()
 
+    # Behind nginx with clips written ahead, the audit's items are written first too, so
+    # it fetches them the way participants do (media.deliver_ahead).
+    fetch.ahead = True
     return fetch
 
 
@@ -114,6 +118,8 @@ def _delivery(item, fetch) -> dict:
                             ("motion", "motion", "motion")):
         if ext != "mp4" and not getattr(item.stimulus, name):
             continue
+        if getattr(fetch, "ahead", False):
+            media.deliver_ahead(item.stimulus, item.token, ext)
         status, headers, body = fetch(item.clip_url(ext))
         if status != 200:
             raise AuditUnavailable(_unavailable(item, what, item.clip_url(ext), status))

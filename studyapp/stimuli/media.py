@@ -311,18 +311,26 @@ def write_delivery(name: str, token: str, ext: str, seed: bytes) -> None:
         raise
 
 
+def writes_ahead() -> bool:
+    """Whether trial pages write their clips' delivery files ahead: behind nginx
+    (``STUDY_ACCEL_REDIRECT``), with the media in this machine's folder, and
+    ``STUDY_DELIVER_AHEAD`` on (the default; ``manage.py nginx_config`` reads it too)."""
+    from django.conf import settings
+
+    return (proxied(getattr(settings, "STUDY_ACCEL_REDIRECT", ""))
+            and getattr(settings, "STUDY_DELIVER_AHEAD", True) and local_media())
+
+
 def deliver_ahead(stimulus, token: str, ext: str) -> bool:
-    """Write the delivery ``token``'s ``ext`` file before the page naming it is sent, when
-    nginx sends the clips from this machine's media folder (``STUDY_ACCEL_REDIRECT``).
+    """Write the delivery ``token``'s ``ext`` file before the page naming it is sent (when
+    :func:`writes_ahead`).
 
     nginx's clip location (:func:`studyapp.participation.proxy_log.nginx_config`) tries
     that file first, so the participant's fetch never waits for an app worker (no token
     lookup, no Python); only a fetch whose file is missing goes on to the clip view
     (:func:`accel_response`). Return whether the file is there. A failed write is logged
     and leaves the view to try again (the page is not lost for it)."""
-    from django.conf import settings
-
-    if not proxied(getattr(settings, "STUDY_ACCEL_REDIRECT", "")) or not local_media():
+    if not writes_ahead():
         return False
     name = getattr(stimulus, STIMULUS_FILES[ext], "")
     if not name:
@@ -331,7 +339,7 @@ def deliver_ahead(stimulus, token: str, ext: str) -> bool:
         write_delivery(name, token, ext, delivery_seed(token))
     except (OSError, ValueError, PaddingError, PayloadError) as error:
         logger.warning("could not write delivery %s.%s ahead (%s); its clip view will try again",
-                    token, ext, error)
+                       token, ext, error)
         return False
     return True
 

@@ -37,9 +37,10 @@ class Command(BaseCommand):
                             "(chain) file; with --tls-key.")
         parser.add_argument("--tls-key", default="")
         parser.add_argument("--no-ahead", dest="ahead", action="store_false",
-                            help="Ask the clip view for every clip, also those whose pages "
-                                 "wrote their files ahead (default with local media: nginx "
-                                 "sends those straight from the deliveries folder).")
+                            help="Ask the clip view for every clip (as STUDY_DELIVER_AHEAD=0 "
+                                 "does, which also stops the pages writing files ahead); "
+                                 "default with local media: nginx sends the files the pages "
+                                 "wrote straight from the deliveries folder.")
         parser.add_argument("--proto", default="$scheme",
                             help="X-Forwarded-Proto sent to the app (behind a TLS proxy: "
                                  "$http_x_forwarded_proto).")
@@ -56,4 +57,4 @@ class Command(BaseCommand):
             fetch_log_path=fetch_log, run_dir=run_dir, location=location, workers=workers,
             proto=proto, user=user, real_ip_from=real_ip_from,
             tls_cert=tls_cert, tls_key=tls_key, s3_endpoint=s3_endpoint,
-            ahead=ahead and not s3_endpoint), ending="")
+            ahead=ahead and settings.STUDY_DELIVER_AHEAD and not s3_endpoint), ending="")
