@@ -15,7 +15,9 @@ Two ways in, both through the analysis a study's answers will get:
   participant, the clips' part by ``m0 / m``).
 
 :func:`costs` adds minutes per participant and the Prolific cost; :func:`recommend`
-picks the cheapest design that reaches the target power. The minutes come from an
+picks the cheapest design that reaches the target power, and with assumptions
+:func:`confirm` measures its power again on fresh studies (the pick's own estimate is
+biased upward by the picking). The minutes come from an
 existing study's duration model (:func:`session_minutes`, given the seconds of its
 planned session: the survey app's ``duration.session_seconds``), or without a study from
 assumptions (:func:`assumed_minutes`); either says where its number came from.
@@ -235,20 +237,52 @@ def recommend(frame: pd.DataFrame, target: float = 0.8) -> dict:
     return {"reached": False, **best.to_dict()}
 
 
+# Seeds of the confirming studies start here (the grid's are ``seed + 7919 r``).
+CONFIRM_SEED = 1_000_000_007
+
+
+def confirm(assumptions: Assumptions, recommendation: dict, studies: int = 50,
+            bootstrap: int = 100, alpha: float = 0.05, seed: int = 0,
+            target: float = 0.8) -> dict:
+    """Return ``recommendation`` with its power measured again on ``studies`` fresh
+    simulated studies of its design (seeds the grid did not draw), and whether that
+    reaches ``target``; the grid's estimate is kept as ``grid_power``.
+
+    The grid's estimate of the design it picks is biased upward: of designs near the
+    target, the one whose estimate came out high is picked. Studies drawn after the pick
+    are not, so they give the power the recommendation states."""
+    fresh = simulated_power(assumptions, (int(recommendation["participants"]),),
+                            (int(recommendation["clips"]),), studies, bootstrap, alpha,
+                            seed + CONFIRM_SEED).iloc[0]
+    out = dict(recommendation)
+    out.update(grid_power=float(recommendation["power"]), power=float(fresh["power"]),
+               power_low=float(fresh["power_low"]), power_high=float(fresh["power_high"]),
+               width=float(fresh["width"]), confirmed=int(studies),
+               reached=bool(fresh["power"] >= target))
+    return out
+
+
 def advice(recommendation: dict, target: float, frame: pd.DataFrame) -> str:
     """Return the recommendation in words."""
     r = recommendation
     cost = f", {r['minutes']:.0f} minutes each, cost {r['cost']:.2f}" if "cost" in r else ""
+    again = (f" on {r['confirmed']} fresh simulated studies (the grid's estimate "
+             f"{r['grid_power']:.0%})" if "confirmed" in r else "")
     if r["reached"]:
         return (f"{int(r['participants'])} participants and {int(r['clips'])} clips per source and "
-                f"condition reach {r['power']:.0%} power (target {target:.0%}){cost}")
+                f"condition reach {r['power']:.0%} power{again} (target {target:.0%}){cost}")
+    if r.get("grid_power", 0.0) >= target:
+        return (f"the cheapest design estimated to reach {target:.0%} power, "
+                f"{int(r['participants'])} participants and {int(r['clips'])} clips, reaches "
+                f"{r['power']:.0%}{again}{cost}: take a larger design, or plan again with "
+                f"more --studies")
     more_clips = frame.groupby("clips")["power"].max()
     more_people = frame.groupby("participants")["power"].max()
     gain_clips = more_clips.iloc[-1] - more_clips.iloc[0]
     gain_people = more_people.iloc[-1] - more_people.iloc[0]
     what = "clips" if gain_clips > gain_people else "participants"
     return (f"no design of the grid reaches {target:.0%} power; the best, {int(r['participants'])} "
-            f"participants and {int(r['clips'])} clips, reaches {r['power']:.0%}{cost}; "
+            f"participants and {int(r['clips'])} clips, reaches {r['power']:.0%}{again}{cost}; "
             f"more {what} gain the most")
 
 

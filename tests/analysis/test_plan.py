@@ -81,3 +81,19 @@ def test_session_minutes_come_from_the_planned_session_and_say_so():
     assumed = plan.assumed_minutes(12, 4.0)
     assert assumed.minutes == plan.minutes_per_participant(12, 4.0)
     assert assumed.source.startswith("assumed: 12 trials of 4 s clips")
+
+
+def test_the_recommendation_is_confirmed_on_fresh_studies():
+    """The grid's estimate of the design it picks is biased upward by the picking; the
+    stated power comes from studies drawn after the pick."""
+    assumptions = plan.Assumptions("rating_standards", effect=1.0, clip_sd=0.3, trials=6)
+    grid = plan.simulated_power(assumptions, participants=(8, 30), clips=(2, 6), studies=6,
+                                bootstrap=20)
+    best = plan.recommend(grid, target=0.5)
+    confirmed = plan.confirm(assumptions, best, studies=6, bootstrap=20, target=0.5)
+    assert confirmed["grid_power"] == best["power"] and confirmed["confirmed"] == 6
+    assert (confirmed["participants"], confirmed["clips"]) == (best["participants"], best["clips"])
+    assert confirmed["reached"] == (confirmed["power"] >= 0.5)
+    assert confirmed["power_low"] <= confirmed["power"] <= confirmed["power_high"]
+    said = plan.advice(confirmed, 0.5, grid)
+    assert "fresh simulated studies" in said and f"{confirmed['grid_power']:.0%}" in said

@@ -148,6 +148,13 @@ class Command(BaseCommand):
         frame = plan.costs(frame, minutes.minutes, options["reward_per_hour"],
                            options["service_fee"])
         best = plan.recommend(frame, options["target"])
+        if not options["pilot"]:
+            # The pick's own estimate is biased upward by the picking: measure it again.
+            try:
+                best = plan.confirm(assumptions, best, options["studies"], options["bootstrap"],
+                                    options["alpha"], options["seed"], options["target"])
+            except AnalysisError as error:
+                raise CommandError(str(error)) from None
         self.stdout.write(f"Power {source}; service fee {options['service_fee']:.1%} of rewards")
         self.stdout.write(f"Minutes per participant: {minutes.minutes:.1f}, {minutes.source}")
         self.stdout.write(frame.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
