@@ -4,7 +4,7 @@ says. tests/studyapp/test_accel.py runs the same against a real nginx."""
 
 import pytest
 
-from tests.studyapp.conftest import make_study
+from tests.studyapp.conftest import make_ranking_study
 
 pytestmark = pytest.mark.django_db
 
@@ -24,7 +24,7 @@ def test_a_trial_page_writes_its_videos_and_posters_before_it_is_shown(behind_ng
                                                                         make_bot, settings):
     from studyapp.survey.models import Trial
 
-    study = make_study("ranking", clips)
+    study = make_ranking_study(clips)
     bot = make_bot(study)
     bot.join()
     trial = Trial.objects.filter(participant=bot.participant(), shown_at__isnull=False).get()
@@ -42,7 +42,7 @@ def test_a_trial_page_writes_its_videos_and_posters_before_it_is_shown(behind_ng
 
 def test_nothing_is_written_without_nginx_or_when_switched_off(clips, make_bot, media_root,
                                                                settings):
-    study = make_study("ranking", clips)
+    study = make_ranking_study(clips)
     make_bot(study).join()  # no STUDY_ACCEL_REDIRECT: the view streams
     assert written(media_root) == set()
     settings.STUDY_ACCEL_REDIRECT = "/protected-media/"
@@ -59,7 +59,7 @@ def test_a_failed_write_leaves_the_page_and_the_view_to_try_again(behind_nginx, 
         raise OSError(28, "No space left on device")
 
     monkeypatch.setattr(media, "write_delivery", full_disk)
-    study = make_study("ranking", clips)
+    study = make_ranking_study(clips)
     bot = make_bot(study)
     bot.join()
     page = bot.trial_page(watch=False)
