@@ -121,21 +121,31 @@ def pilot_components(result, a: str, b: str) -> dict:
     clips = result.analysis.tables
     per = next((t.frame for t in clips if t.name == "clips"), None)
     m0 = float(per.loc[[a, b], "fewest_per_condition"].mean()) if per is not None else float("nan")
+    # Conditions a source's clips come in (its clips over the fewest per condition).
+    conditions = (float((per.loc[[a, b], "n_clips"] / per.loc[[a, b], "fewest_per_condition"]).mean())
+                  if per is not None else 1.0)
     return {"difference": sign * float(row["difference"]), "se": float(row["se"]),
             "share_participants": float(row["share_participants"]),
             "share_clips": float(row["share_clips"]), "share_residual": float(row["share_residual"]),
             "participants": int(result.counts["participants"]), "clips": m0,
+            "conditions": conditions,
             "trials": result.counts["trials"] / max(result.counts["participants"], 1)}
 
 
 def pilot_power(components: dict, participants=(20, 40, 80), clips=(2, 4, 8),
                 effect: float | None = None, alpha: float = 0.05) -> pd.DataFrame:
-    """Return per design the expected standard error, interval ``width`` and ``power`` of
-    the difference (the pilot's own, or ``effect`` on its scale), scaling the pilot's
-    variance shares (same trials per participant); power by the normal approximation."""
+    """Return per design the expected standard error, degrees of freedom, interval
+    ``width`` and ``power`` of the difference (the pilot's own, or ``effect`` on its
+    scale), scaling the pilot's variance shares (same trials per participant).
+
+    The width and the power use the t quantile the analysis will use for that design:
+    the fewer of ``P - 1`` and the two sources' clips' degrees of freedom (``m - 1`` per
+    source and condition, as :meth:`analysis.crossed.Crossed.clip_df` counts them; only
+    ``P - 1`` where the pilot's clips show no variance), so that a design of few clips is
+    not promised the normal quantile's narrower interval; power by the shifted t."""
     effect = components["difference"] if effect is None else effect
     variance = components["se"] ** 2
-    z = scipy_stats.norm.ppf(1 - alpha / 2)
+    conditions = components.get("conditions", 1.0)
     records = []
     for n_participants in participants:
         for n_clips in clips:
@@ -143,10 +153,14 @@ def pilot_power(components: dict, participants=(20, 40, 80), clips=(2, 4, 8),
             part = variance * ((components["share_participants"] + components["share_residual"])
                                * scale_p + components["share_clips"] * components["clips"] / n_clips)
             se = math.sqrt(part)
+            df = float(max(n_participants - 1, 1))
+            if components["share_clips"] > 0:
+                df = min(df, max(2 * conditions * (n_clips - 1), 1.0))
+            quantile = scipy_stats.t.ppf(1 - alpha / 2, df)
             shift = abs(effect) / se if se > 0 else math.inf
-            power = scipy_stats.norm.sf(z - shift) + scipy_stats.norm.cdf(-z - shift)
+            power = scipy_stats.t.sf(quantile - shift, df) + scipy_stats.t.cdf(-quantile - shift, df)
             records.append({"participants": n_participants, "clips": n_clips, "power": float(power),
-                            "width": 2 * z * se, "se": se})
+                            "width": 2 * quantile * se, "se": se, "df": df})
     return pd.DataFrame(records)
 
 

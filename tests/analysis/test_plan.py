@@ -58,8 +58,12 @@ def test_minutes_costs_and_the_recommendation():
     assert costed["reward"].iloc[0] == pytest.approx(reward)
     assert costed["cost"].tolist() == pytest.approx(
         (costed["participants"] * reward * (1 + plan.PROLIFIC_SERVICE_FEE)).tolist())
-    best = plan.recommend(costed, target=0.8)
+    best = plan.recommend(costed, target=0.6)
     assert best["reached"] and best["clips"] == 8  # clips dominate: more clips, few people
+    # Two clips leave the difference 2 degrees of freedom: the t quantile the analysis
+    # will use, not the normal one, sets the width and the power.
+    two = costed.loc[costed["clips"] == 2]
+    assert (two["df"] == 2).all() and (two["power"] < 0.1).all()
     none = plan.recommend(costed, target=0.9999)
     assert not none["reached"]
     assert "more clips gain the most" in plan.advice(none, 0.9999, costed)
