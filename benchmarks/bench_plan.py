@@ -1,6 +1,6 @@
 """Do `plan`'s recommendations reach their stated power? Per study type, in simulation.
 
-    .venv/bin/python benchmarks/bench_plan.py [--types mushra,...] [--studies 200]
+    .venv/bin/python benchmarks/bench_plan.py [--types T,...] [--studies 200]
                                               [--plan-studies 50] [--pilots 10]
                                               [--json out.json] [--markdown out.md]
 

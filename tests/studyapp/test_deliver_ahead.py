@@ -91,3 +91,22 @@ def test_the_direct_locations_log_lines_are_witnesses():
     # After try_files nginx logs the file it sent.
     found = witness_of(f"1796474588.570 200 1910 OK /deliveries/{token}.mp4 -")
     assert found[0] == token and parse_line(found[1])[:4] == ("mp4", 0, 1909, 1910)
+
+
+def test_the_command_leaves_the_clip_location_out_when_asked(tmp_path, settings):
+    import io
+
+    from django.core.management import call_command
+
+    settings.STUDY_ACCEL_REDIRECT = "/protected-media/"
+
+    def run(*extra):
+        out = io.StringIO()
+        call_command("nginx_config", "--run-dir", str(tmp_path), "--fetch-log",
+                     str(tmp_path / "fetches.log"), *extra, stdout=out)
+        return out.getvalue()
+
+    assert "try_files /deliveries/$delivery @app;" in run()
+    assert "/c/" not in run("--no-ahead")
+    settings.STUDY_DELIVER_AHEAD = False
+    assert "/c/" not in run()
