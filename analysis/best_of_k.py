@@ -258,7 +258,7 @@ class BestOfK(StudyAnalysis):
             reading="the clip picked as best against each other clip of its trial: under "
                     "Plackett-Luce, given that one of two clips was picked, it is the one "
                     "Bradley-Terry with the same worths prefers",
-            clustered=True)
+            clustered=True, checkpoints=mixed.clip_checkpoints(rows))
         tables += model_tables
         methods += model_methods
         notes += model_notes

@@ -16,6 +16,13 @@ library fits the model, so that each checks the other:
   (``BinomialBayesMixedGLM``, Laplace covariance for the fixed effects), each type's
   plug-in giving its pairs (:func:`worth_tables`, :func:`ranked_pairs`).
 
+Training seeds: where a source's clips come from two or more checkpoints (a column
+``training_seed``, as the crossed bootstrap reads it), each of those checkpoints gets a
+random intercept of its own (a third variance component, ``training seeds``), so that a
+source's interval speaks of the method trained again rather than of these checkpoints;
+its degrees of freedom count the source's seeds (``seeds - 1``), not its clips. Sources
+with one checkpoint, and real clips, get none.
+
 Their fits take seconds, so they run when the analysis asks (``mixed_models``); a table
 too large for their dense design matrices is skipped with a note.
 """
@@ -46,6 +53,52 @@ def _frame(rows: pd.DataFrame, value: str) -> pd.DataFrame:
     })
 
 
+def seeded_sources(rows: pd.DataFrame) -> dict:
+    """Return ``{source: number of training seeds}`` of the sources whose clips come from
+    two or more checkpoints (``training_seed``); empty when none does."""
+    if "training_seed" not in rows.columns or not rows["training_seed"].notna().any():
+        return {}
+    counts = rows.loc[rows["training_seed"].notna()].groupby(
+        rows["source"].astype(str), observed=True)["training_seed"].nunique()
+    return {str(source): int(n) for source, n in counts.items() if n >= 2}
+
+
+def checkpoints_of(rows: pd.DataFrame) -> pd.Series | None:
+    """Return the checkpoint of each row's clip (``"source / seed"``) where its source has
+    several training seeds, else None (NaN); None when no source has several."""
+    several = seeded_sources(rows)
+    if not several:
+        return None
+    source = rows["source"].astype(str)
+    label = source + " / seed " + rows["training_seed"].astype(str)
+    keep = source.isin(list(several)) & rows["training_seed"].notna()
+    return label.where(keep.to_numpy(), None)
+
+
+def clip_checkpoints(rows: pd.DataFrame) -> dict | None:
+    """Return ``{clip id (str): checkpoint}`` of the clips of several-seed sources (for
+    :func:`worth`'s pairs), or None when no source has several seeds."""
+    labels = checkpoints_of(rows)
+    if labels is None:
+        return None
+    keep = labels.notna().to_numpy()
+    return dict(zip(rows["stimulus"].astype(str).to_numpy()[keep], labels.to_numpy()[keep]))
+
+
+def _checkpoint_columns(data: pd.DataFrame, labels: pd.Series | None) -> str | None:
+    """Add a 0/1 column per several-seed checkpoint to ``data`` and return the variance
+    component's formula over them (None without such checkpoints): rows of other sources
+    are 0 in every column, so they get no seed intercept."""
+    if labels is None:
+        return None
+    names = []
+    for i, label in enumerate(pd.unique(labels.dropna())):
+        name = f"checkpoint_{i}"
+        data[name] = (labels.to_numpy() == label).astype(float)
+        names.append(name)
+    return "0 + " + " + ".join(names)
+
+
 def degrees_of_freedom(rows: pd.DataFrame, *sources) -> float:
     """Return the degrees of freedom of a Wald test of ``sources``' means (one: its
     mean; two: their difference): the fewer of the participants' ``P - 1`` and the
@@ -53,11 +106,16 @@ def degrees_of_freedom(rows: pd.DataFrame, *sources) -> float:
     crossed bootstrap's, Hsu's bound). With 2 clips per source and condition a normal
     quantile treats a clip variance from 2 degrees of freedom as known: the MixedLM's
     Wald z test rejected equal sources in 16.7 % of simulated studies, the same standard
-    error with t(2) in 8.3 % (docs/STATISTICS.md)."""
+    error with t(2) in 8.3 % (docs/STATISTICS.md). A source with several training seeds
+    counts ``seeds - 1`` instead of its clips' (the module's "Training seeds")."""
     by = ["source", "action"] if "action" in rows.columns else ["source"]
-    mine = rows.loc[rows["source"].astype(str).isin([str(s) for s in sources])]
+    several = seeded_sources(rows)
+    wanted = [str(s) for s in sources]
+    mine = rows.loc[rows["source"].astype(str).isin([s for s in wanted if s not in several])]
     per_group = mine.groupby(by, observed=True)["stimulus"].nunique()
-    clip_df = float(np.maximum(per_group.to_numpy() - 1, 0).sum())
+    # A source trained with several seeds: its seeds are the sampled unit (seeds - 1).
+    clip_df = float(np.maximum(per_group.to_numpy() - 1, 0).sum()
+                    + sum(several[s] - 1 for s in wanted if s in several))
     participant_df = float(max(rows["pcode"].nunique() - 1, 1))
     return min(participant_df, clip_df) if clip_df > 0 else participant_df
 
@@ -80,9 +138,12 @@ def linear(rows: pd.DataFrame, value: str, confidence: float = 0.95) -> dict:
     import statsmodels.api as sm
 
     data = _frame(rows, value)
+    vc_formula = {"participant": "0 + C(participant)", "clip": "0 + C(clip)"}
+    seeds = _checkpoint_columns(data, checkpoints_of(rows))
+    if seeds:
+        vc_formula["checkpoint"] = seeds
     model = sm.MixedLM.from_formula(
-        "y ~ 0 + C(source)", groups="group", re_formula="0", data=data,
-        vc_formula={"participant": "0 + C(participant)", "clip": "0 + C(clip)"})
+        "y ~ 0 + C(source)", groups="group", re_formula="0", data=data, vc_formula=vc_formula)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # convergence chatter; the result says if it failed
         # statsmodels' default (gradient) optimisers can stop short of the REML optimum
@@ -115,8 +176,10 @@ def linear(rows: pd.DataFrame, value: str, confidence: float = 0.95) -> dict:
     differences = pd.DataFrame(records)
     differences["p_holm"] = holm(differences["p"])
     vc = dict(zip(model.exog_vc.names, np.asarray(fit.vcomp, dtype=float)))
-    components = _components({"participants": vc["participant"], "clips": vc["clip"],
-                              "residual": float(fit.scale)})
+    variances = {"participants": vc["participant"], "clips": vc["clip"]}
+    if seeds:
+        variances["training seeds"] = vc["checkpoint"]
+    components = _components({**variances, "residual": float(fit.scale)})
     return {"means": means, "differences": differences, "components": components,
             "converged": bool(fit.converged)}
 
@@ -131,8 +194,11 @@ def logistic(rows: pd.DataFrame, value: str, reference: str, confidence: float =
 
     data = _frame(rows, value)
     formula = f"y ~ C(source, Treatment({reference!r}))"
-    model = BinomialBayesMixedGLM.from_formula(
-        formula, {"participant": "0 + C(participant)", "clip": "0 + C(clip)"}, data)
+    vc_formulas = {"participant": "0 + C(participant)", "clip": "0 + C(clip)"}
+    seeds = _checkpoint_columns(data, checkpoints_of(rows))
+    if seeds:
+        vc_formulas["checkpoint"] = seeds
+    model = BinomialBayesMixedGLM.from_formula(formula, vc_formulas, data)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         fit = model.fit_vb()
@@ -153,8 +219,10 @@ def logistic(rows: pd.DataFrame, value: str, reference: str, confidence: float =
     differences = pd.DataFrame(records)
     differences["p_holm"] = holm(differences["p"])
     sds = dict(zip(model.vcp_names, np.exp(fit.vcp_mean)))
-    components = _components({"participants": sds["participant"] ** 2,
-                              "clips": sds["clip"] ** 2, "residual": np.pi ** 2 / 3})
+    variances = {"participants": sds["participant"] ** 2, "clips": sds["clip"] ** 2}
+    if seeds:
+        variances["training seeds"] = sds["checkpoint"] ** 2
+    components = _components({**variances, "residual": np.pi ** 2 / 3})
     return {"differences": differences, "components": components}
 
 
@@ -177,6 +245,18 @@ def laplace_covariance(model, fit) -> np.ndarray:
     b = np.asarray((exog_vc.T @ w @ exog))
     c = (exog_vc.T @ w @ exog_vc + sparse.diags(1.0 / sd_vc ** 2)).tocsc()
     return np.linalg.inv(a - b.T @ splu(c).solve(b))
+
+
+SEED_METHOD = ("where a source's clips came from checkpoints of several training seeds, each "
+               "checkpoint had a random effect of its own (a variance component of training "
+               "seeds)")
+
+
+def _seed_method(components: pd.DataFrame, df: bool = True) -> list[str]:
+    if "training seeds" not in set(components["component"]):
+        return []
+    return [SEED_METHOD + (", and that source's degrees of freedom counted its seeds"
+                           if df else "")]
 
 
 def _components(variances: dict) -> pd.DataFrame:
@@ -207,6 +287,7 @@ def linear_tables(rows: pd.DataFrame, value: str, config, unit: str):
                f"(statsmodels MixedLM with variance components); its differences of means are "
                f"Wald tests with t quantiles of the bootstrap's degrees of freedom (the fewer of "
                f"the participants' and the compared sources' clips'), Holm-corrected"]
+    methods += _seed_method(fitted["components"])
     notes = [] if fitted["converged"] else ["the linear mixed model did not converge: read its "
                                             "table with care"]
     return tables, methods, notes, fitted
@@ -235,6 +316,7 @@ def logistic_tables(rows: pd.DataFrame, value: str, reference: str, config):
                f"covariance of the fixed effects (the mean-field variational SDs are too "
                f"narrow), with t quantiles of the bootstrap's degrees of freedom (the fewer of "
                f"the participants' and the compared sources' clips'), Holm-corrected"]
+    methods += _seed_method(fitted["components"])
     return tables, methods, []
 
 
@@ -286,7 +368,8 @@ def ranked_pairs(rows: pd.DataFrame, rank: str) -> pd.DataFrame:
 
 
 def worth(pairs: pd.DataFrame, names, *, sided: bool = False, clustered: bool = False,
-          confidence: float = 0.95, prior_sd: float = WORTH_PRIOR_SD) -> dict:
+          confidence: float = 0.95, prior_sd: float = WORTH_PRIOR_SD,
+          checkpoints: dict | None = None) -> dict:
     """Return the Bradley-Terry logistic mixed model of ``pairs``.
 
     ``pairs`` has one row per comparison: sources ``first``/``second``, clips
@@ -300,6 +383,10 @@ def worth(pairs: pd.DataFrame, names, *, sided: bool = False, clustered: bool = 
     fixed effects at the fitted random effects and variances (the fixed block of the
     inverse Hessian of the joint log posterior), which keeps the correlation of a source's
     worth with its clips' that the variational posterior drops.
+
+    ``checkpoints`` (``{clip id: checkpoint}``, :func:`clip_checkpoints`): clips of
+    sources trained with several seeds; each checkpoint gets a random worth of its own, a
+    third variance component (the module's "Training seeds").
 
     ``clustered``: a trial gave several pairs (rankings, best of k), which the model
     treats as independent; each variance is then multiplied by the ratio of the
@@ -339,10 +426,16 @@ def worth(pairs: pd.DataFrame, names, *, sided: bool = False, clustered: bool = 
                                shape=(n, (int(person.max()) + 1) * k))
     people = people[:, np.flatnonzero(people.getnnz(axis=0))]
     clips.sum_duplicates()
-    exog_vc = sparse.hstack([people, clips]).tocsr()
-    ident = np.r_[np.zeros(people.shape[1], dtype=int), np.ones(n_clips, dtype=int)]
-    model = BinomialBayesMixedGLM(y, exog, exog_vc, ident, vcp_p=1.0, fe_p=prior_sd,
-                                  fep_names=fixed_names, vcp_names=["participant", "clip"])
+    blocks, ident, vcp_names = [people, clips], [np.zeros(people.shape[1], dtype=int),
+                                                 np.ones(n_clips, dtype=int)], ["participant", "clip"]
+    seeded = _checkpoint_block(pairs, checkpoints, at)
+    if seeded is not None:
+        blocks.append(seeded)
+        ident.append(np.full(seeded.shape[1], 2, dtype=int))
+        vcp_names.append("checkpoint")
+    exog_vc = sparse.hstack(blocks).tocsr()
+    model = BinomialBayesMixedGLM(y, exog, exog_vc, np.concatenate(ident), vcp_p=1.0,
+                                  fe_p=prior_sd, fep_names=fixed_names, vcp_names=vcp_names)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         fit = model.fit_vb()
@@ -384,8 +477,10 @@ def worth(pairs: pd.DataFrame, names, *, sided: bool = False, clustered: bool = 
     differences = pd.DataFrame(records, columns=["a", "b", "difference", "sd", "ci_low",
                                                  "ci_high", "p"])
     differences["p_holm"] = holm(differences["p"]) if len(differences) else []
-    components = _components({"participants": sd_vc[0] ** 2, "clips": sd_vc[1] ** 2,
-                              "residual": np.pi ** 2 / 3})
+    variances = {"participants": sd_vc[0] ** 2, "clips": sd_vc[1] ** 2}
+    if seeded is not None:
+        variances["training seeds"] = sd_vc[2] ** 2
+    components = _components({**variances, "residual": np.pi ** 2 / 3})
     result = {"scores": scores, "differences": differences, "components": components,
               "widening": widening, "n_pairs": n, "notes": notes}
     if sided:
@@ -394,6 +489,32 @@ def worth(pairs: pd.DataFrame, names, *, sided: bool = False, clustered: bool = 
                               "ci_low": float(fixed[0] - z * sd), "ci_high": float(fixed[0] + z * sd),
                               "p": float(2 * scipy_stats.norm.sf(abs(fixed[0]) / sd))}
     return result
+
+
+def _checkpoint_block(pairs: pd.DataFrame, checkpoints: dict | None, at: np.ndarray):
+    """Return the pairs' design of the checkpoints' random worths (+1 the first clip's
+    checkpoint, -1 the second's; 0 for clips of one-checkpoint sources), or None."""
+    if not checkpoints:
+        return None
+    from scipy import sparse
+
+    first = pairs["first_clip"].astype(str).map(checkpoints)
+    second = pairs["second_clip"].astype(str).map(checkpoints)
+    labels = pd.unique(pd.concat([first, second]).dropna())
+    if len(labels) == 0:
+        return None
+    code = {label: i for i, label in enumerate(labels)}
+    rows, columns, values = [], [], []
+    for side, sign in ((first, 1.0), (second, -1.0)):
+        known = side.notna().to_numpy()
+        rows.append(at[known])
+        columns.append(side[known].map(code).to_numpy(dtype=np.int64))
+        values.append(np.full(int(known.sum()), sign))
+    block = sparse.csr_matrix((np.concatenate(values), (np.concatenate(rows), np.concatenate(columns))),
+                              shape=(len(pairs), len(labels)))
+    block.sum_duplicates()
+    block.eliminate_zeros()
+    return block
 
 
 def _cluster_ratio(y, exog, groups, offset, k):
@@ -424,7 +545,7 @@ def _cluster_ratio(y, exog, groups, offset, k):
 
 def worth_tables(pairs: pd.DataFrame, names, config, bootstrap_scores: pd.Series, *,
                  measure: str, reading: str, sided: bool = False, clustered: bool = False,
-                 bootstrap_label: str = "bootstrap"):
+                 bootstrap_label: str = "bootstrap", checkpoints: dict | None = None):
     """Return ``(tables, methods, notes, fitted)`` of the Bradley-Terry mixed model for a
     worth type's analysis: its worths beside ``bootstrap_scores`` (the crossed
     bootstrap's, by source), its differences and variance components; nothing when not
@@ -437,7 +558,8 @@ def worth_tables(pairs: pd.DataFrame, names, config, bootstrap_scores: pd.Series
                         f"{MAX_PAIRS}; the crossed bootstrap stands alone"], None
     if len(pairs) == 0 or len(names) < 2:
         return [], [], ["the mixed model was not fitted: no pairs of two sources to fit"], None
-    fitted = worth(pairs, names, sided=sided, clustered=clustered, confidence=config.confidence)
+    fitted = worth(pairs, names, sided=sided, clustered=clustered, confidence=config.confidence,
+                   checkpoints=checkpoints)
     scores = fitted["scores"].set_index("source")
     scores[bootstrap_label] = bootstrap_scores.reindex(scores.index)
     if clustered:
@@ -467,6 +589,7 @@ def worth_tables(pairs: pd.DataFrame, names, config, bootstrap_scores: pd.Series
         + ("; as a trial's pairs are not independent, each variance was multiplied by the ratio "
            "of the trial-clustered (sandwich) to the naive variance of the same contrast in the "
            "fixed-effects logit" if clustered else "")]
+    methods += _seed_method(fitted["components"], df=False)
     if sided:
         position = fitted["position"]
         methods.append(f"the mixed model's left advantage (log-odds) was "

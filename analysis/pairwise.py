@@ -146,7 +146,7 @@ class Pairwise(StudyAnalysis):
         model_tables, model_methods, model_notes, model = mixed.worth_tables(
             sided_pairs(decided, names), names, config, sources["score"],
             measure="Bradley-Terry worth", reading="the decided comparisons, the left clip first",
-            sided=True)
+            sided=True, checkpoints=mixed.clip_checkpoints(rows))
         tables += model_tables
         methods += model_methods
         tests = {"position_bias": bias, "ties": ties, "differences": shown.differences}

@@ -240,7 +240,7 @@ class PairwiseGraded(StudyAnalysis):
             reading="the directional answers, the left clip first; no preference and Both bad "
                     "left out: given a direction, Davidson's model with its order effect is "
                     "Bradley-Terry with a left advantage, with the same worths",
-            sided=True)
+            sided=True, checkpoints=mixed.clip_checkpoints(rows))
         tables += model_tables
         methods += model_methods
         notes += model_notes

@@ -243,7 +243,7 @@ class Ranking(StudyAnalysis):
             measure="Plackett-Luce worth",
             reading="every two clips of a ranking, the higher ranked one preferred: under "
                     "Plackett-Luce each such pair follows Bradley-Terry with the same worths",
-            clustered=True)
+            clustered=True, checkpoints=mixed.clip_checkpoints(rows))
         tables += model_tables
         methods += model_methods
         notes += model_notes
