@@ -161,7 +161,10 @@ def main():
                 f"{k} {v:.3g}" for k, v in results[name].get(seed, {}).items()
                 if v is not None and not k.startswith("real_")) or "trained"), flush=True)
     if classifier is not None:
-        text = table(results, seeds)
+        accuracy = classifier.test_accuracy
+        text = (f"Classifier: `{args.classifier.name}`, held-out accuracy "
+                + (f"{accuracy:.3f}" if accuracy is not None else "not recorded")
+                + f"; {args.iters} iterations per cell and seed.\n\n" + table(results, seeds))
         print(text)
         if args.out:
             args.out.write_text(text + "\n")

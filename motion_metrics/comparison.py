@@ -465,6 +465,8 @@ def _run_setting(setting, methods, presets, budget, iters, folder, repeats, seed
         "classifier": {
             "preset": classifier_preset, "hidden": classifier.config.hidden,
             "layers": classifier.config.layers, "iterations": classifier.iteration,
+            "mirror": classifier.config.mirror, "rotate": classifier.config.rotate,
+            "temporal": classifier.config.temporal,
             "seconds": clf_record.get("seconds"), "test_accuracy": classifier.test_accuracy,
             "train_accuracy": classifier.train_accuracy,
             "per_class": per_class_accuracy(classifier, test),

@@ -183,8 +183,10 @@ def _setting(result: dict, setting: dict) -> list[str]:
     )
     lines.append(
         f"- Classifier: A2M's GRU recogniser ({clf['preset']} preset: {clf['layers']} layers of "
-        f"{clf['hidden']}, 30-d tanh features) trained {clf['iterations']} iterations on the "
-        f"training clips; its own "
+        f"{clf['hidden']}, 30-d tanh features"
+        + (f", a temporal convolution of {clf['temporal']} beside it" if clf.get("temporal") else "")
+        + f") trained {clf['iterations']} iterations on the training clips"
+        + _augmentation(clf) + "; its own "
         f"accuracy on the held-out clips is **{clf['test_accuracy']:.3f}** (on the training "
         f"clips {clf['train_accuracy']:.3f})."
         + (f" Early stopping: {clf['n_validation']} clips of a seeded share of the training "
@@ -195,6 +197,8 @@ def _setting(result: dict, setting: dict) -> list[str]:
            if clf.get("best_iteration") is not None else "")
         + (" Seed 004's classifier has its video discriminator's architecture, so accuracies "
            "compare in tendency only." if "004_table_2" in setting["tables"] else "")
+        + " The classifier variants tried, with their held-out accuracy, and real clips' MMD "
+          "against the number of clips: `docs/INSTRUMENTS.md`."
     )
     lines.append("")
     lines += _confusion_table(setting)
@@ -366,6 +370,13 @@ def _metric_table(setting: dict, metrics: list[str], tables: list[PaperTable]) -
             NAMES[m].split(" ")[0] for m in metrics if any(m in t.metrics for t in tables)) + "): "
             + ". ".join(others) + ".", ""]
     return lines
+
+
+def _augmentation(clf: dict) -> str:
+    """Return how the classifier's training clips were augmented, as a clause."""
+    parts = (["mirrored at random"] if clf.get("mirror") else []) + (
+        [f"rotated by up to {clf['rotate']:g}°"] if clf.get("rotate") else [])
+    return f" ({' and '.join(parts)})" if parts else ""
 
 
 def _confusion_table(setting: dict) -> list[str]:
