@@ -380,7 +380,7 @@ def run_comparison(datasets: Sequence[str], budget: float | None, work: str | Pa
                   methods: Sequence[str] | None = None, presets: dict[str, str] | None = None,
                   repeats: int = 20, n: int = 100, subjects=None,
                   test_subjects=None, actions=None, classifier_iters: int = 500,
-                  classifier_preset: str = "paper", data_root=None, checkpoint_every: float = 15.0,
+                  classifier_preset: str = "augmented", data_root=None, checkpoint_every: float = 15.0,
                   mmd_protocol: str = MMD_PROTOCOL, selection: Selection = LAST,
                   progress: bool = True, log: Callable[[str], None] | None = None) -> dict:
     """Compare ``methods`` (default: all) on each dataset; return the results (JSON-ready).

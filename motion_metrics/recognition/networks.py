@@ -19,7 +19,7 @@ class ClassifierConfig:
 
     ``paper`` is A2M's network as released (a 2-layer GRU of 128, no augmentation);
     ``augmented`` adds what was measured to recognise held-out subjects better on h36m2d
-    (``benchmarks/bench_classifier.py``; ``docs/RESULTS.md`` gives the variants' held-out
+    (``benchmarks/bench_classifier.py``; ``docs/INSTRUMENTS.md`` gives the variants' held-out
     accuracy): mirrored clips and rotations of up to 10 degrees (a temporal convolution
     beside the GRU, ``temporal``, lowered it); ``tiny`` is for tests.
     ``temporal`` is the width of the convolution branch (0: none); ``mirror`` trains on

@@ -58,7 +58,7 @@ class Command(BaseCommand):
         parser.add_argument("--actions", help="Comma-separated actions (default: the dataset's).")
         parser.add_argument("--classifier-iters", type=int, default=500,
                             help="Training iterations of the action classifier.")
-        parser.add_argument("--classifier-preset", default="paper",
+        parser.add_argument("--classifier-preset", default="augmented",
                             help="Classifier preset: paper (A2M's GRU), augmented (the same GRU "
                                  "trained on mirrored and rotated clips) or tiny (tests).")
         parser.add_argument("--mmd-protocol", choices=sorted(MMD_PROTOCOLS), default=MMD_PROTOCOL,

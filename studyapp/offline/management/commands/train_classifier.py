@@ -40,7 +40,7 @@ class Command(BaseCommand):
                             help="Iterations between validation measurements.")
         parser.add_argument("--validation", type=float, default=VALIDATION_FRACTION,
                             help="Share of each action's training takes set aside to validate on.")
-        parser.add_argument("--preset", default="paper",
+        parser.add_argument("--preset", default="augmented",
                             help=f"Config preset: {', '.join(sorted(ClassifierConfig.PRESETS))} "
                                  f"(paper: A2M's 2-layer GRU of 128; augmented: the same network trained on "
                                  f"mirrored and slightly rotated clips; tiny: tests).")
