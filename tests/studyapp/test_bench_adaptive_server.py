@@ -30,3 +30,29 @@ def test_the_benchmark_runs_both_designs_through_the_real_pages(media_root, live
     assert adaptive.sampling.get("pairs") and "stop" in adaptive.sampling  # the job ran
     rows = bench.summary(results)
     assert "| top_two (4.0) | adaptive |" in bench.table(rows, "top_two", 4.0)
+
+
+def test_a_batch_is_part_of_the_adaptive_settings_only_when_asked(media_root, tmp_path):
+    clips = bench.write_clips(tmp_path / "clips", clips=1)
+    batched = bench.make_study("batched", "adaptive", clips, "order", 0.7, 4, 10, batch=20)
+    plain = bench.make_study("plain", "adaptive", clips, "order", 0.7, 4, 10)
+    assert batched.adaptive == {"every": 10, "target": "order", "batch": 20}
+    assert plain.adaptive == {"every": 10, "target": "order"}
+    assert batched.stop_when == {"interval_width": 0.7}
+
+
+def test_replicates_run_at_once_and_each_is_yielded_as_it_ends(monkeypatch):
+    import threading
+
+    together = threading.Barrier(2, timeout=10)  # broken (an error) unless two run at once
+    seen = []
+
+    def run_pair(url, clips, seed, **settings):
+        together.wait()
+        seen.append(settings)
+        return [{"seed": seed, "design": design} for design in bench.DESIGNS]
+
+    monkeypatch.setattr(bench, "run_pair", run_pair)
+    pairs = list(bench.run_replicates("http://x", [], [1, 2, 3, 4], parallel=2, width=0.7))
+    assert sorted(pair[0]["seed"] for pair in pairs) == [1, 2, 3, 4]
+    assert all(len(pair) == 2 for pair in pairs) and seen == [{"width": 0.7}] * 4
