@@ -5,6 +5,7 @@
         [--every 25] [--batch 0] [--concurrency 6] [--parallel 1] [--workers 3]
         [--budget 3000] [--time-limit 900] [--database postgres|sqlite] [--db-name NAME]
         [--first-seed 1000] [--bootstrap 1000] [--json out.json]
+    .venv/bin/python benchmarks/bench_adaptive_server.py --summarise out.json
 
 The same comparison as ``benchmarks/bench_adaptive.py`` (docs/BENCHMARKS.md, "Adaptive
 designs"), but nothing is simulated below the HTTP pages: a fresh database (PostgreSQL on
@@ -52,7 +53,8 @@ the whole run are printed at the end, to choose ``--concurrency``, ``--parallel`
 
 The run is bounded: a study stops at ``--budget`` answered main trials or after
 ``--time-limit`` seconds, whichever comes first (then it counts as not reached), and the
-server is stopped, and its database and folder removed, at the end whatever happens. The last lines are a Markdown table.
+server is stopped, and its database and folder removed, at the end whatever happens. The last lines are a Markdown table
+(:func:`table`); ``--summarise out.json`` prints it again from a run's ``--json`` file.
 ``tests/studyapp/test_bench_adaptive_server.py`` runs :func:`run_pair` at a tiny size
 (against the test live server, in-process).
 """
@@ -345,7 +347,8 @@ def run_replicates(url: str, clips: list, seeds: list[int], parallel: int = 1, *
 
 def summary(results: list[dict], designs=DESIGNS) -> list[dict]:
     """Return per design: studies, reached, median and mean judgements (at the stop and in
-    the end), mean report width, coverage of both truths."""
+    the end), mean report width, coverage of both truths (studies whose intervals all
+    covered, and intervals)."""
     out = []
     for design in designs:
         mine = [r for r in results if r["design"] == design]
@@ -362,26 +365,42 @@ def summary(results: list[dict], designs=DESIGNS) -> list[dict]:
             "mean_report_width": float(np.mean([r["report_width"] for r in mine])),
             "covered_population": sum(r["covered_population"] for r in mine),
             "covered_these_clips": sum(r["covered_these_clips"] for r in mine),
+            "intervals": sum(len(r["intervals"]) for r in mine),
+            "intervals_covering_population": sum(i["covers_population"] for r in mine
+                                                 for i in r["intervals"]),
+            "intervals_covering_these_clips": sum(i["covers_these_clips"] for r in mine
+                                                  for i in r["intervals"]),
         })
     return out
 
 
 def table(rows: list[dict], target: str, width: float) -> str:
+    """The summary as Markdown: "vs balanced" compares the means at the stop, "median vs
+    balanced" the medians; "covered" counts studies whose intervals all covered the truth,
+    "intervals covered" the share of intervals (their number in brackets)."""
     base = next((r["mean_at_stop"] for r in rows if r["design"] == "balanced"), None)
+    base_median = next((r["median_at_stop"] for r in rows if r["design"] == "balanced"), None)
     lines = ["| target (width) | design | reached | judgements at stop (each) | median | mean | "
-             "vs balanced | mean in the end | report width (mean) | covered: population | "
-             "covered: these clips |", "|" + "---|" * 11]
+             "vs balanced | median vs balanced | mean in the end | report width (mean) | "
+             "covered: population | covered: these clips | intervals covered: population | "
+             "intervals covered: these clips |", "|" + "---|" * 14]
     for r in rows:
         versus = (f"{100 * (r['mean_at_stop'] / base - 1):+.0f}%"
                   if base and r["mean_at_stop"] is not None else "")
+        versus_median = (f"{100 * (r['median_at_stop'] / base_median - 1):+.0f}%"
+                         if base_median and r["median_at_stop"] is not None else "")
+        n = r.get("intervals") or 0
+        share = (lambda k: f"{r[k] / n:.3f} ({n})" if n else "-")
         each = ", ".join(str(n) if n is not None else "-" for n in r["each_at_stop"])
         fmt = (lambda v: f"{v:.0f}" if v is not None else "-")
         lines.append(
             f"| {target} ({width}) | {r['design']} | {r['reached']}/{r['studies']} | {each} | "
             f"{fmt(r['median_at_stop'])} | {fmt(r['mean_at_stop'])} | {versus} | "
-            f"{r['mean_in_the_end']:.0f} | {r['mean_report_width']:.2f} | "
+            f"{versus_median} | {r['mean_in_the_end']:.0f} | {r['mean_report_width']:.2f} | "
             f"{r['covered_population']}/{r['studies']} | "
-            f"{r['covered_these_clips']}/{r['studies']} |")
+            f"{r['covered_these_clips']}/{r['studies']} | "
+            f"{share('intervals_covering_population')} | "
+            f"{share('intervals_covering_these_clips')} |")
     return "\n".join(lines)
 
 
@@ -411,7 +430,14 @@ def main(argv=None) -> int:
     parser.add_argument("--db-name", default=f"bench_adaptive_srv_{os.getpid()}",
                         help="The PostgreSQL database to create (and drop at the end).")
     parser.add_argument("--json", type=Path)
+    parser.add_argument("--summarise", type=Path, metavar="RUN.json",
+                        help="Print the table of an earlier run's --json file (no server).")
     args = parser.parse_args(argv)
+    if args.summarise:
+        run = json.loads(args.summarise.read_text())
+        results = sorted(run["studies"], key=lambda r: (r["seed"], DESIGNS.index(r["design"])))
+        print(table(summary(results), run["args"]["target"], float(run["args"]["width"])))
+        return 0
 
     from benchmarks.server import Server, create_database, drop_database, server_env
 

@@ -56,3 +56,24 @@ def test_replicates_run_at_once_and_each_is_yielded_as_it_ends(monkeypatch):
     pairs = list(bench.run_replicates("http://x", [], [1, 2, 3, 4], parallel=2, width=0.7))
     assert sorted(pair[0]["seed"] for pair in pairs) == [1, 2, 3, 4]
     assert all(len(pair) == 2 for pair in pairs) and seen == [{"width": 0.7}] * 4
+
+
+def test_the_table_is_printed_again_from_a_runs_json(tmp_path, capsys):
+    import json
+
+    def study(seed, design, at_stop, covers):
+        interval = {"covers_population": covers, "covers_these_clips": True}
+        return {"seed": seed, "design": design, "reached": True, "judgements_at_stop": at_stop,
+                "judgements_in_the_end": at_stop + 5, "report_width": 1.0,
+                "covered_population": covers, "covered_these_clips": True,
+                "intervals": [interval, dict(interval, covers_population=True)]}
+
+    run = {"args": {"target": "order", "width": "0.7"},
+           "studies": [study(2, "balanced", 200, True), study(1, "adaptive", 100, False),
+                       study(1, "balanced", 200, True), study(2, "adaptive", 140, True)]}
+    path = tmp_path / "run.json"
+    path.write_text(json.dumps(run))
+    assert bench.main(["--summarise", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert ("| order (0.7) | adaptive | 2/2 | 100, 140 | 120 | 120 | -40% | -40% | 125 | 1.00 | "
+            "1/2 | 2/2 | 0.750 (4) | 1.000 (4) |") in out
