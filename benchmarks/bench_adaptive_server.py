@@ -2,16 +2,25 @@
 
     nice -n 10 .venv/bin/python benchmarks/bench_adaptive_server.py [--studies 3]
         [--target top_two|order] [--width 1.2] [--clips 6] [--clip-sd 0.3] [--trials 10]
-        [--every 25] [--concurrency 6] [--workers 3] [--budget 3000] [--database postgres|sqlite]
+        [--every 25] [--batch 0] [--concurrency 6] [--parallel 1] [--workers 3]
+        [--budget 3000] [--time-limit 900] [--database postgres|sqlite] [--db-name NAME]
         [--first-seed 1000] [--bootstrap 1000] [--json out.json]
+    .venv/bin/python benchmarks/bench_adaptive_server.py --summarise out.json
 
 The same comparison as ``benchmarks/bench_adaptive.py`` (docs/BENCHMARKS.md, "Adaptive
 designs"), but nothing is simulated below the HTTP pages: a fresh database (PostgreSQL on
 127.0.0.1, a database of its own, dropped at the end; or SQLite in the run's folder),
 gunicorn with the production settings on 127.0.0.1 (``benchmarks/server.py``), and per
 replicate two pairwise studies of the same clips, one ``design: adaptive`` and one
-``design: balanced``, both with ``adaptive: {every, target}`` and
-``stop_when: {interval_width: W}``, taken at the same time by bots of known strengths.
+``design: balanced``, both with ``adaptive: {every, target}`` (and ``batch`` with
+``--batch N``: each look's next ``N`` comparisons planned as one batch, the simulation's
+``order_batch`` with ``--target order``) and ``stop_when: {interval_width: W}``, taken at
+the same time by bots of known strengths. ``--parallel K`` runs ``K`` replicates at once
+(each still its two studies at the same time with the same settings; a new replicate
+starts when one ends), so that many replicates fit in the time: the answers a second of
+the whole run are printed at the end, to choose ``--concurrency``, ``--parallel`` and
+``--workers`` for a machine (a short run first). The PostgreSQL database is named
+``--db-name`` (default ``bench_adaptive_srv_<pid>``).
 
 - Sources: 8, log strengths :data:`benchmarks.bench_adaptive.STRENGTHS` (1.6, 1.3, 1.0,
   0.8, 0.5, 0.2, -0.3, -1.0; the top two 0.3 apart), ``--clips`` clips each (tiny
@@ -23,7 +32,9 @@ replicate two pairwise studies of the same clips, one ``design: adaptive`` and o
   stimulus id and the replicate's seed). The two studies of a replicate hold the same
   files but as stimuli of their own, so their clips' draws are independent: the designs
   are compared over the same distribution of clips, not the same clips. ``--concurrency``
-  bots per study at once; new ones start until the study has stopped.
+  bots per study at once; new ones start until the study has stopped. BLAS runs on one
+  thread (``OPENBLAS_NUM_THREADS=1`` unless set, here and in the server: many small
+  products on a shared machine run slower on several).
 - The design and the stop run as in production: when a participant starts and ``every``
   main trials were answered since the last look, the server starts the ``adaptive_design``
   job in the background (a thread of the gunicorn worker: no Celery broker here), which
@@ -42,7 +53,8 @@ replicate two pairwise studies of the same clips, one ``design: adaptive`` and o
 
 The run is bounded: a study stops at ``--budget`` answered main trials or after
 ``--time-limit`` seconds, whichever comes first (then it counts as not reached), and the
-server is stopped, and its database and folder removed, at the end whatever happens. The last lines are a Markdown table.
+server is stopped, and its database and folder removed, at the end whatever happens. The last lines are a Markdown table
+(:func:`table`); ``--summarise out.json`` prints it again from a run's ``--json`` file.
 ``tests/studyapp/test_bench_adaptive_server.py`` runs :func:`run_pair` at a tiny size
 (against the test live server, in-process).
 """
@@ -60,11 +72,13 @@ import tempfile
 import threading
 import time
 import urllib.request
-from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, as_completed, wait
 from pathlib import Path
 
-import numpy as np
-from scipy.special import expit
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy: see the docstring
+
+import numpy as np  # noqa: E402
+from scipy.special import expit  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -134,15 +148,16 @@ def choice_type() -> str:
 
 
 def make_study(slug: str, design: str, clips: list, target: str, width: float,
-               trials: int, every: int):
+               trials: int, every: int, batch: int = 0):
     """Create an open study of pairs (:func:`choice_type`) of ``clips`` with the design and
-    stopping rule."""
+    stopping rule (``batch``: ``adaptive.batch``, left out when 0)."""
     from studyapp.survey.models import Study
     from studyapp.stimuli.clips import register_clips
 
+    settings = {"every": every, "target": target, **({"batch": batch} if batch else {})}
     study = Study.objects.create_study(
         choice_type(), slug, "Movement study", clips_per_trial=2, trials_per_participant=trials,
-        design=design, adaptive={"every": every, "target": target},
+        design=design, adaptive=settings,
         stop_when={"interval_width": width}, data_note="Synthetic benchmark data (bots).")
     register_clips(study, clips)
     return study
@@ -287,7 +302,7 @@ def measure(study, run: dict, target: str, clip_sd: float, seed: int, bootstrap:
 
 
 def run_pair(url: str, clips: list, seed: int, *, target="top_two", width=1.2, trials=10,
-             every=25, clip_sd=0.3, concurrency=6, budget=3000, time_limit=900.0,
+             every=25, batch=0, clip_sd=0.3, concurrency=6, budget=3000, time_limit=900.0,
              bootstrap=1000, designs=DESIGNS) -> list[dict]:
     """Create one study per design of the same ``clips`` and send bots to all of them at
     once (one thread per study) on the running server ``url``; return each study's
@@ -295,7 +310,7 @@ def run_pair(url: str, clips: list, seed: int, *, target="top_two", width=1.2, t
     from studyapp.participation.adaptive import answered_main
 
     studies = [make_study(f"bench-{design}-{seed}-{os.getpid()}", design, clips, target,
-                          width, trials, every) for design in designs]
+                          width, trials, every, batch) for design in designs]
     runs = [None] * len(studies)
 
     def arm(k):
@@ -313,9 +328,27 @@ def run_pair(url: str, clips: list, seed: int, *, target="top_two", width=1.2, t
             for study, run in zip(studies, runs)]
 
 
+def run_replicates(url: str, clips: list, seeds: list[int], parallel: int = 1, **settings):
+    """Run :func:`run_pair` for each of ``seeds``, ``parallel`` replicates at once (each in
+    a thread of its own, its database connection closed at its end; a new one starts when
+    one ends); yield each replicate's list as it ends."""
+    from django.db import connections
+
+    def one(seed):
+        try:
+            return run_pair(url, clips, seed, **settings)
+        finally:
+            connections.close_all()  # this thread's
+
+    with ThreadPoolExecutor(max_workers=max(1, parallel)) as pool:
+        for future in as_completed([pool.submit(one, seed) for seed in seeds]):
+            yield future.result()
+
+
 def summary(results: list[dict], designs=DESIGNS) -> list[dict]:
     """Return per design: studies, reached, median and mean judgements (at the stop and in
-    the end), mean report width, coverage of both truths."""
+    the end), mean report width, coverage of both truths (studies whose intervals all
+    covered, and intervals)."""
     out = []
     for design in designs:
         mine = [r for r in results if r["design"] == design]
@@ -332,26 +365,42 @@ def summary(results: list[dict], designs=DESIGNS) -> list[dict]:
             "mean_report_width": float(np.mean([r["report_width"] for r in mine])),
             "covered_population": sum(r["covered_population"] for r in mine),
             "covered_these_clips": sum(r["covered_these_clips"] for r in mine),
+            "intervals": sum(len(r["intervals"]) for r in mine),
+            "intervals_covering_population": sum(i["covers_population"] for r in mine
+                                                 for i in r["intervals"]),
+            "intervals_covering_these_clips": sum(i["covers_these_clips"] for r in mine
+                                                  for i in r["intervals"]),
         })
     return out
 
 
 def table(rows: list[dict], target: str, width: float) -> str:
+    """The summary as Markdown: "vs balanced" compares the means at the stop, "median vs
+    balanced" the medians; "covered" counts studies whose intervals all covered the truth,
+    "intervals covered" the share of intervals (their number in brackets)."""
     base = next((r["mean_at_stop"] for r in rows if r["design"] == "balanced"), None)
+    base_median = next((r["median_at_stop"] for r in rows if r["design"] == "balanced"), None)
     lines = ["| target (width) | design | reached | judgements at stop (each) | median | mean | "
-             "vs balanced | mean in the end | report width (mean) | covered: population | "
-             "covered: these clips |", "|" + "---|" * 11]
+             "vs balanced | median vs balanced | mean in the end | report width (mean) | "
+             "covered: population | covered: these clips | intervals covered: population | "
+             "intervals covered: these clips |", "|" + "---|" * 14]
     for r in rows:
         versus = (f"{100 * (r['mean_at_stop'] / base - 1):+.0f}%"
                   if base and r["mean_at_stop"] is not None else "")
+        versus_median = (f"{100 * (r['median_at_stop'] / base_median - 1):+.0f}%"
+                         if base_median and r["median_at_stop"] is not None else "")
+        n = r.get("intervals") or 0
+        share = (lambda k: f"{r[k] / n:.3f} ({n})" if n else "-")
         each = ", ".join(str(n) if n is not None else "-" for n in r["each_at_stop"])
         fmt = (lambda v: f"{v:.0f}" if v is not None else "-")
         lines.append(
             f"| {target} ({width}) | {r['design']} | {r['reached']}/{r['studies']} | {each} | "
             f"{fmt(r['median_at_stop'])} | {fmt(r['mean_at_stop'])} | {versus} | "
-            f"{r['mean_in_the_end']:.0f} | {r['mean_report_width']:.2f} | "
+            f"{versus_median} | {r['mean_in_the_end']:.0f} | {r['mean_report_width']:.2f} | "
             f"{r['covered_population']}/{r['studies']} | "
-            f"{r['covered_these_clips']}/{r['studies']} |")
+            f"{r['covered_these_clips']}/{r['studies']} | "
+            f"{share('intervals_covering_population')} | "
+            f"{share('intervals_covering_these_clips')} |")
     return "\n".join(lines)
 
 
@@ -366,7 +415,11 @@ def main(argv=None) -> int:
     parser.add_argument("--clip-sd", type=float, default=0.3)
     parser.add_argument("--trials", type=int, default=10, help="Pairs per participant.")
     parser.add_argument("--every", type=int, default=25, help="adaptive.every")
+    parser.add_argument("--batch", type=int, default=0,
+                        help="adaptive.batch: comparisons planned as one batch (0: none).")
     parser.add_argument("--concurrency", type=int, default=6, help="Bots at once per study.")
+    parser.add_argument("--parallel", type=int, default=1,
+                        help="Replicates at once (each its two studies at the same time).")
     parser.add_argument("--workers", type=int, default=3, help="gunicorn workers.")
     parser.add_argument("--budget", type=int, default=3000,
                         help="Stop sending bots to a study at this many answered main trials.")
@@ -374,13 +427,22 @@ def main(argv=None) -> int:
     parser.add_argument("--bootstrap", type=int, default=1000)
     parser.add_argument("--first-seed", type=int, default=1000)
     parser.add_argument("--database", choices=("postgres", "sqlite"), default="postgres")
+    parser.add_argument("--db-name", default=f"bench_adaptive_srv_{os.getpid()}",
+                        help="The PostgreSQL database to create (and drop at the end).")
     parser.add_argument("--json", type=Path)
+    parser.add_argument("--summarise", type=Path, metavar="RUN.json",
+                        help="Print the table of an earlier run's --json file (no server).")
     args = parser.parse_args(argv)
+    if args.summarise:
+        run = json.loads(args.summarise.read_text())
+        results = sorted(run["studies"], key=lambda r: (r["seed"], DESIGNS.index(r["design"])))
+        print(table(summary(results), run["args"]["target"], float(run["args"]["width"])))
+        return 0
 
     from benchmarks.server import Server, create_database, drop_database, server_env
 
     var = Path(tempfile.mkdtemp(prefix="bench-adaptive-server-"))
-    name = f"bench_adaptive_srv_{os.getpid()}"
+    name = args.db_name
     if args.database == "postgres":
         url = create_database(name)
     else:
@@ -404,14 +466,15 @@ def main(argv=None) -> int:
         server.collectstatic()
         server.start(timeout=180)
         results = []
-        for r in range(args.studies):
-            seed = args.first_seed + r
-            pair = run_pair(server.url, clips, seed, target=args.target, width=args.width,
-                            trials=args.trials, every=args.every, clip_sd=args.clip_sd,
-                            concurrency=args.concurrency, budget=args.budget,
-                            time_limit=args.time_limit, bootstrap=args.bootstrap)
+        seeds = [args.first_seed + r for r in range(args.studies)]
+        bots_begun = time.perf_counter()
+        for pair in run_replicates(server.url, clips, seeds, args.parallel, target=args.target,
+                                   width=args.width, trials=args.trials, every=args.every,
+                                   batch=args.batch, clip_sd=args.clip_sd,
+                                   concurrency=args.concurrency, budget=args.budget,
+                                   time_limit=args.time_limit, bootstrap=args.bootstrap):
             for one in pair:
-                print(f"seed {seed} {one['design']}: stop at {one['judgements_at_stop']} "
+                print(f"seed {one['seed']} {one['design']}: stop at {one['judgements_at_stop']} "
                       f"({one['ended_by']}), {one['judgements_in_the_end']} in the end, "
                       f"{one['participants']} bots ({one['bot_errors']} turned away or failed), "
                       f"report width {one['report_width']:.2f}, covered population "
@@ -419,8 +482,12 @@ def main(argv=None) -> int:
                       f"{one['seconds']:.0f} s", flush=True)
             results.extend(pair)
         elapsed = time.perf_counter() - begun
+        answers = sum(r["judgements_in_the_end"] for r in results)
+        results.sort(key=lambda r: (r["seed"], DESIGNS.index(r["design"])))
         rows = summary(results)
-        print(f"\n{args.studies} studies per design, {elapsed:.0f} s in all")
+        print(f"\n{args.studies} studies per design, {elapsed:.0f} s in all; "
+              f"{answers} answers in {time.perf_counter() - bots_begun:.0f} s of replicates "
+              f"({answers / (time.perf_counter() - bots_begun):.1f} a second)")
         print(table(rows, args.target, args.width))
         if args.json:
             args.json.write_text(json.dumps({"args": {k: str(v) for k, v in vars(args).items()},
