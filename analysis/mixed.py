@@ -54,25 +54,31 @@ def _frame(rows: pd.DataFrame, value: str) -> pd.DataFrame:
 
 
 def seeded_sources(rows: pd.DataFrame) -> dict:
-    """Return ``{source: number of training seeds}`` of the sources whose clips come from
-    two or more checkpoints (``training_seed``); empty when none does."""
+    """Return ``{source: number of checkpoints}`` of the sources whose clips come from two
+    or more training seeds (``training_seed``); empty when none does. Clips of such a
+    source without a recorded seed count as one checkpoint more (:func:`checkpoints_of`)."""
     if "training_seed" not in rows.columns or not rows["training_seed"].notna().any():
         return {}
-    counts = rows.loc[rows["training_seed"].notna()].groupby(
-        rows["source"].astype(str), observed=True)["training_seed"].nunique()
-    return {str(source): int(n) for source, n in counts.items() if n >= 2}
+    seed = rows["training_seed"].to_numpy()
+    known = pd.notna(seed)
+    source = rows["source"].astype(str).to_numpy()
+    counts = pd.Series(seed[known]).groupby(source[known]).nunique()
+    unknown = set(source[~known])
+    return {str(name): int(n) + (name in unknown) for name, n in counts.items() if n >= 2}
 
 
 def checkpoints_of(rows: pd.DataFrame) -> pd.Series | None:
-    """Return the checkpoint of each row's clip (``"source / seed"``) where its source has
-    several training seeds, else None (NaN); None when no source has several."""
+    """Return the checkpoint of each row's clip (``"source / seed S"``) where its source has
+    several training seeds, else None (NaN); None when no source has several. A clip of
+    such a source with no recorded seed gets ``"source / seed unknown"``, a checkpoint of
+    its own, rather than no seed effect (which would let it anchor the source's estimate)."""
     several = seeded_sources(rows)
     if not several:
         return None
     source = rows["source"].astype(str)
-    label = source + " / seed " + rows["training_seed"].astype(str)
-    keep = source.isin(list(several)) & rows["training_seed"].notna()
-    return label.where(keep.to_numpy(), None)
+    seed = rows["training_seed"]
+    label = source + " / seed " + seed.astype(str).where(seed.notna().to_numpy(), "unknown")
+    return label.where(source.isin(list(several)).to_numpy(), None)
 
 
 def clip_checkpoints(rows: pd.DataFrame) -> dict | None:

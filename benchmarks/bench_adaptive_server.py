@@ -340,9 +340,14 @@ def run_replicates(url: str, clips: list, seeds: list[int], parallel: int = 1, *
         finally:
             connections.close_all()  # this thread's
 
-    with ThreadPoolExecutor(max_workers=max(1, parallel)) as pool:
+    pool = ThreadPoolExecutor(max_workers=max(1, parallel))
+    try:
         for future in as_completed([pool.submit(one, seed) for seed in seeds]):
             yield future.result()
+    finally:
+        # A failed replicate (or a stopped run) cancels the replicates not started yet
+        # rather than running them all before its error is seen.
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def summary(results: list[dict], designs=DESIGNS) -> list[dict]:

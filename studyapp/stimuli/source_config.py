@@ -75,7 +75,7 @@ class MetricsConfig:
     classifier: str | None = None
     train_classifier: bool = False
     classifier_iters: int = 2000
-    classifier_preset: str = "paper"
+    classifier_preset: str = "augmented"
     n: int = 50
     repeats: int = 5
     mmd_protocol: str = "heldout"

@@ -107,3 +107,15 @@ def test_a_worth_types_report_names_the_seed_term():
     assert "training seeds" in set(components["component"])
     text = result.methods()
     assert mixed.SEED_METHOD[1:] in text and "counted its seeds" not in text  # normal quantiles
+
+
+def test_clips_without_a_seed_of_a_several_seed_source_are_a_checkpoint_of_their_own():
+    rows = scores(np.random.default_rng(5), seeds=3, clips=2, people=10)
+    unknown = rows["stimulus"].str.startswith("a-2-")
+    rows.loc[unknown, "training_seed"] = np.nan
+    rows.index = rows.index * 3 + 7  # not a range index
+    assert mixed.seeded_sources(rows) == {"a": 3, "b": 3}  # seeds 0, 1 and "unknown"
+    labels = mixed.checkpoints_of(rows)
+    assert set(labels[unknown.to_numpy()]) == {"a / seed unknown"}
+    assert labels[rows["source"] == "real"].isna().all()
+    assert mixed.degrees_of_freedom(rows, "a", "b") == 4
