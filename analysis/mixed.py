@@ -91,18 +91,26 @@ def clip_checkpoints(rows: pd.DataFrame) -> dict | None:
     return dict(zip(rows["stimulus"].astype(str).to_numpy()[keep], labels.to_numpy()[keep]))
 
 
-def _checkpoint_columns(data: pd.DataFrame, labels: pd.Series | None) -> str | None:
-    """Add a 0/1 column per several-seed checkpoint to ``data`` and return the variance
-    component's formula over them (None without such checkpoints): rows of other sources
-    are 0 in every column, so they get no seed intercept."""
-    if labels is None:
-        return None
-    names = []
-    for i, label in enumerate(pd.unique(labels.dropna())):
-        name = f"checkpoint_{i}"
-        data[name] = (labels.to_numpy() == label).astype(float)
-        names.append(name)
-    return "0 + " + " + ".join(names)
+def _variance_formulas(data: pd.DataFrame, rows: pd.DataFrame) -> dict:
+    """Return the variance components' formulas of ``data`` (from :func:`_frame`):
+    participants, clips and, where a source has several training seeds, ``checkpoint``:
+    a 0/1 column per such checkpoint is added to ``data`` (rows of other sources are 0 in
+    every column, so they get no seed intercept)."""
+    formulas = {"participant": "0 + C(participant)", "clip": "0 + C(clip)"}
+    labels = checkpoints_of(rows)
+    if labels is not None:
+        names = []
+        for i, label in enumerate(pd.unique(labels.dropna())):
+            names.append(f"checkpoint_{i}")
+            data[names[-1]] = (labels.to_numpy() == label).astype(float)
+        formulas["checkpoint"] = "0 + " + " + ".join(names)
+    return formulas
+
+
+def _named_variances(by_component: dict) -> dict:
+    """Return the fitted variances named as the components table names them."""
+    names = {"participant": "participants", "clip": "clips", "checkpoint": "training seeds"}
+    return {name: by_component[key] for key, name in names.items() if key in by_component}
 
 
 def degrees_of_freedom(rows: pd.DataFrame, *sources) -> float:
@@ -144,10 +152,7 @@ def linear(rows: pd.DataFrame, value: str, confidence: float = 0.95) -> dict:
     import statsmodels.api as sm
 
     data = _frame(rows, value)
-    vc_formula = {"participant": "0 + C(participant)", "clip": "0 + C(clip)"}
-    seeds = _checkpoint_columns(data, checkpoints_of(rows))
-    if seeds:
-        vc_formula["checkpoint"] = seeds
+    vc_formula = _variance_formulas(data, rows)
     model = sm.MixedLM.from_formula(
         "y ~ 0 + C(source)", groups="group", re_formula="0", data=data, vc_formula=vc_formula)
     with warnings.catch_warnings():
@@ -182,10 +187,7 @@ def linear(rows: pd.DataFrame, value: str, confidence: float = 0.95) -> dict:
     differences = pd.DataFrame(records)
     differences["p_holm"] = holm(differences["p"])
     vc = dict(zip(model.exog_vc.names, np.asarray(fit.vcomp, dtype=float)))
-    variances = {"participants": vc["participant"], "clips": vc["clip"]}
-    if seeds:
-        variances["training seeds"] = vc["checkpoint"]
-    components = _components({**variances, "residual": float(fit.scale)})
+    components = _components({**_named_variances(vc), "residual": float(fit.scale)})
     return {"means": means, "differences": differences, "components": components,
             "converged": bool(fit.converged)}
 
@@ -200,11 +202,7 @@ def logistic(rows: pd.DataFrame, value: str, reference: str, confidence: float =
 
     data = _frame(rows, value)
     formula = f"y ~ C(source, Treatment({reference!r}))"
-    vc_formulas = {"participant": "0 + C(participant)", "clip": "0 + C(clip)"}
-    seeds = _checkpoint_columns(data, checkpoints_of(rows))
-    if seeds:
-        vc_formulas["checkpoint"] = seeds
-    model = BinomialBayesMixedGLM.from_formula(formula, vc_formulas, data)
+    model = BinomialBayesMixedGLM.from_formula(formula, _variance_formulas(data, rows), data)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         fit = model.fit_vb()
@@ -224,11 +222,8 @@ def logistic(rows: pd.DataFrame, value: str, reference: str, confidence: float =
                         "p": float(2 * scipy_stats.t.sf(abs(mean) / sd, df))})
     differences = pd.DataFrame(records)
     differences["p_holm"] = holm(differences["p"])
-    sds = dict(zip(model.vcp_names, np.exp(fit.vcp_mean)))
-    variances = {"participants": sds["participant"] ** 2, "clips": sds["clip"] ** 2}
-    if seeds:
-        variances["training seeds"] = sds["checkpoint"] ** 2
-    components = _components({**variances, "residual": np.pi ** 2 / 3})
+    variances = dict(zip(model.vcp_names, np.exp(fit.vcp_mean) ** 2))
+    components = _components({**_named_variances(variances), "residual": np.pi ** 2 / 3})
     return {"differences": differences, "components": components}
 
 
@@ -483,10 +478,8 @@ def worth(pairs: pd.DataFrame, names, *, sided: bool = False, clustered: bool = 
     differences = pd.DataFrame(records, columns=["a", "b", "difference", "sd", "ci_low",
                                                  "ci_high", "p"])
     differences["p_holm"] = holm(differences["p"]) if len(differences) else []
-    variances = {"participants": sd_vc[0] ** 2, "clips": sd_vc[1] ** 2}
-    if seeded is not None:
-        variances["training seeds"] = sd_vc[2] ** 2
-    components = _components({**variances, "residual": np.pi ** 2 / 3})
+    variances = dict(zip(vcp_names, sd_vc ** 2))
+    components = _components({**_named_variances(variances), "residual": np.pi ** 2 / 3})
     result = {"scores": scores, "differences": differences, "components": components,
               "widening": widening, "n_pairs": n, "notes": notes}
     if sided:

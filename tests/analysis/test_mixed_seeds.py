@@ -119,3 +119,12 @@ def test_clips_without_a_seed_of_a_several_seed_source_are_a_checkpoint_of_their
     assert set(labels[unknown.to_numpy()]) == {"a / seed unknown"}
     assert labels[rows["source"] == "real"].isna().all()
     assert mixed.degrees_of_freedom(rows, "a", "b") == 4
+
+
+def test_the_seed_term_benchmark_runs(monkeypatch, capsys):
+    from benchmarks import bench_seed_term
+
+    monkeypatch.setattr("sys.argv", ["bench_seed_term", "--studies", "1", "--participants", "6",
+                                     "--seeds", "2", "--clips", "2"])
+    bench_seed_term.main()
+    assert "1 studies: covered with the seed term" in capsys.readouterr().out
