@@ -2,7 +2,7 @@
 
     nice -n 10 .venv/bin/python benchmarks/bench_adaptive_server.py [--studies 3]
         [--target top_two|order] [--width 1.2] [--clips 6] [--clip-sd 0.3] [--trials 10]
-        [--every 25] [--batch 0] [--concurrency 6] [--parallel 1] [--workers 3]
+        [--every 25] [--batch N] [--concurrency 6] [--parallel 1] [--workers 3]
         [--budget 3000] [--time-limit 900] [--database postgres|sqlite] [--db-name NAME]
         [--first-seed 1000] [--bootstrap 1000] [--json out.json]
     .venv/bin/python benchmarks/bench_adaptive_server.py --summarise out.json
@@ -14,8 +14,9 @@ gunicorn with the production settings on 127.0.0.1 (``benchmarks/server.py``), a
 replicate two pairwise studies of the same clips, one ``design: adaptive`` and one
 ``design: balanced``, both with ``adaptive: {every, target}`` (and ``batch`` with
 ``--batch N``: each look's next ``N`` comparisons planned as one batch, the simulation's
-``order_batch`` with ``--target order``) and ``stop_when: {interval_width: W}``, taken at
-the same time by bots of known strengths. ``--parallel K`` runs ``K`` replicates at once
+``order_batch`` with ``--target order``; without it the app's default: a batch of
+``every`` for ``target: order``, none for ``top_two``) and ``stop_when: {interval_width:
+W}``, taken at the same time by bots of known strengths. ``--parallel K`` runs ``K`` replicates at once
 (each still its two studies at the same time with the same settings; a new replicate
 starts when one ends), so that many replicates fit in the time: the answers a second of
 the whole run are printed at the end, to choose ``--concurrency``, ``--parallel`` and
@@ -148,13 +149,13 @@ def choice_type() -> str:
 
 
 def make_study(slug: str, design: str, clips: list, target: str, width: float,
-               trials: int, every: int, batch: int = 0):
+               trials: int, every: int, batch: int | None = None):
     """Create an open study of pairs (:func:`choice_type`) of ``clips`` with the design and
-    stopping rule (``batch``: ``adaptive.batch``, left out when 0)."""
+    stopping rule (``batch``: ``adaptive.batch``, left out when None: the app's default)."""
     from studyapp.survey.models import Study
     from studyapp.stimuli.clips import register_clips
 
-    settings = {"every": every, "target": target, **({"batch": batch} if batch else {})}
+    settings = {"every": every, "target": target, **({"batch": batch} if batch is not None else {})}
     study = Study.objects.create_study(
         choice_type(), slug, "Movement study", clips_per_trial=2, trials_per_participant=trials,
         design=design, adaptive=settings,
@@ -302,7 +303,7 @@ def measure(study, run: dict, target: str, clip_sd: float, seed: int, bootstrap:
 
 
 def run_pair(url: str, clips: list, seed: int, *, target="top_two", width=1.2, trials=10,
-             every=25, batch=0, clip_sd=0.3, concurrency=6, budget=3000, time_limit=900.0,
+             every=25, batch=None, clip_sd=0.3, concurrency=6, budget=3000, time_limit=900.0,
              bootstrap=1000, designs=DESIGNS) -> list[dict]:
     """Create one study per design of the same ``clips`` and send bots to all of them at
     once (one thread per study) on the running server ``url``; return each study's
@@ -420,8 +421,9 @@ def main(argv=None) -> int:
     parser.add_argument("--clip-sd", type=float, default=0.3)
     parser.add_argument("--trials", type=int, default=10, help="Pairs per participant.")
     parser.add_argument("--every", type=int, default=25, help="adaptive.every")
-    parser.add_argument("--batch", type=int, default=0,
-                        help="adaptive.batch: comparisons planned as one batch (0: none).")
+    parser.add_argument("--batch", type=int, default=None,
+                        help="adaptive.batch: comparisons planned as one batch (0: none; left "
+                             "out: the app's default, a batch of --every for --target order).")
     parser.add_argument("--concurrency", type=int, default=6, help="Bots at once per study.")
     parser.add_argument("--parallel", type=int, default=1,
                         help="Replicates at once (each its two studies at the same time).")

@@ -41,6 +41,17 @@ def test_some_types_offer_it_and_the_others_refuse_it():
         Study.objects.create_study(OTHERS[0], "other", "Other", design="adaptive")
 
 
+def test_pairs_aimed_at_the_order_are_planned_in_batches_by_default():
+    def batch(study_type, **given):
+        return adaptive.settings(Study(study_type=study_type, adaptive=given))["batch"]
+
+    assert batch(PAIRS[0]) == 50 and batch(PAIRS[0], every=20) == 20  # a batch per look
+    assert batch(PAIRS[0], every=20, batch=0) == 0 and batch(PAIRS[0], batch=7) == 7
+    assert batch(PAIRS[0], target="top_two") == 0
+    assert batch(PAIRS[0], target={"versus": SOURCES[0]}) == 0
+    assert batch(SETS[0]) == 0  # sets are never batched
+
+
 @pytest.mark.parametrize("study_type", PAIRS)
 def test_balanced_until_a_distribution_is_stored_and_a_recompute_is_asked_for(
         study_type, monkeypatch, django_capture_on_commit_callbacks):
