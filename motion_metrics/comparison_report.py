@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import shlex
 from datetime import datetime
+from pathlib import Path
 
 from motion_metrics.paper_numbers import TABLES, PaperTable
 from motion_metrics.protocol import MMD_PROTOCOLS
@@ -63,11 +64,13 @@ def _budget_text(result: dict) -> str:
     return f"{result['budget']:g} s of training wall time"
 
 
-def render(result: dict, command: str) -> str:
-    """Return the Markdown of a comparison run, produced by ``command``."""
+def render(result: dict, command: str, beside: dict | None = None) -> str:
+    """Return the Markdown of a comparison run, produced by ``command``. ``beside``: the
+    files next to the output that hold another setting's run (:func:`runs_beside`), named
+    instead of a command for that setting."""
     lines = ["# Results: our methods measured against the seed papers' tables", ""]
     lines += _provenance(result, command)
-    lines += _not_run(result, command)
+    lines += _not_run(result, command, beside or {})
     for setting in result["settings"]:
         lines += _setting(result, setting)
     lines += _shortfalls(result)
@@ -148,20 +151,50 @@ def _selection_text(selection: dict | None, short: bool = False) -> str:
             f"the iteration evaluated.")
 
 
-def _not_run(result: dict, command: str) -> list[str]:
-    """Return which Human3.6M settings this run left out, with the command that runs them."""
+def runs_beside(out) -> dict:
+    """Return ``{setting: file name}`` of the results files in ``out``'s folder (other than
+    ``out``) written by ``compare_methods``: the settings named by ``--dataset`` in the
+    command at each file's top."""
+    out = Path(out)
+    found = {}
+    for path in sorted(out.parent.glob("*.md")):
+        if path.resolve() == out.resolve():
+            continue
+        head = path.read_text(errors="replace")[:4000].split("```")
+        command = head[1].strip() if len(head) > 2 else ""
+        if "compare_methods" not in command:
+            continue
+        parts = shlex.split(command)
+        if "--dataset" in parts[:-1]:
+            for name in parts[parts.index("--dataset") + 1].split(","):
+                found.setdefault(name, path.name)
+    return found
+
+
+def _not_run(result: dict, command: str, beside: dict) -> list[str]:
+    """Return which Human3.6M settings this run left out: the file beside it that holds one,
+    or else the command that runs them."""
     run = [setting["dataset"] for setting in result["settings"]]
     missing = [name for name in ("h36m2d", "h36m") if name not in run]
     if not missing or not any(name.startswith("h36m") for name in run):
         return []
+    elsewhere = [name for name in missing if name in beside]
+    missing = [name for name in missing if name not in beside]
+    lines = [f"- Settings run: {', '.join(run)}."]
+    if elsewhere:
+        lines[0] += (" Run with its own command (at the top of its file): " + "; ".join(
+            f"{name} in `{beside[name]}` beside this file" for name in elsewhere) + ".")
+    if not missing:
+        return lines + [""]
     parts = shlex.split(command)
     if "--dataset" in parts:
         parts[parts.index("--dataset") + 1] = ",".join(missing)
     if "--out" in parts:
         parts[parts.index("--out") + 1] = "RESULTS_" + "_".join(missing) + ".md"
-    return [f"- Settings run: {', '.join(run)}. **Not run** at this budget on this machine: "
-            f"{', '.join(missing)}; the same budget for {'it' if len(missing) == 1 else 'them'} "
-            f"(into another file, with the same `--work`):", "", "```", shlex.join(parts), "```", ""]
+    lines[0] += (f" **Not run** at this budget on this machine: {', '.join(missing)}; the same "
+                 f"budget for {'it' if len(missing) == 1 else 'them'} (into another file, with "
+                 f"the same `--work`):")
+    return lines + ["", "```", shlex.join(parts), "```", ""]
 
 
 def _setting(result: dict, setting: dict) -> list[str]:
@@ -430,7 +463,8 @@ def _shortfalls(result: dict) -> list[str]:
     for setting in result["settings"]:
         facts += _setting_facts(setting)
     if any("cond_gru" in setting["methods"] for setting in result["settings"]):
-        facts.append(COND_GRU[0].upper() + COND_GRU[1:] + "; this matters most under FID and MMD.")
+        facts.append(COND_GRU[0].upper() + COND_GRU[1:] + " (how much it moves each metric was "
+                     "not measured).")
     if facts:
         lines += [" ".join(facts), ""]
     presets = sorted({entry["recipe"].split(" ")[0] for setting in result["settings"]

@@ -24,10 +24,11 @@ SWEPT = ("mmd_avg", "mmd_seq", "fid", "accuracy", "diversity")
 BETTER = {"mmd_avg": -1, "mmd_seq": -1, "fid": -1, "accuracy": 1}
 
 
-def render_sweep(results: list[dict], command: str, main: int) -> str:
-    """Return the Markdown of a sweep: the ``main`` budget's report, then the sweep tables."""
+def render_sweep(results: list[dict], command: str, main: int, beside: dict | None = None) -> str:
+    """Return the Markdown of a sweep: the ``main`` budget's report (``beside`` as
+    :func:`motion_metrics.comparison_report.render`), then the sweep tables."""
     by_iters = {result["iters"]: result for result in results}
-    text = render(by_iters[main], command).rstrip()
+    text = render(by_iters[main], command, beside).rstrip()
     lines = [text, "", "## Training budget: the same methods and seeds at "
              + ", ".join(f"{it:,}" for it in sorted(by_iters)) + " iterations", ""]
     lines += [

@@ -402,3 +402,22 @@ def test_the_old_command_name_runs_compare_methods():
     old = load_command_class("studyapp.offline", "benchmark_methods")
     new = load_command_class("studyapp.offline", "compare_methods")
     assert isinstance(old, type(new)) and old.help.startswith("Renamed: run `compare_methods`")
+
+
+def test_a_setting_run_into_a_file_beside_is_named_not_asked_for(tmp_path):
+    from motion_metrics.comparison_report import _not_run, runs_beside
+
+    (tmp_path / "RESULTS_h36m.md").write_text(
+        "# Results\n\nWritten by\n\n```\npython manage.py compare_methods --dataset h36m --iters 3\n```\n")
+    (tmp_path / "NOTES.md").write_text("```\nmake test\n```\n")
+    out = tmp_path / "RESULTS.md"
+    out.write_text("```\npython manage.py compare_methods --dataset h36m2d\n```\n")  # itself
+    beside = runs_beside(out)
+    assert beside == {"h36m": "RESULTS_h36m.md"}
+    result = {"settings": [{"dataset": "h36m2d"}]}
+    command = "python manage.py compare_methods --dataset h36m2d --iters 3 --out RESULTS.md"
+    named = _not_run(result, command, beside)
+    assert named == ["- Settings run: h36m2d. Run with its own command (at the top of its file): "
+                     "h36m in `RESULTS_h36m.md` beside this file.", ""]
+    asked = "\n".join(_not_run(result, command, {}))
+    assert "**Not run**" in asked and "--dataset h36m --iters 3 --out RESULTS_h36m.md" in asked

@@ -12,7 +12,7 @@ from generation.methods.budget import write_json
 from motion_metrics.comparison import (
     MMD_PROTOCOL, SELECT_N, SELECTIONS, ComparisonError, Selection, run_comparison,
 )
-from motion_metrics.comparison_report import render
+from motion_metrics.comparison_report import render, runs_beside
 from motion_metrics.sweep_report import render_sweep
 from motion_metrics.protocol import MMD_PROTOCOLS
 
@@ -135,9 +135,9 @@ class Command(BaseCommand):
         command = command_line(options, work, selection, sweep)
         if len(results) > 1:
             write_json(work / "sweep.json", {"iters": sweep, "main": main, "results": results})
-            out.write_text(render_sweep(results, command, main))
+            out.write_text(render_sweep(results, command, main, runs_beside(out)))
         else:
-            out.write_text(render(results[0], command))
+            out.write_text(render(results[0], command, runs_beside(out)))
         minutes = sum(result["wall_seconds"] for result in results) / 60
         self.stdout.write(f"wrote {out} ({minutes:.1f} minutes)")
 
