@@ -176,6 +176,15 @@ TEMPLATES = [
 WSGI_APPLICATION = "studyapp.wsgi.application"
 
 
+# SQLite (the embedded default): IMMEDIATE, a transaction takes the write lock when it
+# begins, so concurrent participants queue for it instead of failing at a read-then-write
+# upgrade; WAL, readers never wait for the writer and a commit writes the log once instead
+# of a rollback journal and the database, so the lock is held for less time (the file
+# gains -wal and -shm companions; copy all three, or run `sqlite3 db.sqlite3 .backup`).
+SQLITE_OPTIONS = {"timeout": 30, "transaction_mode": "IMMEDIATE",
+                  "init_command": "PRAGMA journal_mode=WAL;"}
+
+
 def database_from_url(url: str) -> dict:
     """Return a Django DATABASES entry for a ``postgres://`` or ``sqlite:///`` URL."""
     parsed = urlparse(url)
@@ -194,7 +203,7 @@ def database_from_url(url: str) -> dict:
             "ENGINE": "django.db.backends.sqlite3",
             # sqlite:///db.sqlite3 is relative, sqlite:////srv/db.sqlite3 absolute.
             "NAME": unquote(parsed.path)[1:] or ":memory:",
-            "OPTIONS": {"timeout": 30, "transaction_mode": "IMMEDIATE"},
+            "OPTIONS": dict(SQLITE_OPTIONS),
         }
     raise ValueError(f"DATABASE_URL {url!r}: use postgres://user@host:5432/name or "
                      f"sqlite:////absolute/path")
@@ -207,9 +216,7 @@ DATABASES = {
     else {
         "ENGINE": "django.db.backends.sqlite3",
         "NAME": VAR_DIR / "db.sqlite3",
-        # IMMEDIATE: a transaction takes the write lock when it begins, so concurrent
-        # participants queue for it instead of failing at a read-then-write upgrade.
-        "OPTIONS": {"timeout": 30, "transaction_mode": "IMMEDIATE"},
+        "OPTIONS": dict(SQLITE_OPTIONS),
     }
 }
 

@@ -51,6 +51,7 @@ def test_database_urls():
     assert lite["NAME"] == "/tmp/x.sqlite3" and lite["OPTIONS"]["transaction_mode"] == "IMMEDIATE"
     assert database_from_url("sqlite:///var/db.sqlite3")["NAME"] == "var/db.sqlite3"
     assert database_from_url("sqlite://")["NAME"] == ":memory:"
+    assert "journal_mode=WAL" in lite["OPTIONS"]["init_command"]
     with pytest.raises(ValueError, match="DATABASE_URL 'mysql://x'"):
         database_from_url("mysql://x")
 
@@ -126,3 +127,13 @@ def test_accel_location_is_one_path_with_slashes_around_it(tmp_path):
     done = manage("shell", "-c", "from django.conf import settings; print(settings.STUDY_ACCEL_REDIRECT)",
                   STUDY_ACCEL_REDIRECT="protected-media", STUDY_VAR_DIR=str(tmp_path))
     assert done.stdout.strip().splitlines()[-1] == "/protected-media/", done.stderr
+
+
+def test_the_embedded_database_writes_ahead_to_a_log(tmp_path):
+    """The default database (SQLite in the var folder) is opened in WAL mode: readers do
+    not wait for the writer, and a commit holds the write lock for less time."""
+    done = manage("shell", "-c", "from django.db import connection; c = connection.cursor(); "
+                  "c.execute('PRAGMA journal_mode'); print(c.fetchone()[0])",
+                  STUDY_VAR_DIR=str(tmp_path))
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split()[-1] == "wal"
