@@ -1,7 +1,7 @@
 """How often the crossed bootstrap counts single answers' noise, by clips per trial.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_crossed_noise.py \\
-        [--units 4000] [--participants 200] [--clips 20] [--replicates 2000] [--studies 5]
+        [--units 4000] [--participants 200] [--clips 20] [--replicates 2000] [--studies 20]
 
 Each simulated table has ``--units`` trials of ``k`` clips (k = 1, 2, 4: a rating, a pair,
 a set of four), one clip from each of ``k`` sources of ``--clips`` clips each, shared by
@@ -9,14 +9,16 @@ a set of four), one clip from each of ``k`` sources of ``--clips`` clips each, s
 ``--clip-sd``, each value of the list) plus its answer's noise (normal, SD 1), and the
 statistic is the mean value (a :class:`analysis.crossed.Linear` statistic, as shares and
 the worth models' counts are). :func:`analysis.crossed.bootstrap` gives ``V_p``, ``V_c``
-and ``V_obs``; printed per ``k`` and clip SD, as means over ``--studies`` tables and
-times the number of trials (so that the answers' noise alone is 1): each scheme's
-variance, the combined ``V`` the intervals use, the true variance of the mean (noise
-``1`` plus ``k`` sources' clip means), the width of the interval against the true one,
+and ``V_obs``; printed per ``k`` and clip SD, as means over ``--studies`` tables (each
+row its own seeds) and times the number of trials (so that the answers' noise alone is
+1): each scheme's variance, the combined ``V`` the intervals use, the true variance of
+the mean (noise ``1`` plus ``k`` sources' clip means), the width of the interval against
+the true one (the mean over tables of each table's ratio, ± 1.96 standard errors),
 and the variance of a trial's clips' weight in the clips' bootstrap (the product of
 ``k`` clip counts, each of mean 1 and variance ``(m - 1) / m``: ``((2m - 1) / m)^k - 1``),
-which is how many times ``V_c`` holds the noise (docs/STATISTICS.md, "How often the
-clips' bootstrap counts the answers' noise").
+which is how many times ``V_c`` holds the noise when a trial's clips come from different
+sources, as here (docs/STATISTICS.md, "How often the clips' bootstrap counts the
+answers' noise").
 """
 
 from __future__ import annotations
@@ -56,18 +58,21 @@ def variances(design: crossed.Design, values, replicates: int, seed: int) -> dic
     return {scheme: float(np.ravel(found[scheme])[0]) for scheme in SCHEMES}
 
 
-def measure(k: int, clip_sd: float, studies=5, units=4000, participants=200, clips=20,
+def measure(k: int, clip_sd: float, studies=20, units=4000, participants=200, clips=20,
             replicates=2000, first_seed=0) -> dict:
     """Return the mean over ``studies`` tables of each variance times ``units``, the true
-    one, the width ratio and the clips' weight variance."""
+    one, the width ratio (mean and 1.96 standard errors over tables) and the clips' weight
+    variance."""
     rows = []
     for seed in range(first_seed, first_seed + studies):
         design, values = table(k, np.random.default_rng(seed), units, participants, clips, clip_sd)
         rows.append(variances(design, values, replicates, seed))
     found = {scheme: units * float(np.mean([row[scheme] for row in rows])) for scheme in SCHEMES}
     truth = 1.0 + units * k * clip_sd ** 2 / clips
+    widths = np.sqrt(np.array([row["total"] for row in rows]) * units / truth)
     return {"k": k, "clip_sd": clip_sd, **found, "truth": truth,
-            "width": float(np.sqrt(found["total"] / truth)),
+            "width": float(widths.mean()),
+            "width_error": float(1.96 * widths.std(ddof=1) / np.sqrt(len(widths))),
             "weight_variance": ((2 * clips - 1) / clips) ** k - 1}
 
 
@@ -78,7 +83,7 @@ def main(argv=None):
     parser.add_argument("--clips", type=int, default=20, help="clips per source")
     parser.add_argument("--clip-sd", default="0,0.1,0.3", help="clip SDs, comma-separated")
     parser.add_argument("--replicates", type=int, default=2000)
-    parser.add_argument("--studies", type=int, default=5)
+    parser.add_argument("--studies", type=int, default=20)
     args = parser.parse_args(argv)
     print("| clips per trial (k) | clip SD | V_p | V_c | V_obs | V (intervals) | true | "
           "width / true width | clips' weight variance |")
@@ -86,10 +91,11 @@ def main(argv=None):
     for k in (1, 2, 4):
         for clip_sd in (float(value) for value in args.clip_sd.split(",")):
             row = measure(k, clip_sd, args.studies, args.units, args.participants, args.clips,
-                          args.replicates)
+                          args.replicates, first_seed=100_000 * k + round(1000 * clip_sd) * 100)
             print(f"| {k} | {clip_sd:g} | {row['participants']:.2f} | {row['clips']:.2f} | "
                   f"{row['observations']:.2f} | {row['total']:.2f} | {row['truth']:.2f} | "
-                  f"{row['width']:.2f} | {row['weight_variance']:.2f} |", flush=True)
+                  f"{row['width']:.2f} ± {row['width_error']:.2f} | {row['weight_variance']:.2f} |",
+                  flush=True)
 
 
 if __name__ == "__main__":

@@ -151,39 +151,71 @@ def _selection_text(selection: dict | None, short: bool = False) -> str:
             f"the iteration evaluated.")
 
 
+def _options(command: str) -> tuple[list[str], list[str]] | None:
+    """Return the datasets of a ``compare_methods`` command and the rest of its words
+    without ``--dataset``, ``--out`` and their values; None if it cannot be read."""
+    try:
+        parts = shlex.split(command)
+    except ValueError:
+        return None
+    datasets, rest, skip = [], [], False
+    for at, word in enumerate(parts):
+        if skip:
+            skip = False
+            continue
+        name, _, value = word.partition("=")
+        if name in ("--dataset", "--out"):
+            if not value and at + 1 < len(parts):
+                value, skip = parts[at + 1], True
+            if name == "--dataset":
+                datasets = value.split(",")
+            continue
+        rest.append(word)
+    return datasets, rest
+
+
 def runs_beside(out) -> dict:
-    """Return ``{setting: file name}`` of the results files in ``out``'s folder (other than
-    ``out``) written by ``compare_methods``: the settings named by ``--dataset`` in the
-    command at each file's top."""
+    """Return ``{setting: (file name, command)}`` of the results files in ``out``'s folder
+    (other than ``out``) written by ``compare_methods``: the settings named by
+    ``--dataset`` in the command at each file's top. Files that cannot be read are
+    skipped."""
     out = Path(out)
     found = {}
     for path in sorted(out.parent.glob("*.md")):
-        if path.resolve() == out.resolve():
+        if not path.is_file() or path.resolve() == out.resolve():
             continue
-        head = path.read_text(errors="replace")[:4000].split("```")
+        try:
+            head = path.read_text(errors="replace")[:4000].split("```")
+        except OSError:
+            continue
         command = head[1].strip() if len(head) > 2 else ""
-        if "compare_methods" not in command:
-            continue
-        parts = shlex.split(command)
-        if "--dataset" in parts[:-1]:
-            for name in parts[parts.index("--dataset") + 1].split(","):
-                found.setdefault(name, path.name)
+        options = _options(command) if "compare_methods" in command else None
+        for name in (options or ([], []))[0]:
+            found.setdefault(name, (path.name, command))
     return found
 
 
 def _not_run(result: dict, command: str, beside: dict) -> list[str]:
-    """Return which Human3.6M settings this run left out: the file beside it that holds one,
-    or else the command that runs them."""
+    """Return which Human3.6M settings this run left out: the file beside it that holds one
+    run with this command's other options, or else the command that runs it (and the file
+    beside it, if one holds it at other settings)."""
     run = [setting["dataset"] for setting in result["settings"]]
     missing = [name for name in ("h36m2d", "h36m") if name not in run]
     if not missing or not any(name.startswith("h36m") for name in run):
         return []
-    elsewhere = [name for name in missing if name in beside]
-    missing = [name for name in missing if name not in beside]
+    ours = (_options(command) or ([], None))[1]
+    same = [name for name in missing if name in beside
+            and (_options(beside[name][1]) or ([], ()))[1] == ours]
+    other = [name for name in missing if name in beside and name not in same]
+    missing = [name for name in missing if name not in same]
     lines = [f"- Settings run: {', '.join(run)}."]
-    if elsewhere:
-        lines[0] += (" Run with its own command (at the top of its file): " + "; ".join(
-            f"{name} in `{beside[name]}` beside this file" for name in elsewhere) + ".")
+    if same:
+        lines[0] += (" Run with the same options by its own command (at the top of its file): "
+                     + "; ".join(f"{name} in `{beside[name][0]}` beside this file" for name in same)
+                     + ".")
+    if other:
+        lines[0] += (" Run at other settings (the command at the top of its file): "
+                     + "; ".join(f"{name} in `{beside[name][0]}`" for name in other) + ".")
     if not missing:
         return lines + [""]
     parts = shlex.split(command)
@@ -191,9 +223,10 @@ def _not_run(result: dict, command: str, beside: dict) -> list[str]:
         parts[parts.index("--dataset") + 1] = ",".join(missing)
     if "--out" in parts:
         parts[parts.index("--out") + 1] = "RESULTS_" + "_".join(missing) + ".md"
-    lines[0] += (f" **Not run** at this budget on this machine: {', '.join(missing)}; the same "
-                 f"budget for {'it' if len(missing) == 1 else 'them'} (into another file, with "
-                 f"the same `--work`):")
+    lines[0] += (f" **Not run** {'with these options' if other else 'at this budget'} on this "
+                 f"machine: {', '.join(missing)}; the same budget for "
+                 f"{'it' if len(missing) == 1 else 'them'} (into another file, with the same "
+                 f"`--work`):")
     return lines + ["", "```", shlex.join(parts), "```", ""]
 
 

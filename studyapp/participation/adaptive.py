@@ -50,11 +50,14 @@ def supports(study_type: str) -> bool:
 def settings(study) -> dict:
     """Return a study's adaptive settings, the defaults filled in. ``batch`` left out: for
     pairs aimed at the whole order, the comparisons up to the next look (``every``) are
-    planned as one batch (measured: 33 % fewer judgements than balanced by the app's rule,
-    24 % without batches; docs/BENCHMARKS.md); otherwise none."""
+    planned as one batch (simulated with a look and a batch every 100 judgements: 33 %
+    fewer judgements than balanced by the app's rule, 24 % without batches;
+    docs/BENCHMARKS.md); otherwise none. Arenas are not batched unless asked: their
+    benchmark (a new source brought to precision) was run without batches."""
     chosen = {**DEFAULTS, **(study.adaptive or {})}
     if chosen["batch"] is None:
-        batched = chosen["target"] == "order" and model(study.study_type) == "pairs"
+        batched = (chosen["target"] == "order" and model(study.study_type) == "pairs"
+                   and not study.arena)
         chosen["batch"] = chosen["every"] if batched else 0
     return chosen
 

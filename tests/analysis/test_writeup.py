@@ -171,6 +171,10 @@ def test_the_paragraph_says_how_an_adaptive_study_chose_its_trials_and_stopped()
             "difference between the two sources estimated best was 0.57, at most the rule's 0.6 "
             "(logit scale), after 1234 answered main trials") in text
     assert "adaptive" not in analyse(table, config(bootstrap=20)).methods()
+    assert "batches" not in text  # none asked for (analyze passes the settings that ran)
+    batched = adaptive_sentences({"design": "adaptive", "adaptive": {"every": 50, "batch": 50}})
+    assert ("planned in batches of 50 comparisons, each chosen after the posterior was "
+            "updated by those before it") in batched[0]
     budget = adaptive_sentences({"stop_when": {"judgements": 500},
                                  "stopped": {"rule": "judgements", "value": 500, "judgements": 512,
                                              "width": 1.0, "certainty": 0.5}})

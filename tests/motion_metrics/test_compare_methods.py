@@ -407,17 +407,23 @@ def test_the_old_command_name_runs_compare_methods():
 def test_a_setting_run_into_a_file_beside_is_named_not_asked_for(tmp_path):
     from motion_metrics.comparison_report import _not_run, runs_beside
 
-    (tmp_path / "RESULTS_h36m.md").write_text(
-        "# Results\n\nWritten by\n\n```\npython manage.py compare_methods --dataset h36m --iters 3\n```\n")
+    same = "python manage.py compare_methods --dataset h36m --iters 3 --out RESULTS_h36m.md"
+    (tmp_path / "RESULTS_h36m.md").write_text(f"# Results\n\nWritten by\n\n```\n{same}\n```\n")
     (tmp_path / "NOTES.md").write_text("```\nmake test\n```\n")
+    (tmp_path / "QUOTE.md").write_text("```\ncompare_methods --dataset h36m don't\n```\n")  # unreadable
+    (tmp_path / "folder.md").mkdir()
     out = tmp_path / "RESULTS.md"
     out.write_text("```\npython manage.py compare_methods --dataset h36m2d\n```\n")  # itself
     beside = runs_beside(out)
-    assert beside == {"h36m": "RESULTS_h36m.md"}
+    assert beside == {"h36m": ("RESULTS_h36m.md", same)}
     result = {"settings": [{"dataset": "h36m2d"}]}
     command = "python manage.py compare_methods --dataset h36m2d --iters 3 --out RESULTS.md"
     named = _not_run(result, command, beside)
-    assert named == ["- Settings run: h36m2d. Run with its own command (at the top of its file): "
-                     "h36m in `RESULTS_h36m.md` beside this file.", ""]
+    assert named == ["- Settings run: h36m2d. Run with the same options by its own command (at "
+                     "the top of its file): h36m in `RESULTS_h36m.md` beside this file.", ""]
+    # At other settings the file is named and the command with this run's options kept.
+    other = "\n".join(_not_run(result, command.replace("--iters 3", "--iters 5"), beside))
+    assert "Run at other settings" in other and "`RESULTS_h36m.md`" in other
+    assert "**Not run** with these options" in other and "--dataset h36m --iters 5" in other
     asked = "\n".join(_not_run(result, command, {}))
-    assert "**Not run**" in asked and "--dataset h36m --iters 3 --out RESULTS_h36m.md" in asked
+    assert "**Not run** at this budget" in asked and "--dataset h36m --iters 3 --out RESULTS_h36m.md" in asked

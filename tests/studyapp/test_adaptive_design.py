@@ -50,6 +50,8 @@ def test_pairs_aimed_at_the_order_are_planned_in_batches_by_default():
     assert batch(PAIRS[0], target="top_two") == 0
     assert batch(PAIRS[0], target={"versus": SOURCES[0]}) == 0
     assert batch(SETS[0]) == 0  # sets are never batched
+    arena = Study(study_type=PAIRS[0], adaptive={}, arena={"min_votes": 30})
+    assert adaptive.settings(arena)["batch"] == 0  # as the arena's benchmark ran
 
 
 @pytest.mark.parametrize("study_type", PAIRS)
@@ -319,6 +321,8 @@ def test_a_budget_stops_the_study_and_closes_its_places(design, media_root, clip
     report = (out / "report.html").read_text()
     assert "The study stopped by its stopping rule when its budget of 4 answered main" in report
     assert ("The design was adaptive" in report) == (design == "adaptive")
+    # The settings that ran, the default batch of a pairs study aimed at the order included.
+    assert ("planned in batches of 50 comparisons" in report) == (design == "adaptive")
 
 
 def test_a_met_interval_width_stops_the_study_on_prolific(monkeypatch):

@@ -7,6 +7,7 @@ from analysis.formatting import interval, number
 from analysis.report import write_report
 from analysis.study import AnalysisConfig, analyse_all
 from analysis.tables import AnalysisError, read_responses, write_responses
+from studyapp.participation.adaptive import settings as adaptive_settings
 from studyapp.results import export
 from studyapp.results.audit import AuditUnavailable, audit_study, view_fetcher
 from studyapp.results.export import get_study, responses_frame
@@ -89,6 +90,8 @@ class Command(BaseCommand):
             # Every option of the type, defaults included: the report describes what ran.
             type_options = {name: record.option(name) for name in record.kind.options}
             study_options = {name: getattr(record, name) for name in STUDY_OPTIONS}
+            if record.design == "adaptive":  # the settings that ran, defaults included
+                study_options["adaptive"] = adaptive_settings(record)
             if options["max_failed_catch"] is None:
                 options["max_failed_catch"] = record.max_failed_catch  # as its outcomes
             if table.empty:
