@@ -156,14 +156,15 @@ def adaptive_sentences(options: dict) -> list[str]:
             f"the sources shown together in a main trial were drawn from a distribution "
             f"recomputed in the background every {plural(every, 'answered main trial')}, "
             f"favouring the sources whose answers were expected to narrow most the intervals "
-            f"of {_target_text(target)}"
-            + (f" (planned in batches of {plural(settings['batch'], 'comparison')}, each "
-               f"chosen after the posterior was updated by those before it)"
-               if settings.get("batch") else "")
-            + f", with {floor:.0%} of it spread evenly over every choice "
+            f"of {_target_text(target)}, with {floor:.0%} of it spread evenly over every choice "
             f"of sources; clips "
             f"were taken least-shown first, positions balanced within each participant, and "
             f"no participant saw the same clips together twice")
+        if (settings.get("batch") or 0) > 1:
+            sentences.append(
+                f"The pairs of sources were planned in batches of {settings['batch']} "
+                f"comparisons, each pair chosen after the posterior had been updated by the "
+                f"pairs chosen before it in the batch")
         sentences.append(
             "Which sources were shown together depended only on answers already given, so the "
             "likelihood of the answers, and the fit, are those of a fixed design; the "

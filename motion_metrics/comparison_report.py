@@ -151,6 +151,28 @@ def _selection_text(selection: dict | None, short: bool = False) -> str:
             f"the iteration evaluated.")
 
 
+def _with_values(parts: list[str], values: dict) -> tuple[list[str], dict]:
+    """Return ``parts`` (a command's words) with the values of the options in ``values``
+    (``{"--dataset": ..., "--out": ...}``; None keeps a value, and removes the option
+    with its value from the words) replaced, in both the ``--name value`` and the
+    ``--name=value`` forms, and the values the command had."""
+    out, had, skip = [], {}, False
+    for at, word in enumerate(parts):
+        if skip:
+            skip = False
+            continue
+        name, equals, value = word.partition("=")
+        if name not in values:
+            out.append(word)
+            continue
+        if not equals and at + 1 < len(parts):
+            value, skip = parts[at + 1], True
+        had[name] = value
+        if values[name] is not None:
+            out += [name, values[name]]
+    return out, had
+
+
 def _options(command: str) -> tuple[list[str], list[str]] | None:
     """Return the datasets of a ``compare_methods`` command and the rest of its words
     without ``--dataset``, ``--out`` and their values; None if it cannot be read."""
@@ -158,25 +180,14 @@ def _options(command: str) -> tuple[list[str], list[str]] | None:
         parts = shlex.split(command)
     except ValueError:
         return None
-    datasets, rest, skip = [], [], False
-    for at, word in enumerate(parts):
-        if skip:
-            skip = False
-            continue
-        name, _, value = word.partition("=")
-        if name in ("--dataset", "--out"):
-            if not value and at + 1 < len(parts):
-                value, skip = parts[at + 1], True
-            if name == "--dataset":
-                datasets = value.split(",")
-            continue
-        rest.append(word)
+    rest, had = _with_values(parts, {"--dataset": None, "--out": None})
+    datasets = [name.strip() for name in had.get("--dataset", "").split(",") if name.strip()]
     return datasets, rest
 
 
 def runs_beside(out) -> dict:
-    """Return ``{setting: (file name, command)}`` of the results files in ``out``'s folder
-    (other than ``out``) written by ``compare_methods``: the settings named by
+    """Return ``{setting: [(file name, command), ...]}`` of the results files in ``out``'s
+    folder (other than ``out``) written by ``compare_methods``: the settings named by
     ``--dataset`` in the command at each file's top. Files that cannot be read are
     skipped."""
     out = Path(out)
@@ -191,42 +202,53 @@ def runs_beside(out) -> dict:
         command = head[1].strip() if len(head) > 2 else ""
         options = _options(command) if "compare_methods" in command else None
         for name in (options or ([], []))[0]:
-            found.setdefault(name, (path.name, command))
+            found.setdefault(name, []).append((path.name, command))
     return found
 
 
 def _not_run(result: dict, command: str, beside: dict) -> list[str]:
     """Return which Human3.6M settings this run left out: the file beside it that holds one
-    run with this command's other options, or else the command that runs it (and the file
-    beside it, if one holds it at other settings)."""
+    run with this command's other options, or else the command that runs it into a file
+    of its own (and the files beside it that hold it at other settings)."""
     run = [setting["dataset"] for setting in result["settings"]]
     missing = [name for name in ("h36m2d", "h36m") if name not in run]
     if not missing or not any(name.startswith("h36m") for name in run):
         return []
     ours = (_options(command) or ([], None))[1]
-    same = [name for name in missing if name in beside
-            and (_options(beside[name][1]) or ([], ()))[1] == ours]
-    other = [name for name in missing if name in beside and name not in same]
+    same, other = {}, {}
+    for name in missing:
+        for file, theirs in beside.get(name, []):
+            if (_options(theirs) or ([], ()))[1] == ours:
+                same.setdefault(name, file)
+        if name not in same and beside.get(name):
+            other[name] = [file for file, _ in beside[name]]
     missing = [name for name in missing if name not in same]
     lines = [f"- Settings run: {', '.join(run)}."]
     if same:
         lines[0] += (" Run with the same options by its own command (at the top of its file): "
-                     + "; ".join(f"{name} in `{beside[name][0]}` beside this file" for name in same)
+                     + "; ".join(f"{name} in `{file}` beside this file" for name, file in same.items())
                      + ".")
     if other:
         lines[0] += (" Run at other settings (the command at the top of its file): "
-                     + "; ".join(f"{name} in `{beside[name][0]}`" for name in other) + ".")
+                     + "; ".join(f"{name} in " + ", ".join(f"`{file}`" for file in files)
+                                 for name, files in other.items()) + ".")
     if not missing:
         return lines + [""]
     parts = shlex.split(command)
-    if "--dataset" in parts:
-        parts[parts.index("--dataset") + 1] = ",".join(missing)
-    if "--out" in parts:
-        parts[parts.index("--out") + 1] = "RESULTS_" + "_".join(missing) + ".md"
+    _, had = _with_values(parts, {"--out": None})
+    folder = Path(had.get("--out", "RESULTS.md")).parent
+    taken = {file for files in beside.values() for file, _ in files}
+    stem = "RESULTS_" + "_".join(missing)
+    name, number = f"{stem}.md", 1
+    while name in taken:  # a file beside holds this setting at other settings: keep it
+        number += 1
+        name = f"{stem}_{number}.md"
+    parts, _ = _with_values(parts, {"--dataset": ",".join(missing),
+                                    "--out": str(folder / name) if "--out" in had else None})
     lines[0] += (f" **Not run** {'with these options' if other else 'at this budget'} on this "
                  f"machine: {', '.join(missing)}; the same budget for "
-                 f"{'it' if len(missing) == 1 else 'them'} (into another file, with the same "
-                 f"`--work`):")
+                 f"{'it' if len(missing) == 1 else 'them'} (into a file of its own beside this "
+                 f"one, with the same `--work`):")
     return lines + ["", "```", shlex.join(parts), "```", ""]
 
 

@@ -103,7 +103,8 @@ def recompute(study) -> dict:
                                          depth=get_analysis(study.study_type).choice_depth, **options)
     elif study.design == "adaptive":
         dist = adaptive.distribution(post, target, batch=chosen["batch"], **options)
-    sampling = {"sources": names, **dist, "answers": answers, "comparisons": decided,
+    sampling = {"sources": names, **dist, "batch": chosen["batch"] if dist else 0,
+                "answers": answers, "comparisons": decided,
                 "worth": np.round(post.mean, 4).tolist(), "computed_at": timezone.now().isoformat(),
                 **({"note": note} if note else {})}
     if study.stop_when and len(names) >= 2:

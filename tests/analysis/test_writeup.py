@@ -173,8 +173,9 @@ def test_the_paragraph_says_how_an_adaptive_study_chose_its_trials_and_stopped()
     assert "adaptive" not in analyse(table, config(bootstrap=20)).methods()
     assert "batches" not in text  # none asked for (analyze passes the settings that ran)
     batched = adaptive_sentences({"design": "adaptive", "adaptive": {"every": 50, "batch": 50}})
-    assert ("planned in batches of 50 comparisons, each chosen after the posterior was "
-            "updated by those before it") in batched[0]
+    assert batched[1] == ("The pairs of sources were planned in batches of 50 comparisons, each "
+                          "pair chosen after the posterior had been updated by the pairs chosen "
+                          "before it in the batch")
     budget = adaptive_sentences({"stop_when": {"judgements": 500},
                                  "stopped": {"rule": "judgements", "value": 500, "judgements": 512,
                                              "width": 1.0, "certainty": 0.5}})

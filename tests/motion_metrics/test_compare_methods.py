@@ -109,8 +109,8 @@ def test_command_on_h36m2d_compares_with_seeds_003_and_004(tmp_path, h36m_root):
     assert "S11" in text and "held-out subjects S9" in text
     assert "Settings run: h36m2d. **Not run**" in text
     assert "compare_methods --dataset h36m --iters 3 --seeds 0,1,2" in text
-    assert ("--mmd-protocol paper --select best-mmd-seq --select-every 1 --select-n 3 --out RESULTS_h36m.md"
-            in text)  # the command for the setting not run keeps them
+    assert (f"--mmd-protocol paper --select best-mmd-seq --select-every 1 --select-n 3 --out "
+            f"{tmp_path / 'RESULTS_h36m.md'}" in text)  # the command for the setting not run keeps them
     header = next(line for line in text.splitlines() if line.startswith("| method | MMD_avg"))
     assert header.split(" | ")[1:] == ["MMD_avg ↓ (± seeds, t)", "± samples", "004 T1", "003 T1",
                                        "MMD_seq ↓ (± seeds, t)", "± samples", "004 T1", "003 T1",
@@ -407,23 +407,28 @@ def test_the_old_command_name_runs_compare_methods():
 def test_a_setting_run_into_a_file_beside_is_named_not_asked_for(tmp_path):
     from motion_metrics.comparison_report import _not_run, runs_beside
 
-    same = "python manage.py compare_methods --dataset h36m --iters 3 --out RESULTS_h36m.md"
+    same = "python manage.py compare_methods --dataset h36m --iters 3 --out docs/RESULTS_h36m.md"
+    other = "python manage.py compare_methods --dataset=h36m,h36m2d --iters 5 --out=docs/RESULTS_a.md"
     (tmp_path / "RESULTS_h36m.md").write_text(f"# Results\n\nWritten by\n\n```\n{same}\n```\n")
+    (tmp_path / "RESULTS_a.md").write_text(f"```\n{other}\n```\n")  # first by name, other options
     (tmp_path / "NOTES.md").write_text("```\nmake test\n```\n")
     (tmp_path / "QUOTE.md").write_text("```\ncompare_methods --dataset h36m don't\n```\n")  # unreadable
     (tmp_path / "folder.md").mkdir()
     out = tmp_path / "RESULTS.md"
     out.write_text("```\npython manage.py compare_methods --dataset h36m2d\n```\n")  # itself
     beside = runs_beside(out)
-    assert beside == {"h36m": ("RESULTS_h36m.md", same)}
+    assert beside == {"h36m": [("RESULTS_a.md", other), ("RESULTS_h36m.md", same)],
+                      "h36m2d": [("RESULTS_a.md", other)]}
     result = {"settings": [{"dataset": "h36m2d"}]}
-    command = "python manage.py compare_methods --dataset h36m2d --iters 3 --out RESULTS.md"
-    named = _not_run(result, command, beside)
+    command = "python manage.py compare_methods --dataset h36m2d --iters 3 --out docs/RESULTS.md"
+    named = _not_run(result, command, beside)  # the file with the same options wins
     assert named == ["- Settings run: h36m2d. Run with the same options by its own command (at "
                      "the top of its file): h36m in `RESULTS_h36m.md` beside this file.", ""]
-    # At other settings the file is named and the command with this run's options kept.
-    other = "\n".join(_not_run(result, command.replace("--iters 3", "--iters 5"), beside))
-    assert "Run at other settings" in other and "`RESULTS_h36m.md`" in other
-    assert "**Not run** with these options" in other and "--dataset h36m --iters 5" in other
-    asked = "\n".join(_not_run(result, command, {}))
-    assert "**Not run** at this budget" in asked and "--dataset h36m --iters 3 --out RESULTS_h36m.md" in asked
+    # At other settings the files are named, and the command with this run's options
+    # writes beside this file under a name no other run holds.
+    elsewhere = "\n".join(_not_run(result, command.replace("--iters 3", "--iters=7"), beside))
+    assert "Run at other settings" in elsewhere and "`RESULTS_a.md`, `RESULTS_h36m.md`" in elsewhere
+    assert "**Not run** with these options" in elsewhere
+    assert "--dataset h36m --iters=7 --out docs/RESULTS_h36m_2.md" in elsewhere
+    asked = "\n".join(_not_run(result, command.replace("--out docs/RESULTS.md", "--out=docs/RESULTS.md"), {}))
+    assert "**Not run** at this budget" in asked and "--dataset h36m --iters 3 --out docs/RESULTS_h36m.md" in asked

@@ -91,7 +91,8 @@ class Command(BaseCommand):
             type_options = {name: record.option(name) for name in record.kind.options}
             study_options = {name: getattr(record, name) for name in STUDY_OPTIONS}
             if record.design == "adaptive":  # the settings that ran, defaults included
-                study_options["adaptive"] = adaptive_settings(record)
+                study_options["adaptive"] = {**adaptive_settings(record), **(
+                    {"batch": record.sampling["batch"]} if "batch" in (record.sampling or {}) else {})}
             if options["max_failed_catch"] is None:
                 options["max_failed_catch"] = record.max_failed_catch  # as its outcomes
             if table.empty:
