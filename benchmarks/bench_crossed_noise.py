@@ -72,7 +72,8 @@ def measure(k: int, clip_sd: float, studies=20, units=4000, participants=200, cl
     widths = np.sqrt(np.array([row["total"] for row in rows]) * units / truth)
     return {"k": k, "clip_sd": clip_sd, **found, "truth": truth,
             "width": float(widths.mean()),
-            "width_error": float(1.96 * widths.std(ddof=1) / np.sqrt(len(widths))),
+            "width_error": (float(1.96 * widths.std(ddof=1) / np.sqrt(len(widths)))
+                            if len(widths) > 1 else 0.0),
             "weight_variance": ((2 * clips - 1) / clips) ** k - 1}
 
 

@@ -234,3 +234,17 @@ def test_training_seeds_are_a_random_unit_of_the_clips_bootstrap():
                        rows[rows["source"] == "b"].assign(training_seed=np.nan, source="real")])
     d = crossed.design(mixed)
     assert d.n_seeds == 3 and d.n_resampled == 3 + 12
+
+
+def test_bench_crossed_noise_counts_the_answers_noise_in_the_clips_scheme(capsys):
+    """The benchmark runs, and its point holds on a small table: with clips that do not
+    vary, sets of four carry the answers' noise into V_c about 13 times (docs/STATISTICS.md)."""
+    from benchmarks import bench_crossed_noise
+
+    row = bench_crossed_noise.measure(4, 0.0, studies=2, units=800, participants=40,
+                                      replicates=300)
+    assert row["weight_variance"] > 13 and row["clips"] > 6 and row["width"] > 2
+    bench_crossed_noise.main(["--studies", "1", "--units", "200", "--participants", "10",
+                              "--replicates", "50", "--clip-sd", "0"])
+    out = capsys.readouterr().out
+    assert out.count("\n| ") == 3 and "nan" not in out  # a row per k
