@@ -33,28 +33,22 @@ def stimuli_by_action(study) -> dict[str, dict[str, list[Stimulus]]]:
     return {action: dict(sources) for action, sources in table.items()}
 
 
-def item_counts(study) -> Counter:
-    """Return how many main-trial items each stimulus (by id) has so far."""
+def shown_counts(study) -> tuple[Counter, Counter]:
+    """Return how many main-trial items each stimulus (by id) has so far, and how often
+    each ``(source, position)`` has been shown in main trials: one aggregate over the
+    study's items (it runs at every start, with the study's row locked)."""
     rows = (
         TrialItem.objects.judged()
         .filter(stimulus__study=study, trial__kind=Trial.Kind.MAIN)
-        .values("stimulus")
+        .values("stimulus", "stimulus__source", "position")
         .annotate(n=Count("pk"))
-        .values_list("stimulus", "n")
+        .values_list("stimulus", "stimulus__source", "position", "n")
     )
-    return Counter(dict(rows))
-
-
-def position_counts(study) -> Counter:
-    """Return how often each ``(source, position)`` has been shown in main trials so far."""
-    rows = (
-        TrialItem.objects.judged()
-        .filter(stimulus__study=study, trial__kind=Trial.Kind.MAIN)
-        .values("stimulus__source", "position")
-        .annotate(n=Count("pk"))
-        .values_list("stimulus__source", "position", "n")
-    )
-    return Counter({(source, position): n for source, position, n in rows})
+    items, positions = Counter(), Counter()
+    for stimulus, source, position, n in rows:
+        items[stimulus] += n
+        positions[source, position] += n
+    return items, positions
 
 
 def choose_balanced(by_source: dict[str, list], counts: Counter, rng, n: int) -> list:
@@ -123,9 +117,10 @@ class Pool:
         for role, stimuli in by_role.items():
             for stimulus in stimuli:
                 shown[role][stimulus.action].append(stimulus)
+        items, positions = shown_counts(study)
         return cls(
-            stimuli_by_action(study), by_role[Stimulus.Role.CATCH], item_counts(study),
-            position_counts(study), by_role[Stimulus.Role.PRACTICE], shown,
+            stimuli_by_action(study), by_role[Stimulus.Role.CATCH], items, positions,
+            by_role[Stimulus.Role.PRACTICE], shown,
         )
 
 

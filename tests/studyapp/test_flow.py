@@ -475,7 +475,13 @@ def test_by_token_counts_trials_and_finds_the_current_one(ranking_study, make_bo
     assert read.completed_at is not None and read.external_ids == {"PROLIFIC_PID": "progress"}
 
 
-def test_an_answer_and_the_next_trial_cost_seven_statements(db, media_root, clips, make_bot):
+# A Prolific study whose time limit is the platform's default: it comes from the study's
+# minutes, which plan a session and read every completion (the kept row keeps them).
+PROLIFIC_DEFAULT_LIMIT = {"platform": "prolific", "codes": {"completed": "C1", "no_consent": "N1"}}
+
+
+@pytest.mark.parametrize("crowd", [None, PROLIFIC_DEFAULT_LIMIT], ids=["no platform", "prolific"])
+def test_an_answer_and_the_next_trial_cost_seven_statements(db, media_root, clips, make_bot, crowd):
     from django.db import connection
     from django.test.utils import CaptureQueriesContext
 
@@ -491,9 +497,11 @@ def test_an_answer_and_the_next_trial_cost_seven_statements(db, media_root, clip
 
     from tests.studyapp.conftest import make_ranking_study
 
-    ranking_study = make_ranking_study(clips, trials_per_participant=3)
+    ranking_study = make_ranking_study(clips, trials_per_participant=3,
+                                       **({"crowd": crowd} if crowd else {}))
     bot = make_bot(ranking_study)
-    bot.join(PROLIFIC_PID="statements")
+    bot.join(PROLIFIC_PID="5f3a9c2e1b4d6a7f8e9c0b1a", STUDY_ID="60aaca280709ee40ec37d488",
+             SESSION_ID="6" * 24)
     Study.objects.cached(ranking_study.slug)  # as a process that served a page before
     trial = bot.participant().current_trial()
     bot.trial_page()
@@ -541,3 +549,27 @@ def test_a_trial_without_clips_shows_an_error_page_not_a_redirect_loop(ranking_s
     response = bot.trial_page()
     assert response.status_code == 500
     assert b"Something is wrong with this study" in response.content
+
+
+def test_a_start_inserts_trials_and_items_in_three_statements(db, media_root, clips):
+    from django.db import connection
+    from django.test.utils import CaptureQueriesContext
+
+    from tests.studyapp.conftest import make_ranking_study
+
+    # With the study's row locked, whatever the number of trials: the trials, the
+    # repeats (they point at their originals) and every item (docs/BENCHMARKS.md, "Load").
+    study = make_ranking_study(clips, trials_per_participant=3, repeat_trials=1)
+    participant = Participant.objects.enroll(study, {}, "starting")
+    with CaptureQueriesContext(connection) as captured:
+        Participant.objects.start(participant)
+    inserts = [q["sql"] for q in captured.captured_queries if q["sql"].startswith("INSERT")]
+    assert len(inserts) == 3, inserts
+    trials = list(participant.trials.order_by("index"))
+    repeat = next(trial for trial in trials if trial.kind == Trial.Kind.REPEAT)
+    original = repeat.repeat_of
+    assert original.participant_id == participant.pk and original.kind == Trial.Kind.MAIN
+    # The repeat shows its original's clips, mirrored.
+    assert ([item.stimulus_id for item in repeat.items.order_by("position")]
+            == [item.stimulus_id for item in original.items.order_by("position")][::-1])
+    assert all(trial.items.count() == 3 for trial in trials)

@@ -111,19 +111,22 @@ class ParticipantManager(models.Manager):
             if participant.trials.exists():
                 return
             plans = study.kind.plan_trials(study, random.Random(participant.seed))
+            # Three INSERTs whatever the number of trials, as the study's row is locked:
+            # the trials, then the repeats (they point at their originals), then every item.
             created = {}
-            for index, plan in enumerate(plans):
-                trial = Trial.objects.create(
-                    participant=participant,
-                    index=index,
-                    action=plan.action,
-                    prompt=plan.prompt,
-                    kind=plan.kind,
-                    repeat_of=created.get(id(plan.repeat_of)),
-                    instruction=plan.instruction,
+            for repeats in (False, True):
+                planned = [(index, plan) for index, plan in enumerate(plans)
+                           if (plan.repeat_of is not None) == repeats]
+                trials = Trial.objects.bulk_create(
+                    Trial(participant=participant, index=index, action=plan.action,
+                          prompt=plan.prompt, kind=plan.kind,
+                          repeat_of=created.get(id(plan.repeat_of)),
+                          instruction=plan.instruction)
+                    for index, plan in planned
                 )
-                created[id(plan)] = trial
-                TrialItem.objects.bulk_create(plan.items(trial))
+                created.update((id(plan), trial) for (_, plan), trial in zip(planned, trials))
+            TrialItem.objects.bulk_create(
+                item for plan in plans for item in plan.items(created[id(plan)]))
 
     def by_token(self, study: Study, token: str):
         """Return the study's participant with ``token``, or None, with ``n_trials``,

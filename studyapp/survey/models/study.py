@@ -3,6 +3,7 @@
 import copy
 import secrets
 import threading
+import time
 from datetime import timedelta
 
 from django.apps import apps
@@ -66,6 +67,10 @@ def new_version() -> int:
 # The process's copies of study rows by slug (``StudyManager.cached``).
 _CACHE: dict[str, "Study"] = {}
 _CACHE_LOCK = threading.Lock()
+# Seconds a kept row's session length (``Study.minutes``) is used before it is worked out
+# again: it plans a session and reads every completion, and a participant's pages ask for
+# it (the consent text, the time limit on every request of a Prolific study).
+MINUTES_KEPT_S = 30.0
 
 
 class StudyManager(models.Manager):
@@ -87,10 +92,14 @@ class StudyManager(models.Manager):
 
     def remember(self, study: "Study") -> "Study":
         """Keep a copy of ``study`` (just read) for ``cached``; return ``study``."""
+        kept = copy.copy(study)
+        # What the process works out from the row, shared by the copies ``cached`` hands
+        # out (a shallow copy shares this dict): see ``Study.minutes``.
+        kept.__dict__["_worked_out"] = {}
         with _CACHE_LOCK:
             if len(_CACHE) > 1000:
                 _CACHE.clear()
-            _CACHE[study.slug] = copy.copy(study)
+            _CACHE[study.slug] = kept
         return study
 
     def current(self, study: "Study", version=None) -> "Study":
@@ -346,8 +355,21 @@ class Study(models.Model):
         return study_duration(self, [(done - start).total_seconds() for start, done in rows])
 
     def minutes(self) -> int:
-        """Return the whole minutes a session takes, measured once it can be."""
-        return self.duration().minutes
+        """Return the whole minutes a session takes, measured once it can be.
+
+        On a row the process keeps (``StudyManager.cached``: the participant pages) the
+        minutes are worked out at most every ``MINUTES_KEPT_S`` seconds per version of the
+        row; a row read otherwise (the admin, commands) works them out every time."""
+        worked_out = self.__dict__.get("_worked_out")
+        if worked_out is None:
+            return self.duration().minutes
+        now = time.monotonic()
+        kept = worked_out.get("minutes")
+        if kept is not None and kept[0] == self.version and now - kept[1] < MINUTES_KEPT_S:
+            return kept[2]
+        minutes = self.duration().minutes
+        worked_out["minutes"] = (self.version, now, minutes)
+        return minutes
 
     def option(self, name: str):
         """Return the study type's option ``name`` (its default when not set)."""
