@@ -12,18 +12,22 @@ over time as a crowd platform sends them (``--arrivals 2000 --over 300``: an ope
 see :func:`arrival_times`). The answer form's ``next`` field is posted as a browser posts
 it: a server that answers with the next trial saves the second request, one that
 redirects is followed. ``--code DIR`` serves the app code of another checkout (the same
-client and settings against, e.g., the previous release).
+client and settings against, e.g., the previous release). ``--crowd prolific`` makes the
+study a Prolific one entered from its link (its three ids; no time limit of its own, so
+Prolific's default from the study's minutes applies), as a launch on Prolific is.
 
 It then stops the server and checks the database: stored answers == acknowledged
 answers, no duplicates, every stored ranking a permutation, judgements per stimulus
 balanced. It reports the answer's latency (the submit until the next page is in hand)
 apart from the clips' time to first byte, p50 and p99. The last line is
 ``acknowledged=N stored=N duplicates=0 answer_p50_ms=... answer_p99_ms=...
-clip_ttfb_p50_ms=... clip_ttfb_p99_ms=... answers_per_s=...``.
+clip_ttfb_p50_ms=... clip_ttfb_p99_ms=... answers_per_s=...``, followed by the answers'
+p50/p99 per ``--window`` seconds of the run, by when they were sent.
 """
 
 import argparse
 import asyncio
+import hashlib
 import http.client
 import os
 import random
@@ -50,6 +54,12 @@ TIMEOUT = 60
 # The server takes an answer only once the clips were fetched whole and have had time to
 # play (their length: the tiny load-test clips last 0.4 s) since the page was served.
 CLIP_SECONDS = 0.4
+# ``--crowd prolific``: a study on Prolific with its codes and no time limit of its own
+# (Prolific's default, three times the study's minutes, applies), entered as from its link.
+PROLIFIC_STUDY = "60aaca280709ee40ec37d488"
+PROLIFIC_CROWD = {"platform": "prolific",
+                  "codes": {"completed": "LOADDONE", "failed_attention": "LOADFAIL",
+                            "no_consent": "LOADNO"}}
 
 
 class HttpError(RuntimeError):
@@ -79,7 +89,18 @@ class Bot:
         self.one_request = False
         self.press = 0.0  # seconds after the clips' time before the answer goes
         self.answer_seconds: list[float] = []  # submit until the next page is in hand
+        self.answer_at: list[float] = []  # when each answer went (time.monotonic)
+        self.prolific = False  # enter with Prolific's ids (``--crowd prolific``)
         self.clip_ttfb: list[float] = []  # each clip: request until its first byte
+
+    def entry_query(self) -> str:
+        """Return the entry link's query: the ids a crowd platform adds to it (Prolific's
+        three, of 24 hex digits, for a study on Prolific)."""
+        if not self.prolific:
+            return urlencode({"PROLIFIC_PID": self.person})
+        pid = hashlib.sha256(self.person.encode()).hexdigest()[:24]
+        return urlencode({"PROLIFIC_PID": pid, "STUDY_ID": PROLIFIC_STUDY,
+                          "SESSION_ID": hashlib.sha256(pid.encode()).hexdigest()[:24]})
 
     def path(self, name: str = "") -> str:
         return f"/s/{self.slug}/{name + '/' if name else ''}"
@@ -180,7 +201,7 @@ class Participant(Bot):
         return status, location
 
     def enter(self) -> None:
-        self.page = self.get(self.path() + "?" + urlencode({"PROLIFIC_PID": self.person}))
+        self.page = self.get(self.path() + "?" + self.entry_query())
 
     def consent(self) -> None:
         status, location = self.post(self.path("consent"), {"agree": "1"})
@@ -276,7 +297,7 @@ class AsyncParticipant(Bot):
 
     async def run(self, think: float = 0.0) -> None:
         """Take the whole study; wait about ``think`` seconds on every trial first."""
-        self.page = await self.get(self.path() + "?" + urlencode({"PROLIFIC_PID": self.person}))
+        self.page = await self.get(self.path() + "?" + self.entry_query())
         await self.step("consent", {"agree": "1"})
         await self.step("instructions", {})
         while self.on_trial():
@@ -289,6 +310,7 @@ class AsyncParticipant(Bot):
             await asyncio.sleep(max(wait, CLIP_SECONDS) - (time.monotonic() - shown) + self.press)
             data = self.answer_data()
             begun = time.perf_counter()
+            sent = time.monotonic()
             status, location, text = await self.request("POST", self.path("trial"),
                                                         self.form(data))
             self.submits.append((int(data["trial"]), status, time.perf_counter() - begun))
@@ -297,10 +319,12 @@ class AsyncParticipant(Bot):
                 raise HttpError(f"answer to trial {data['trial']}: HTTP {status}")
             self.page = text if inline else await self.get(location)
             self.answer_seconds.append(time.perf_counter() - begun)
+            self.answer_at.append(sent)
 
 
 def make_study(slug: str, media_root: Path, actions=("walk", "wave", "jump"),
-               sources=("real", "a2m", "cond_gru", "mdm"), trials: int = 6, player: str = "mp4"):
+               sources=("real", "a2m", "cond_gru", "mdm"), trials: int = 6, player: str = "mp4",
+               crowd: dict | None = None):
     """Create an open ranking study of tiny generated clips (3 of 4 sources per trial);
     ``player="webgl"``: each clip also has an in-page player payload of a tiny figure
     (the study plays those, the mp4 stays the fallback)."""
@@ -334,6 +358,7 @@ def make_study(slug: str, media_root: Path, actions=("walk", "wave", "jump"),
     study = Study.objects.create_study(
         "ranking", slug, "Movement study", clips_per_trial=3, trials_per_participant=trials,
         data_note="Synthetic load-test data.", player="stick" if payloads else "",
+        **({"crowd": crowd} if crowd else {}),
     )
     register_clips(study, clips)
     return study
@@ -409,6 +434,21 @@ def cpu_by_command() -> Counter:
     return used
 
 
+def windows(bots, launch: float, width: float) -> str:
+    """Return the answers' p50/p99 (ms) and count per ``width`` seconds of the run, by
+    when each answer was sent: where in a launch the slow answers are."""
+    by_window: dict[int, list[float]] = {}
+    for bot in bots:
+        for at, seconds in zip(bot.answer_at, bot.answer_seconds):
+            by_window.setdefault(int((at - launch) // width), []).append(1000 * seconds)
+    parts = []
+    for window in sorted(by_window):
+        values = sorted(by_window[window])
+        parts.append(f"{window * width:g}-{(window + 1) * width:g}: "
+                     f"{percentile(values, 50):.0f}/{percentile(values, 99):.0f} ({len(values)})")
+    return "; ".join(parts)
+
+
 def percentile(values: list[float], q: float) -> float:
     if not values:
         return float("nan")
@@ -478,6 +518,12 @@ def main(argv=None) -> int:
                         help="Serve as `make serve` does: Debian's nginx in front "
                              "(STUDY_ACCEL_REDIRECT; clips written ahead by their pages sent "
                              "by nginx) with follow_fetches beside it.")
+    parser.add_argument("--crowd", choices=("none", "prolific"), default="none",
+                        help="The study's crowd platform: prolific as a launch on Prolific "
+                             "(its ids in the entry link, codes, the default time limit "
+                             "from the study's minutes).")
+    parser.add_argument("--window", type=float, default=30.0,
+                        help="Seconds per window of the answers' latency by time.")
     parser.add_argument("--keep-db", action="store_true")
     args = parser.parse_args(argv)
     if args.arrivals:
@@ -502,7 +548,8 @@ def main(argv=None) -> int:
 
         django.setup()
         call_command("migrate", verbosity=0)
-        study = make_study("load", var / "media", trials=args.trials, player=args.study)
+        study = make_study("load", var / "media", trials=args.trials, player=args.study,
+                           crowd=PROLIFIC_CROWD if args.crowd == "prolific" else None)
         server = Server(env, workers=args.workers, settings="benchmarks.loadtest_settings",
                         log=var / "gunicorn.log", root=code)
         server.start_timeout = 180  # workers importing Django on a busy machine
@@ -536,6 +583,7 @@ def main(argv=None) -> int:
             for bot in bots:
                 bot.host, bot.port = "127.0.0.1", front.port
                 bot.one_request = True
+                bot.prolific = args.crowd == "prolific"
                 # Behind nginx a fetch is known from its log, read every 50 ms: a bot
                 # presses 200 ms after the clips' time, as a person does.
                 bot.press = 0.2 if args.nginx else 0.0
@@ -559,7 +607,7 @@ def main(argv=None) -> int:
         completed = sum(1 for bot in bots if bot.submits and not bot.on_trial())
         arrivals = f"arrivals={args.arrivals} over_s={args.over:g} " if args.arrivals else ""
         print(f"code={'this checkout' if code == ROOT else code} study={args.study} "
-              f"{'behind nginx ' if args.nginx else ''}"
+              f"{'behind nginx ' if args.nginx else ''}crowd={args.crowd} "
               f"participants={args.participants} {arrivals}concurrency={args.concurrency} "
               f"workers={args.workers} trials/participant={args.trials} completed={completed} "
               f"think_s={args.think:g} errors={len(errors)} elapsed_s={elapsed:.1f}")
@@ -583,6 +631,8 @@ def main(argv=None) -> int:
               f"clip_ttfb_p50_ms={percentile(ttfb, 50):.1f} "
               f"clip_ttfb_p99_ms={percentile(ttfb, 99):.1f} "
               f"answers_per_s={len(acknowledged) / elapsed:.0f}")
+        print("answer p50/p99 ms by when they went (s from the launch): "
+              + windows(bots, launch, args.window))
         return 0 if ok and not errors else 1
     finally:
         from django.db import connections
