@@ -19,7 +19,7 @@ Prolific's default from the study's minutes applies), as a launch on Prolific is
 It then stops the server and checks the database: stored answers == acknowledged
 answers, no duplicates, every stored ranking a permutation, judgements per stimulus
 balanced. It reports the answer's latency (the submit until the next page is in hand)
-apart from the clips' time to first byte, p50 and p99. The last line is
+apart from the clips' time to first byte, p50 and p99, on the line
 ``acknowledged=N stored=N duplicates=0 answer_p50_ms=... answer_p99_ms=...
 clip_ttfb_p50_ms=... clip_ttfb_p99_ms=... answers_per_s=...``, followed by the answers'
 p50/p99 per ``--window`` seconds of the run, by when they were sent.
@@ -434,6 +434,14 @@ def cpu_by_command() -> Counter:
     return used
 
 
+def positive_seconds(text: str) -> float:
+    """Parse a number of seconds above 0 (argparse type)."""
+    value = float(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a number of seconds above 0")
+    return value
+
+
 def windows(bots, launch: float, width: float) -> str:
     """Return the answers' p50/p99 (ms) and count per ``width`` seconds of the run, by
     when each answer was sent: where in a launch the slow answers are."""
@@ -522,7 +530,7 @@ def main(argv=None) -> int:
                         help="The study's crowd platform: prolific as a launch on Prolific "
                              "(its ids in the entry link, codes, the default time limit "
                              "from the study's minutes).")
-    parser.add_argument("--window", type=float, default=30.0,
+    parser.add_argument("--window", type=positive_seconds, default=30.0,
                         help="Seconds per window of the answers' latency by time.")
     parser.add_argument("--keep-db", action="store_true")
     args = parser.parse_args(argv)

@@ -262,10 +262,20 @@ class DatabaseStore:
         Participant.objects.record_demographics(participant, answers)
 
     def timed_out(self, participant) -> bool:
-        if participant.timed_out():
-            Participant.objects.mark_timed_out(participant)
-            return True
-        return False
+        if not participant.timed_out():
+            return False
+        # A kept study row's minutes (a default time limit's source) can be up to
+        # MINUTES_KEPT_S old: the outcome is stored for good only if the study as it
+        # stands now times the participant out too.
+        kept = participant.study
+        participant.study = Study.objects.get(pk=kept.pk)
+        try:
+            if not participant.timed_out():
+                return False
+        finally:
+            participant.study = kept
+        Participant.objects.mark_timed_out(participant)
+        return True
 
 
 # --- pages -----------------------------------------------------------------------------

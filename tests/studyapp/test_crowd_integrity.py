@@ -355,3 +355,35 @@ def test_the_admin_login_throttle_holds_without_a_working_cache(settings, cache)
     FailedLogin.objects.record("10.0.0.1", now=old)
     FailedLogin.objects.record("10.0.0.1")  # forgets what is older than a day
     assert not FailedLogin.objects.filter(failed_at__lt=timezone.now() - timedelta(days=1)).exists()
+
+
+def test_minutes_kept_by_the_process_never_time_out_someone_the_study_would_not(on_prolific):
+    import time
+
+    client = Client()
+    client.get(f"/s/{on_prolific.slug}/", ids("c" * 24))
+    assert client.post(f"/s/{on_prolific.slug}/consent/", {"agree": "1"}).status_code == 302
+    person = Participant.objects.get(study=on_prolific)
+    # A page read the row as it stands (on SQLite the consent's lock moved its version).
+    assert client.get(f"/s/{on_prolific.slug}/instructions/").status_code == 200
+    # The process kept the study's minutes when a session was estimated at 1 minute
+    # (Prolific's default limit: 5 minutes) ...
+    kept = Study.objects.cached(on_prolific.slug)
+    kept.__dict__["_worked_out"]["minutes"] = (kept.version, time.monotonic(), 1)
+    assert kept.time_limit() == timedelta(minutes=5)
+    # ... and 5 participants have since taken 20 minutes each: the study takes 20 (limit 60).
+    now = timezone.now()
+    for k in range(5):
+        Participant.objects.create(study=on_prolific, seed=100 + k, consented_at=now,
+                                   completed_at=now + timedelta(minutes=20),
+                                   outcome=Participant.Outcome.COMPLETED)
+    Participant.objects.filter(pk=person.pk).update(consented_at=now - timedelta(minutes=8))
+    assert client.get(f"/s/{on_prolific.slug}/instructions/").status_code == 200
+    person.refresh_from_db()
+    assert person.outcome == ""
+    # Past the study's own limit, the outcome is stored.
+    Participant.objects.filter(pk=person.pk).update(consented_at=now - timedelta(minutes=61),
+                                                    active_at=now)
+    assert client.get(f"/s/{on_prolific.slug}/instructions/").status_code == 410
+    person.refresh_from_db()
+    assert person.outcome == Participant.Outcome.TIMED_OUT

@@ -111,8 +111,9 @@ class ParticipantManager(models.Manager):
             if participant.trials.exists():
                 return
             plans = study.kind.plan_trials(study, random.Random(participant.seed))
-            # Three INSERTs whatever the number of trials, as the study's row is locked:
-            # the trials, then the repeats (they point at their originals), then every item.
+            # At most three INSERTs (on PostgreSQL) whatever the number of trials, as the
+            # study's row is locked: the trials, the repeats (they point at their
+            # originals), every item.
             created = {}
             for repeats in (False, True):
                 planned = [(index, plan) for index, plan in enumerate(plans)
