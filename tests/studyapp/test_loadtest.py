@@ -58,3 +58,19 @@ def test_a_tiny_launch_behind_nginx_takes_every_answer_from_its_log(tmp_path):
     assert "behind nginx" in run.stdout
     assert figures["acknowledged"] == figures["stored"] == "8" and figures["errors"] == "0"
     assert figures["clip_fetches"] == str(4 * 2 * 3)
+
+
+def test_the_answers_latency_is_split_by_when_they_went_and_the_window_must_be_positive():
+    import argparse
+    from types import SimpleNamespace
+
+    import pytest
+
+    from benchmarks.loadtest import positive_seconds, windows
+
+    bots = [SimpleNamespace(answer_at=[100.0, 131.0], answer_seconds=[0.010, 0.200]),
+            SimpleNamespace(answer_at=[105.0], answer_seconds=[0.030])]
+    text = windows(bots, launch=100.0, width=30.0)
+    assert text.startswith("0-30: ") and "(2)" in text and text.endswith("30-60: 200/200 (1)")
+    with pytest.raises(argparse.ArgumentTypeError, match="above 0"):
+        positive_seconds("0")
