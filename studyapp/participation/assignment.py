@@ -13,10 +13,10 @@ first) and each repeated trial some trials after the one it repeats.
 from collections import Counter, defaultdict
 from dataclasses import dataclass
 
-from django.db.models import Count
+from django.db.models import Count, Max
 
 from studyapp.participation.arena import retired
-from studyapp.survey.models import Stimulus, Trial, TrialItem
+from studyapp.survey.models import Balance, BalanceCount, Stimulus, Trial, TrialItem
 
 # Trials at least between a trial and its repeat, when the session is long enough.
 REPEAT_GAP = 2
@@ -33,22 +33,85 @@ def stimuli_by_action(study) -> dict[str, dict[str, list[Stimulus]]]:
     return {action: dict(sources) for action, sources in table.items()}
 
 
-def shown_counts(study) -> tuple[Counter, Counter]:
-    """Return how many main-trial items each stimulus (by id) has so far, and how often
-    each ``(source, position)`` has been shown in main trials: one aggregate over the
-    study's items (it runs at every start, with the study's row locked)."""
+def shown_counts(study, after: int = 0) -> tuple[Counter, Counter, Counter, int]:
+    """Count the main-trial items of judged stimuli of trials with an id above ``after``:
+    return them by ``(stimulus id, position)``, by stimulus id and by ``(source,
+    position)``, and the highest trial id among them (``after`` if none): one aggregate
+    (over every item of the study with ``after=0``; :class:`Tally` keeps the counts so that
+    a start reads only the trials since)."""
     rows = (
         TrialItem.objects.judged()
-        .filter(stimulus__study=study, trial__kind=Trial.Kind.MAIN)
+        .filter(stimulus__study=study, trial__kind=Trial.Kind.MAIN, trial_id__gt=after)
         .values("stimulus", "stimulus__source", "position")
-        .annotate(n=Count("pk"))
-        .values_list("stimulus", "stimulus__source", "position", "n")
+        .annotate(n=Count("pk"), last=Max("trial_id"))
+        .values_list("stimulus", "stimulus__source", "position", "n", "last")
     )
-    items, positions = Counter(), Counter()
-    for stimulus, source, position, n in rows:
+    places, items, positions = Counter(), Counter(), Counter()
+    for stimulus, source, position, n, last in rows:
+        places[stimulus, position] += n
         items[stimulus] += n
         positions[source, position] += n
-    return items, positions
+        after = max(after, last)
+    return places, items, positions, after
+
+
+@dataclass
+class Tally:
+    """How often each judged stimulus has been shown, and each source at each position,
+    in the study's main trials: the kept counts (:class:`~studyapp.survey.models.Balance`)
+    and the items of any trial after them; read and stored with the study's row locked.
+
+    ``items`` and ``positions`` are what the planner reads (it adds its choices to them);
+    :meth:`store` adds a new session's items to the kept counts.
+    """
+
+    study: object
+    items: Counter
+    positions: Counter
+    places: Counter  # (stimulus id, position) -> items, the kept counts and the ones since
+    unstored: set  # places whose count is not yet what is kept
+    counted_to: int
+    kept: bool  # whether the study has a Balance row
+
+    @classmethod
+    def read(cls, study) -> "Tally":
+        balance = Balance.objects.filter(pk=study.pk).first()
+        counted_to = balance.counted_to if balance else 0
+        places, items, positions, last = shown_counts(study, counted_to)
+        unstored = set(places)
+        if balance is not None:
+            kept = BalanceCount.objects.filter(balance=balance).values_list(
+                "stimulus", "stimulus__source", "position", "n")
+            for stimulus, source, position, n in kept:
+                places[stimulus, position] += n
+                items[stimulus] += n
+                positions[source, position] += n
+        return cls(study, items, positions, places, unstored, last, balance is not None)
+
+    def store(self, trials: list, items: list) -> None:
+        """Add a started session (its ``trials`` and their ``items``, saved) to the kept
+        counts: one upsert of the places that changed, and the row of what is counted."""
+        main = {trial.pk for trial in trials if trial.kind == Trial.Kind.MAIN}
+        for item in items:
+            if item.role == TrialItem.Role.JUDGED and item.trial_id in main:
+                self.places[item.stimulus_id, item.position] += 1
+                self.unstored.add((item.stimulus_id, item.position))
+        last = max([self.counted_to, *(trial.pk for trial in trials)])
+        if self.kept:
+            if last != self.counted_to:
+                Balance.objects.filter(pk=self.study.pk).update(counted_to=last)
+        else:
+            Balance.objects.create(study_id=self.study.pk, counted_to=last)
+            self.kept = True
+        if self.unstored:
+            BalanceCount.objects.bulk_create(
+                [BalanceCount(balance_id=self.study.pk, stimulus_id=stimulus, position=position,
+                              n=self.places[stimulus, position])
+                 for stimulus, position in sorted(self.unstored)],
+                update_conflicts=True, unique_fields=["balance", "stimulus", "position"],
+                update_fields=["n"],
+            )
+        self.counted_to, self.unstored = last, set()
 
 
 def choose_balanced(by_source: dict[str, list], counts: Counter, rng, n: int) -> list:
@@ -108,7 +171,9 @@ class Pool:
     shown: dict  # role -> {action: [stimuli]} (references, examples, anchors)
 
     @classmethod
-    def of(cls, study) -> "Pool":
+    def of(cls, study, tally: Tally | None = None) -> "Pool":
+        """Read the pool of ``study`` (its row locked); ``tally``: the counts already read
+        by the start that plans this session (read here otherwise)."""
         others = Stimulus.objects.filter(study=study).exclude(role=Stimulus.Role.JUDGED)
         by_role = defaultdict(list)
         for stimulus in others.order_by("action", "pk"):
@@ -117,9 +182,9 @@ class Pool:
         for role, stimuli in by_role.items():
             for stimulus in stimuli:
                 shown[role][stimulus.action].append(stimulus)
-        items, positions = shown_counts(study)
+        tally = tally or Tally.read(study)
         return cls(
-            stimuli_by_action(study), by_role[Stimulus.Role.CATCH], items, positions,
+            stimuli_by_action(study), by_role[Stimulus.Role.CATCH], tally.items, tally.positions,
             by_role[Stimulus.Role.PRACTICE], shown,
         )
 

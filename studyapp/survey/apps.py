@@ -12,6 +12,12 @@ class SurveyConfig(AppConfig):
         from studyapp.participation.ratelimit import count_failed_login
 
         user_login_failed.connect(count_failed_login, dispatch_uid="survey-login-limit")
+        from django.db.models.signals import pre_delete
+
+        from studyapp.survey.models import Participant
+        from studyapp.survey.models.participation import forget_balance
+
+        pre_delete.connect(forget_balance, sender=Participant, dispatch_uid="survey-balance")
         from studyapp.participation import adaptive
         from studyapp.survey import tasks
         from studyapp.stimuli import render_fanout

@@ -551,7 +551,7 @@ def test_a_trial_without_clips_shows_an_error_page_not_a_redirect_loop(ranking_s
     assert b"Something is wrong with this study" in response.content
 
 
-def test_a_start_inserts_trials_and_items_in_three_statements(db, media_root, clips):
+def test_a_start_inserts_trials_and_items_in_three_statements_and_counts_them(db, media_root, clips):
     from django.db import connection
     from django.test.utils import CaptureQueriesContext
 
@@ -563,8 +563,21 @@ def test_a_start_inserts_trials_and_items_in_three_statements(db, media_root, cl
     participant = Participant.objects.enroll(study, {}, "starting")
     with CaptureQueriesContext(connection) as captured:
         Participant.objects.start(participant)
-    inserts = [q["sql"] for q in captured.captured_queries if q["sql"].startswith("INSERT")]
+    inserts = [q["sql"] for q in captured.captured_queries
+               if q["sql"].startswith(("INSERT INTO \"survey_trial\"",
+                                       "INSERT INTO \"survey_trialitem\""))]
     assert len(inserts) == 3, inserts
+    # Then the balance counts: one upsert and the row of what is counted (created by the
+    # first start, updated by the later ones); a start costs the same however many before.
+    kept = [q["sql"] for q in captured.captured_queries if "survey_balance" in q["sql"]]
+    assert len(kept) == 3, kept  # read the row (none yet), create it, upsert the counts
+    statements = []
+    for key in ("second", "third"):
+        later = Participant.objects.enroll(study, {}, key)
+        with CaptureQueriesContext(connection) as captured:
+            Participant.objects.start(later)
+        statements.append(len(captured))
+    assert statements[0] == statements[1], statements
     trials = list(participant.trials.order_by("index"))
     repeat = next(trial for trial in trials if trial.kind == Trial.Kind.REPEAT)
     original = repeat.repeat_of

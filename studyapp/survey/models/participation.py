@@ -110,10 +110,14 @@ class ParticipantManager(models.Manager):
             study = Study.objects.lock(participant.study_id)
             if participant.trials.exists():
                 return
-            plans = study.kind.plan_trials(study, random.Random(participant.seed))
+            from studyapp.participation.assignment import Tally
+
+            tally = Tally.read(study)
+            plans = study.kind.plan_trials(study, random.Random(participant.seed), tally)
             # At most three INSERTs (on PostgreSQL) whatever the number of trials, as the
             # study's row is locked: the trials, the repeats (they point at their
-            # originals), every item.
+            # originals), every item; then the balance counts (an upsert and the row of
+            # what is counted).
             created = {}
             for repeats in (False, True):
                 planned = [(index, plan) for index, plan in enumerate(plans)
@@ -126,8 +130,9 @@ class ParticipantManager(models.Manager):
                     for index, plan in planned
                 )
                 created.update((id(plan), trial) for (_, plan), trial in zip(planned, trials))
-            TrialItem.objects.bulk_create(
-                item for plan in plans for item in plan.items(created[id(plan)]))
+            items = TrialItem.objects.bulk_create(
+                [item for plan in plans for item in plan.items(created[id(plan)])])
+            tally.store(list(created.values()), items)
 
     def by_token(self, study: Study, token: str):
         """Return the study's participant with ``token``, or None, with ``n_trials``,
@@ -466,6 +471,45 @@ class TrialItem(models.Model):
     def clip_url(self, ext: str = "mp4") -> str:
         """Return the URL of this item's ``mp4``, ``png`` (poster) or ``motion`` (payload)."""
         return reverse("survey:clip", args=[self.token, ext])
+
+
+class Balance(models.Model):
+    """What the balanced planner has handed out in a study's main trials, kept as counts.
+
+    Every start reads how often each judged stimulus has been shown at each position in
+    main trials; reading that from every item of the study grows with the study (and runs
+    with its row locked), so the counts are kept here: ``counted_to`` is the highest trial
+    id whose items are counted, and a start adds its own items (and any item of a later
+    trial made elsewhere) under the same lock (:class:`studyapp.participation.assignment.Tally`).
+    Deleting a participant deletes the study's row here (a ``pre_delete`` receiver, with the
+    study's row locked): the next start counts every item again, once.
+    """
+
+    study = models.OneToOneField(Study, on_delete=models.CASCADE, primary_key=True,
+                                 related_name="+")
+    counted_to = models.BigIntegerField(default=0, help_text="The highest trial id counted.")
+
+
+class BalanceCount(models.Model):
+    """Main-trial items of one judged stimulus at one position, of the trials counted."""
+
+    balance = models.ForeignKey(Balance, on_delete=models.CASCADE, related_name="counts")
+    stimulus = models.ForeignKey(Stimulus, on_delete=models.CASCADE, related_name="+")
+    position = models.PositiveSmallIntegerField()
+    n = models.PositiveIntegerField(default=0)
+
+    class Meta:
+        constraints = [
+            models.UniqueConstraint(fields=["balance", "stimulus", "position"],
+                                    name="one_count_per_place"),
+        ]
+
+
+def forget_balance(sender, instance, **kwargs) -> None:
+    """A participant is being deleted: their items leave the counts, so drop the study's
+    kept counts (the study's row locked, as a start holds it) to be counted afresh."""
+    Study.objects.lock(instance.study_id)
+    Balance.objects.filter(pk=instance.study_id).delete()
 
 
 class ResponseManager(models.Manager):

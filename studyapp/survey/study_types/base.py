@@ -251,8 +251,9 @@ class StudyType:
         """Return how many main trials each action gets by default."""
         return 1
 
-    def plan_trials(self, study, rng) -> list[TrialPlan]:
-        """Return the trials of a new participant; called with the study row locked.
+    def plan_trials(self, study, rng, tally=None) -> list[TrialPlan]:
+        """Return the trials of a new participant; called with the study row locked
+        (``tally``: the balance counts the start has read, :class:`assignment.Tally`).
 
         Main trials first draw on ``rng`` exactly as a session without extras would,
         so the practice, catch, instructed and repeated trials never change which clips
@@ -263,7 +264,7 @@ class StudyType:
             # adaptive study asks from its planning); here for every type, whatever
             # planning it brings.
             adaptive.request_recompute(study)
-        pool = assignment.Pool.of(study)
+        pool = assignment.Pool.of(study, tally)
         main = self.plan_main(study, pool, rng)
         practice = self.plan_practice(study, pool, rng) if study.practice else None
         if practice and main:  # no more clips than the trials show (fewer sources than k)
