@@ -1,13 +1,15 @@
-"""What starting a session costs as a study fills: the balanced planning at every start.
+"""What entering and starting cost as a study fills: the work done with the study's row locked.
 
 ``.venv/bin/python benchmarks/start_cost.py --participants 2000`` creates a fresh
-PostgreSQL database and the load test's ranking study (12 clips, 3 a trial), then starts
-``--participants`` sessions one after another (``ParticipantManager.start``: the study's row
-locked, the balance read, the session planned and stored), and prints, for each block of
-``--block`` starts, the mean wall-clock time of a start, the process's CPU time, and the SQL
-statements it ran. A start holds the study's row for its whole length, so its time bounds how
-many people a second can start, whatever the number of workers. ``--code DIR`` measures the
-app code of another checkout under the same driver (the previous code, side by side).
+PostgreSQL database and the load test's ranking study (12 clips, 3 a trial) as a Prolific
+study with as many places as participants (its ``SESSION_ID`` unique, the places counted at
+every consent), then enrols and starts ``--participants`` people one after another
+(``ParticipantManager.enroll``: the consent; ``ParticipantManager.start``: the balance read,
+the session planned and stored), and prints, for each block of ``--block`` people, the mean
+wall-clock time of each, the process's CPU time and the SQL statements they ran. Both hold
+the study's row for their whole length, so their time bounds how many people a second can
+enter, whatever the number of workers. ``--code DIR`` measures the app code of another
+checkout under the same driver (the previous code, side by side).
 """
 
 import argparse
@@ -24,39 +26,57 @@ sys.path.insert(0, str(ROOT))
 from benchmarks.server import create_database, drop_database, server_env  # noqa: E402
 
 
-def drive(participants: int, trials: int, block: int) -> None:
+def drive(participants: int, trials: int, block: int, time_limit: int | None) -> None:
     from django.db import connection
 
-    from benchmarks.loadtest import make_study
+    from benchmarks.loadtest import PROLIFIC_CROWD, make_study
     from studyapp.survey.models import Participant
 
-    study = make_study("starts", Path(os.environ["STUDY_VAR_DIR"]) / "media", trials=trials)
-    wall = cpu = statements = 0.0
+    study = make_study("starts", Path(os.environ["STUDY_VAR_DIR"]) / "media", trials=trials,
+                       crowd={**PROLIFIC_CROWD, **({"time_limit_minutes": time_limit}
+                                                   if time_limit else {})})
+    study.max_participants = participants
+    study.save()
+    spent = {step: [0.0, 0.0, 0] for step in ("enroll", "start")}
+    statements = 0
 
     def count(execute, sql, params, many, context):
         nonlocal statements
         statements += 1
         return execute(sql, params, many, context)
 
-    for i in range(1, participants + 1):
-        person = Participant.objects.create(study=study, seed=i, external_key=f"start-{i}")
+    def timed(step, call):
+        nonlocal statements
+        statements = 0
         w, c = time.perf_counter(), time.process_time()
         with connection.execute_wrapper(count):
-            Participant.objects.start(person)
-        wall += time.perf_counter() - w
-        cpu += time.process_time() - c
+            result = call()
+        figures = spent[step]
+        figures[0] += time.perf_counter() - w
+        figures[1] += time.process_time() - c
+        figures[2] += statements
+        return result
+
+    for i in range(1, participants + 1):
+        ids = {"PROLIFIC_PID": f"{i:024x}", "STUDY_ID": "5" * 24, "SESSION_ID": f"{i:024d}"}
+        person = timed("enroll", lambda: Participant.objects.enroll(study, ids, ids["PROLIFIC_PID"]))
+        timed("start", lambda: Participant.objects.start(person))
         if i % block == 0:
-            print(f"starts={i - block + 1}..{i} wall_ms={1000 * wall / block:.2f} "
-                  f"cpu_ms={1000 * cpu / block:.2f} statements={statements / block:.1f}",
-                  flush=True)
-            wall = cpu = statements = 0.0
+            print(f"people={i - block + 1}..{i} " + " ".join(
+                f"{step}: wall_ms={1000 * wall / block:.2f} cpu_ms={1000 * cpu / block:.2f} "
+                f"statements={n / block:.1f}" for step, (wall, cpu, n) in spent.items()),
+                flush=True)
+            spent = {step: [0.0, 0.0, 0] for step in spent}
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--participants", type=int, default=2000)
     parser.add_argument("--trials", type=int, default=6)
-    parser.add_argument("--block", type=int, default=250, help="Starts per printed line.")
+    parser.add_argument("--block", type=int, default=250, help="People per printed line.")
+    parser.add_argument("--time-limit", type=int, default=None,
+                        help="The study's time_limit_minutes (as `prolific create` stores "
+                             "it); without it, Prolific's default from the study's minutes.")
     parser.add_argument("--code", type=Path, default=None,
                         help="Measure the app code of this checkout.")
     parser.add_argument("--inner", action="store_true", help=argparse.SUPPRESS)
@@ -69,7 +89,7 @@ def main(argv=None) -> int:
 
         django.setup()
         call_command("migrate", verbosity=0)
-        drive(args.participants, args.trials, args.block)
+        drive(args.participants, args.trials, args.block, args.time_limit)
         return 0
     name = f"starts_{os.getpid()}"
     var = Path(tempfile.mkdtemp(prefix="starts-var-"))
@@ -79,7 +99,8 @@ def main(argv=None) -> int:
     try:
         run = subprocess.run(
             [sys.executable, __file__, "--inner", "--participants", str(args.participants),
-             "--trials", str(args.trials), "--block", str(args.block), "--code", str(code)],
+             "--trials", str(args.trials), "--block", str(args.block), "--code", str(code),
+             *(["--time-limit", str(args.time_limit)] if args.time_limit else [])],
             env=env, cwd=code, check=False)
     finally:
         drop_database(name)

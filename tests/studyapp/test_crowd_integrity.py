@@ -357,6 +357,22 @@ def test_the_admin_login_throttle_holds_without_a_working_cache(settings, cache)
     assert not FailedLogin.objects.filter(failed_at__lt=timezone.now() - timedelta(days=1)).exists()
 
 
+def test_a_consent_to_a_study_with_places_works_its_minutes_out_once(on_prolific, monkeypatch):
+    # Prolific's default time limit comes from the study's minutes (a session planned,
+    # every completion read); with places, a consent releases the lapsed places and counts
+    # the rest, with the study's row locked: the minutes are worked out once for both.
+    Study.objects.filter(pk=on_prolific.pk).update(max_participants=10)
+    calls = []
+    duration = Study.duration
+    monkeypatch.setattr(Study, "duration", lambda study: calls.append(1) or duration(study))
+    client = Client()
+    client.get(f"/s/{on_prolific.slug}/", ids("d" * 24))
+    calls.clear()
+    assert client.post(f"/s/{on_prolific.slug}/consent/", {"agree": "1"}).status_code == 302
+    assert Participant.objects.filter(study=on_prolific, consented_at__isnull=False).count() == 1
+    assert len(calls) == 1
+
+
 def test_minutes_kept_by_the_process_never_time_out_someone_the_study_would_not(on_prolific):
     import time
 

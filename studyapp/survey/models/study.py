@@ -155,7 +155,8 @@ class StudyManager(models.Manager):
         )
 
     def lock(self, study_id: int) -> "Study":
-        """Return the study row locked until the end of the current transaction.
+        """Return the study row locked until the end of the current transaction (its
+        minutes worked out at most once while it is held).
 
         PostgreSQL takes a row lock (FOR UPDATE). SQLite ignores FOR UPDATE, so a no-op
         UPDATE takes its database write lock first: concurrent assigners then queue
@@ -163,7 +164,11 @@ class StudyManager(models.Manager):
         """
         if connection.vendor == "sqlite":
             self.filter(pk=study_id).update(status=F("status"))
-        return self.select_for_update().get(pk=study_id)
+        study = self.select_for_update().get(pk=study_id)
+        # Its minutes (a session planned, every completion read: a Prolific study's default
+        # time limit) are worked out once for the transaction, not at each place-count.
+        study.__dict__["_worked_out"] = {}
+        return study
 
 
 class Study(models.Model):
