@@ -495,11 +495,20 @@ class Proxied:
         return self
 
     def __exit__(self, *exc):
-        if self.follower is not None:
+        if self.follower is not None and self.follower.poll() is None:
             self.follower.terminate()
             self.follower.wait(10)
         if self.proxy is not None:
             self.proxy.stop()
+
+    def kill(self) -> None:
+        """``kill -9`` nginx and the log's follower (a node dying whole)."""
+        import signal
+
+        for process in (self.follower, self.proxy and self.proxy.process):
+            if process is not None and process.poll() is None:
+                os.killpg(process.pid, signal.SIGKILL)
+                process.wait(10)
 
 
 def main(argv=None) -> int:

@@ -16,6 +16,11 @@ seats balanced (spread 1), and the per-study consent limit of ``--limit`` counte
 for both nodes: of ``--limit + 20`` consents to a second study from one address exactly
 ``--limit`` pass. The last line is ``participants=N nodes=2 killed=1 ... ok=True``.
 
+``--nginx``: each node is what ``make serve`` starts on a machine, Debian's nginx in front
+of its gunicorn (clips written ahead, sent by nginx, ``follow_fetches`` reading its log into
+Redis), and HAProxy balances over the two nginx; the kill takes the whole node (nginx, its
+log's follower, gunicorn).
+
 The test (tests/studyapp/test_nodes.py) runs the same with a few dozen bots.
 """
 
@@ -37,7 +42,8 @@ from urllib.parse import urlencode
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.loadtest import AsyncParticipant, check, make_study, percentile  # noqa: E402
+from benchmarks.loadtest import (  # noqa: E402
+    AsyncParticipant, Proxied, check, make_study, percentile)
 from benchmarks.server import (  # noqa: E402
     Server, create_database, drop_database, haproxy, server_env)
 
@@ -92,7 +98,7 @@ async def limited_consents(url: str, slug: str, count: int, at_once: int = 50) -
 def run(database_url: str, var: Path, participants: int, trials: int = 4, workers: int = 2,
         kill_at: float = 0.4, limit: int | None = None, concurrency: int | None = None,
         time_limit: float = 600, secret_key: str | None = None, think: float = 0.0,
-        retries: int = 5) -> dict:
+        retries: int = 5, behind_nginx: bool = False) -> dict:
     """Run the study on two nodes, kill one; return the figures (``ok``: every check held).
 
     The database must be migrated and Django set up in this process (it reads the
@@ -111,25 +117,34 @@ def run(database_url: str, var: Path, participants: int, trials: int = 4, worker
                       STUDY_ENTRY_RATE_LIMIT_PER_STUDY=f"{limit}/h")
     if secret_key:
         base["DJANGO_SECRET_KEY"] = secret_key
-    nodes = [Server(dict(base, STUDY_FETCH_SPOOL=str(var / f"spool-{i}")), workers=workers,
-                    settings="benchmarks.loadtest_settings", log=var / f"node{i}.log")
-             for i in range(2)]
+    if behind_nginx:
+        base["STUDY_ACCEL_REDIRECT"] = "/protected-media/"
+    envs = [dict(base, STUDY_FETCH_SPOOL=str(var / f"spool-{i}")) for i in range(2)]
+    nodes = [Server(env, workers=workers, settings="benchmarks.loadtest_settings",
+                    log=var / f"node{i}.log") for i, env in enumerate(envs)]
+    fronts = [Proxied(behind_nginx, env, var / f"node{i}", node)
+              for i, (env, node) in enumerate(zip(envs, nodes))]
     nodes[0].collectstatic()
-    balancer = haproxy(var / "haproxy", [f"127.0.0.1:{n.port}" for n in nodes])
-    stats = var / "haproxy" / "stats.sock"
-    config = balancer.command[-1]
-    Path(config).write_text(Path(config).read_text().replace(
-        "global\n", f"global\n    stats socket {stats} mode 600 level admin\n"))
     bots = [AsyncParticipant("http://x:1", study.slug, f"node-bot-{i}", random.Random(i))
             for i in range(participants)]
     errors: list[str] = []
     expected = participants * trials
+    balancer = None
     try:
-        for node in nodes:
+        for node, front in zip(nodes, fronts):
             node.start(timeout=180)  # Django's start takes long on a busy machine
+            front.__enter__()
+        balancer = haproxy(var / "haproxy", [f"127.0.0.1:{front.port}" for front in fronts])
+        stats = var / "haproxy" / "stats.sock"
+        config = balancer.command[-1]
+        Path(config).write_text(Path(config).read_text().replace(
+            "global\n", f"global\n    stats socket {stats} mode 600 level admin\n"))
         balancer.start()
         for bot in bots:
             bot.host, bot.port = "127.0.0.1", balancer.port
+            # Behind nginx a fetch is known from its log (read every 50 ms): press 0.2 s
+            # after the clips' time, as a person does.
+            bot.press = 0.2 if behind_nginx else 0.0
 
         async def crowd(which):
             gate = asyncio.Semaphore(concurrency or len(which))
@@ -157,6 +172,7 @@ def run(database_url: str, var: Path, participants: int, trials: int = 4, worker
             time.sleep(0.01)
         killed_at = len(acknowledged())
         nodes[0].kill()
+        fronts[0].kill()
         first.join(time_limit)
         again, rounds = list(cut_off), 0
         while again and rounds < retries:  # they come back with their cookies, as people
@@ -176,8 +192,10 @@ def run(database_url: str, var: Path, participants: int, trials: int = 4, worker
         consenting.join(time_limit)
         served = served_by(stats)
     finally:
-        balancer.stop()
-        for node in nodes:
+        if balancer is not None:
+            balancer.stop()
+        for node, front in zip(nodes, fronts):
+            front.__exit__(None, None, None)
             node.stop()
 
     acks = acknowledged()
@@ -233,6 +251,8 @@ def main(argv=None) -> int:
     parser.add_argument("--kill-at", type=float, default=0.4,
                         help="Kill node 0 once this share of the answers is in.")
     parser.add_argument("--time-limit", type=float, default=600)
+    parser.add_argument("--nginx", action="store_true",
+                        help="Each node behind its own nginx, as `make serve` runs it.")
     parser.add_argument("--keep-db", action="store_true")
     args = parser.parse_args(argv)
 
@@ -248,7 +268,7 @@ def main(argv=None) -> int:
         django.setup()
         call_command("migrate", verbosity=0)
         r = run(url, var, args.participants, args.trials, args.workers, args.kill_at,
-                time_limit=args.time_limit, think=args.think)
+                time_limit=args.time_limit, think=args.think, behind_nginx=args.nginx)
         for line in r["errors"][:3]:
             print("  cut off:", line)
         print(f"served by node: {r['served_by']}; killed node0 after {r['killed_at']} "
