@@ -62,7 +62,9 @@ class Tally:
     and the items of any trial after them; read and stored with the study's row locked.
 
     ``items`` and ``positions`` are what the planner reads (it adds its choices to them);
-    :meth:`store` adds a new session's items to the kept counts.
+    :meth:`store` adds a new session's items to the kept counts. Read without the lock (a
+    preview, an estimate of the session's length) the three statements are not one
+    snapshot: a start committing between them may be counted twice, in an estimate only.
     """
 
     study: object

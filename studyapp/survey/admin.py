@@ -25,10 +25,16 @@ from studyapp.survey.models import (
 
 
 class ReadOnlyAdmin(admin.ModelAdmin):
+    """Trials and answers as they were stored: nothing added, changed or deleted here (a
+    participant is deleted whole, with their trials; the balance counts rely on it)."""
+
     def has_add_permission(self, request, obj=None):
         return False
 
     def has_change_permission(self, request, obj=None):
+        return False
+
+    def has_delete_permission(self, request, obj=None):
         return False
 
 
@@ -358,6 +364,12 @@ class ParticipantAdmin(admin.ModelAdmin):
 
     def has_add_permission(self, request):
         return False
+
+    def get_deleted_objects(self, objs, request):
+        """A participant is deleted whole, with their trials and answers, which cannot be
+        deleted on their own (``ReadOnlyAdmin``): deleting the participant is allowed."""
+        deleted, counts, _, protected = super().get_deleted_objects(objs, request)
+        return deleted, counts, set(), protected
 
 
 class TrialItemInline(admin.TabularInline):

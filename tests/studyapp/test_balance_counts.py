@@ -74,3 +74,32 @@ def test_deleting_the_study_deletes_its_counts(study):
     study.participants.all().delete()  # as the demo does (stimuli protect their items)
     study.delete()
     assert not Balance.objects.exists()
+
+
+def test_the_admin_deletes_a_participant_whole_never_a_trial_or_an_answer(study, admin_client):
+    person = start(study, "p0")
+    start(study, "p1")
+    trial = person.trials.filter(kind=Trial.Kind.MAIN).first()
+    item = trial.items.first()
+    for path in (f"/admin/survey/trial/{trial.pk}/delete/",
+                 f"/admin/survey/response/{item.pk}/delete/"):
+        assert admin_client.get(path).status_code == 403, path
+    response = admin_client.post("/admin/survey/trial/", {
+        "action": "delete_selected", "_selected_action": [trial.pk], "post": "yes"})
+    assert response.status_code in (200, 302, 403)
+    assert Trial.objects.filter(pk=trial.pk).exists()
+    response = admin_client.post(f"/admin/survey/participant/{person.pk}/delete/",
+                                 {"post": "yes"})
+    assert response.status_code == 302 and not Participant.objects.filter(pk=person.pk).exists()
+    start(study, "p2")
+    assert_kept_counts_are_the_items(study)
+
+
+def test_deleting_someone_without_main_trials_keeps_the_counts(study):
+    start(study, "p0")
+    practice_only = Participant.objects.enroll(study, {}, "audit")
+    Trial.objects.create(participant=practice_only, index=0, action="audit",
+                         kind=Trial.Kind.PRACTICE)
+    practice_only.delete()  # as the blindness audit deletes its own participants
+    assert Balance.objects.filter(pk=study.pk).exists()
+    assert_kept_counts_are_the_items(study)

@@ -479,10 +479,14 @@ class Balance(models.Model):
     Every start reads how often each judged stimulus has been shown at each position in
     main trials; reading that from every item of the study grows with the study (and runs
     with its row locked), so the counts are kept here: ``counted_to`` is the highest trial
-    id whose items are counted, and a start adds its own items (and any item of a later
-    trial made elsewhere) under the same lock (:class:`studyapp.participation.assignment.Tally`).
-    Deleting a participant deletes the study's row here (a ``pre_delete`` receiver, with the
-    study's row locked): the next start counts every item again, once.
+    id whose items are counted, and a start adds its own items under the same lock
+    (:class:`studyapp.participation.assignment.Tally`; items of a trial with a higher id
+    found there are counted too). This holds as long as main trials are made with their
+    items by a start, under the study's lock, and trials and items are deleted only with
+    their participant: nothing else in the app makes or deletes them (the admin shows
+    trials and answers read-only). Deleting a participant who has main trials deletes the
+    study's row here (a ``pre_delete`` receiver, with the study's row locked until the
+    deletion commits): the next start counts every item again, once.
     """
 
     study = models.OneToOneField(Study, on_delete=models.CASCADE, primary_key=True,
@@ -506,8 +510,17 @@ class BalanceCount(models.Model):
 
 
 def forget_balance(sender, instance, **kwargs) -> None:
-    """A participant is being deleted: their items leave the counts, so drop the study's
-    kept counts (the study's row locked, as a start holds it) to be counted afresh."""
+    """A participant is being deleted: their main-trial items leave the counts, so drop the
+    study's kept counts (the study's row locked, as a start holds it) to be counted afresh.
+    One without main trials (a blindness audit's, practice only) changes no count: nothing
+    is locked or dropped (a start committing main trials for them meanwhile makes the
+    deletion fail, as the trials it collected no longer cover theirs).
+
+    Deleting participants of several studies in one transaction locks the studies in the
+    order of the participants: two such deletions at once may deadlock, and PostgreSQL then
+    aborts one (deleting one study's participants at a time avoids it)."""
+    if not Trial.objects.filter(participant_id=instance.pk, kind=Trial.Kind.MAIN).exists():
+        return
     Study.objects.lock(instance.study_id)
     Balance.objects.filter(pk=instance.study_id).delete()
 
