@@ -27,7 +27,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.server import create_database, drop_database, server_env  # noqa: E402
+from benchmarks.server import (  # noqa: E402
+    create_database, drop_database, server_env, setup_django)
 
 PY_SPY = Path(sys.executable).with_name("py-spy")
 # A stack's part: the innermost frame (``name (file:line)``) matching one of these; the
@@ -137,13 +138,10 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     code = (args.code or ROOT).resolve()
     if args.inner:
-        sys.path.insert(0, str(code))
-        import django
+        setup_django(code)
         from django.conf import settings
         from django.core.management import call_command
 
-        django.setup()
-        call_command("migrate", verbosity=0)
         call_command("collectstatic", interactive=False, verbosity=0)
         settings.STUDY_WATCH_TIME_FACTOR = 0  # no waiting: the check itself still runs
         answers = drive(args.participants, args.trials)

@@ -106,6 +106,17 @@ class Server:
         self.stop()
 
 
+def setup_django(code: Path) -> None:
+    """Set Django up in this process on the app code of checkout ``code`` (its settings
+    from the environment) and migrate its database: a benchmark's inner process."""
+    sys.path.insert(0, str(code))
+    import django
+    from django.core.management import call_command
+
+    django.setup()
+    call_command("migrate", verbosity=0)
+
+
 def create_database(name: str) -> str:
     """Create a fresh PostgreSQL database on 127.0.0.1 and return its URL."""
     subprocess.run(["createdb", "-h", "127.0.0.1", "-U", "postgres", name], check=True)

@@ -23,7 +23,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.server import create_database, drop_database, server_env  # noqa: E402
+from benchmarks.server import (  # noqa: E402
+    create_database, drop_database, server_env, setup_django)
 
 
 def drive(participants: int, trials: int, block: int, time_limit: int | None) -> None:
@@ -83,12 +84,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     code = (args.code or ROOT).resolve()
     if args.inner:
-        sys.path.insert(0, str(code))
-        import django
-        from django.core.management import call_command
-
-        django.setup()
-        call_command("migrate", verbosity=0)
+        setup_django(code)
         drive(args.participants, args.trials, args.block, args.time_limit)
         return 0
     name = f"starts_{os.getpid()}"
