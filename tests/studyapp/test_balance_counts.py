@@ -7,8 +7,8 @@ after starts, deletions and items made outside a start.
 
 import pytest
 
-from studyapp.participation.assignment import Tally, shown_counts
 from studyapp.survey.models import Balance, Participant, Trial, TrialItem
+from studyapp.survey.models.participation import Tally, shown_counts
 from tests.studyapp.conftest import make_ranking_study
 
 

@@ -14,9 +14,11 @@ its answer is checked, graded, exported and analysed belongs to the study's type
 
 import random
 import secrets
+from collections import Counter
+from dataclasses import dataclass
 
 from django.db import connection, models, transaction
-from django.db.models import Count, Exists, F, OuterRef, Q
+from django.db.models import Count, Exists, F, Max, OuterRef, Q
 from django.urls import reverse
 from django.utils import timezone
 
@@ -110,8 +112,6 @@ class ParticipantManager(models.Manager):
             study = Study.objects.lock(participant.study_id)
             if participant.trials.exists():
                 return
-            from studyapp.participation.assignment import Tally
-
             tally = Tally.read(study)
             plans = study.kind.plan_trials(study, random.Random(participant.seed), tally)
             # At most three INSERTs (on PostgreSQL) whatever the number of trials, as the
@@ -480,8 +480,7 @@ class Balance(models.Model):
     main trials; reading that from every item of the study grows with the study (and runs
     with its row locked), so the counts are kept here: ``counted_to`` is the highest trial
     id whose items are counted, and a start adds its own items under the same lock
-    (:class:`studyapp.participation.assignment.Tally`; items of a trial with a higher id
-    found there are counted too). This holds as long as main trials are made with their
+    (:class:`Tally`; items of a trial with a higher id found there are counted too). This holds as long as main trials are made with their
     items by a start, under the study's lock, and trials and items are deleted only with
     their participant: nothing else in the app makes or deletes them (the admin shows
     trials and answers read-only). Deleting a participant who has main trials deletes the
@@ -507,6 +506,89 @@ class BalanceCount(models.Model):
             models.UniqueConstraint(fields=["balance", "stimulus", "position"],
                                     name="one_count_per_place"),
         ]
+
+
+def shown_counts(study, after: int = 0) -> tuple[Counter, Counter, Counter, int]:
+    """Count the main-trial items of judged stimuli of trials with an id above ``after``:
+    return them by ``(stimulus id, position)``, by stimulus id and by ``(source,
+    position)``, and the highest trial id among them (``after`` if none): one aggregate
+    (over every item of the study with ``after=0``; :class:`Tally` keeps the counts so that
+    a start reads only the trials since)."""
+    rows = (
+        TrialItem.objects.judged()
+        .filter(stimulus__study=study, trial__kind=Trial.Kind.MAIN, trial_id__gt=after)
+        .values("stimulus", "stimulus__source", "position")
+        .annotate(n=Count("pk"), last=Max("trial_id"))
+        .values_list("stimulus", "stimulus__source", "position", "n", "last")
+    )
+    places, items, positions = Counter(), Counter(), Counter()
+    for stimulus, source, position, n, last in rows:
+        places[stimulus, position] += n
+        items[stimulus] += n
+        positions[source, position] += n
+        after = max(after, last)
+    return places, items, positions, after
+
+
+@dataclass
+class Tally:
+    """How often each judged stimulus has been shown, and each source at each position,
+    in the study's main trials: the kept counts (:class:`~studyapp.survey.models.Balance`)
+    and the items of any trial after them; read and stored with the study's row locked.
+
+    ``items`` and ``positions`` are what the planner reads (it adds its choices to them);
+    :meth:`store` adds a new session's items to the kept counts. Read without the lock (a
+    preview, an estimate of the session's length) the three statements are not one
+    snapshot: a start committing between them may be counted twice, in an estimate only.
+    """
+
+    study: object
+    items: Counter
+    positions: Counter
+    places: Counter  # (stimulus id, position) -> items, the kept counts and the ones since
+    unstored: set  # places whose count is not yet what is kept
+    counted_to: int
+    kept: bool  # whether the study has a Balance row
+
+    @classmethod
+    def read(cls, study) -> "Tally":
+        balance = Balance.objects.filter(pk=study.pk).first()
+        counted_to = balance.counted_to if balance else 0
+        places, items, positions, last = shown_counts(study, counted_to)
+        unstored = set(places)
+        if balance is not None:
+            kept = BalanceCount.objects.filter(balance=balance).values_list(
+                "stimulus", "stimulus__source", "position", "n")
+            for stimulus, source, position, n in kept:
+                places[stimulus, position] += n
+                items[stimulus] += n
+                positions[source, position] += n
+        return cls(study, items, positions, places, unstored, last, balance is not None)
+
+    def store(self, trials: list, items: list) -> None:
+        """Add a started session (its ``trials`` and their ``items``, saved) to the kept
+        counts: one upsert of the places that changed, and the row of what is counted."""
+        main = {trial.pk for trial in trials if trial.kind == Trial.Kind.MAIN}
+        for item in items:
+            if item.role == TrialItem.Role.JUDGED and item.trial_id in main:
+                self.places[item.stimulus_id, item.position] += 1
+                self.unstored.add((item.stimulus_id, item.position))
+        last = max([self.counted_to, *(trial.pk for trial in trials)])
+        if self.kept:
+            if last != self.counted_to:
+                Balance.objects.filter(pk=self.study.pk).update(counted_to=last)
+        else:
+            Balance.objects.create(study_id=self.study.pk, counted_to=last)
+            self.kept = True
+        if self.unstored:
+            BalanceCount.objects.bulk_create(
+                [BalanceCount(balance_id=self.study.pk, stimulus_id=stimulus, position=position,
+                              n=self.places[stimulus, position])
+                 for stimulus, position in sorted(self.unstored)],
+                update_conflicts=True, unique_fields=["balance", "stimulus", "position"],
+                update_fields=["n"],
+            )
+        self.counted_to, self.unstored = last, set()
 
 
 def forget_balance(sender, instance, **kwargs) -> None:

@@ -253,7 +253,8 @@ class StudyType:
 
     def plan_trials(self, study, rng, tally=None) -> list[TrialPlan]:
         """Return the trials of a new participant; called with the study row locked
-        (``tally``: the balance counts the start has read, :class:`assignment.Tally`).
+        (``tally``: the balance counts the start has read, a
+        :class:`~studyapp.survey.models.participation.Tally`).
 
         Main trials first draw on ``rng`` exactly as a session without extras would,
         so the practice, catch, instructed and repeated trials never change which clips
