@@ -60,7 +60,8 @@ def drive(participants: int, trials: int, block: int, time_limit: int | None) ->
 
     for i in range(1, participants + 1):
         ids = {"PROLIFIC_PID": f"{i:024x}", "STUDY_ID": "5" * 24, "SESSION_ID": f"{i:024d}"}
-        person = timed("enroll", lambda: Participant.objects.enroll(study, ids, ids["PROLIFIC_PID"]))
+        key = ids["PROLIFIC_PID"]
+        person = timed("enroll", lambda: Participant.objects.enroll(study, ids, key))
         timed("start", lambda: Participant.objects.start(person))
         if i % block == 0:
             print(f"people={i - block + 1}..{i} " + " ".join(

@@ -483,9 +483,10 @@ class Balance(models.Model):
     (:class:`Tally`; items of a trial with a higher id found there are counted too). This
     holds as long as main trials are made with their items by a start, under the study's
     lock, and trials and items are deleted only with their participant: nothing else in
-    the app makes or deletes them (the admin shows trials and answers read-only). Deleting a participant who has main trials deletes the
-    study's row here (a ``pre_delete`` receiver, with the study's row locked until the
-    deletion commits): the next start counts every item again, once.
+    the app makes or deletes them (the admin shows trials and answers read-only).
+    Deleting a participant who has main trials deletes the study's row here (a
+    ``pre_delete`` receiver, with the study's row locked until the deletion commits): the
+    next start counts every item again, once.
     """
 
     study = models.OneToOneField(Study, on_delete=models.CASCADE, primary_key=True,
