@@ -368,8 +368,8 @@ class ParticipantAdmin(admin.ModelAdmin):
     def get_deleted_objects(self, objs, request):
         """A participant is deleted whole, with their trials and answers, which cannot be
         deleted on their own (``ReadOnlyAdmin``): deleting the participant is allowed."""
-        deleted, counts, _, protected = super().get_deleted_objects(objs, request)
-        return deleted, counts, set(), protected
+        deleted, counts, perms_needed, protected = super().get_deleted_objects(objs, request)
+        return deleted, counts, perms_needed - {str(Trial._meta.verbose_name)}, protected
 
 
 class TrialItemInline(admin.TabularInline):

@@ -595,9 +595,10 @@ class Tally:
 def forget_balance(sender, instance, **kwargs) -> None:
     """A participant is being deleted: their main-trial items leave the counts, so drop the
     study's kept counts (the study's row locked, as a start holds it) to be counted afresh.
-    One without main trials (a blindness audit's, practice only) changes no count: nothing
-    is locked or dropped (a start committing main trials for them meanwhile makes the
-    deletion fail, as the trials it collected no longer cover theirs).
+    One without main trials (not started yet, or a blindness audit's, practice only)
+    changes no count: nothing is locked or dropped (should a start store main trials for
+    them meanwhile, one of the two fails as it commits, on the deferred foreign key: the
+    counts are unaffected).
 
     Deleting participants of several studies in one transaction locks the studies in the
     order of the participants: two such deletions at once may deadlock, and PostgreSQL then
