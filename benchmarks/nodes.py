@@ -21,7 +21,8 @@ of its gunicorn (clips written ahead, sent by nginx, ``follow_fetches`` reading 
 Redis), and HAProxy balances over the two nginx; the kill takes the whole node (nginx, its
 log's follower, gunicorn).
 
-The test (tests/studyapp/test_nodes.py) runs the same with a few dozen bots.
+The test (tests/studyapp/test_nodes.py) runs the same with a few dozen bots, with and
+without ``--nginx``.
 """
 
 from __future__ import annotations

@@ -22,5 +22,6 @@ from studyapp.survey.models.logins import FailedLogin
 
 __all__ = [
     "Balance", "BalanceCount", "BuildJob", "FailedLogin", "Participant", "Response",
-    "ScoringStandard", "Stimulus", "Study", "Trial", "TrialItem", "Unavailable", "new_token", "study_type_choices",
+    "ScoringStandard", "Stimulus", "Study", "Trial", "TrialItem", "Unavailable", "new_token",
+    "study_type_choices",
 ]
