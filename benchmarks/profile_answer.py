@@ -10,7 +10,10 @@ that redirects instead is followed, and the redirect's page is part of the answe
 sample inside an answer is put in one part, by the innermost frame that names one
 (:data:`PARTS`); the split is printed in per cent of the samples and as ms of the
 process's CPU time per answer (``time.process_time`` around each answer: a busy machine
-stretches the wall clock, not this). The wall-clock time per answer is printed too.
+stretches the wall clock, not this). The wall-clock time per answer is printed too, and
+the PostgreSQL backend's CPU per answer (its /proc entry read around each answer) and this
+process's CPU per participant's entry (the link to the first trial page: consent, the
+session planned).
 ``--code DIR`` profiles the app code of another checkout under the same driver.
 """
 
@@ -75,11 +78,28 @@ def split(raw: Path, marker: str = "answer_request") -> tuple[Counter, int]:
     return parts, sum(parts.values())
 
 
-SPENT = {"cpu": 0.0, "wall": 0.0, "requests": 0}
+SPENT = {"cpu": 0.0, "wall": 0.0, "requests": 0, "db": 0.0, "entry": 0.0}
+TICK_S = 1 / os.sysconf("SC_CLK_TCK")
+
+
+def database_cpu() -> float:
+    """Return the CPU seconds this process's PostgreSQL backend has used so far (0 where
+    its /proc entry cannot be read: a server on another machine)."""
+    from django.db import connection
+
+    with connection.cursor() as cursor:
+        cursor.execute("SELECT pg_backend_pid()")
+        pid = cursor.fetchone()[0]
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) * TICK_S  # utime, stime
 
 
 def answer_request(client, url: str, data: dict) -> str:
     """Post an answer as the trial form does; return the page that follows it."""
+    db = database_cpu()  # in clock ticks: summed over every answer, the rounding averages out
     cpu, wall = time.process_time(), time.perf_counter()
     response = client.post(url, data)
     SPENT["requests"] += 1
@@ -89,6 +109,7 @@ def answer_request(client, url: str, data: dict) -> str:
     assert response.status_code == 200, response.status_code
     SPENT["cpu"] += time.process_time() - cpu
     SPENT["wall"] += time.perf_counter() - wall
+    SPENT["db"] += database_cpu() - db
     return response.content.decode()
 
 
@@ -110,10 +131,12 @@ def drive(participants: int, trials: int) -> int:
     for i in range(participants):
         client = Client(enforce_csrf_checks=True)
         base = f"/s/{study.slug}/"
+        cpu = time.process_time()  # the entry: the link to the first trial page
         page = client.get(base, {"PROLIFIC_PID": f"profile-{i}"}, follow=True).content.decode()
         for name, data in (("consent", {"agree": "1"}), ("instructions", {})):
             data["csrfmiddlewaretoken"] = CSRF.search(page).group(1)
             page = client.post(f"{base}{name}/", data, follow=True).content.decode()
+        SPENT["entry"] += time.process_time() - cpu
         while (trial := TRIAL.search(page)) is not None:
             fetch_clips(client, page)
             data = {"trial": trial.group(1), "next": "trial",
@@ -146,7 +169,9 @@ def main(argv=None) -> int:
         settings.STUDY_WATCH_TIME_FACTOR = 0  # no waiting: the check itself still runs
         answers = drive(args.participants, args.trials)
         print(f"answers={answers} requests={SPENT['requests']} "
-              f"cpu_ms={1000 * SPENT['cpu'] / answers:.2f} wall_ms={1000 * SPENT['wall'] / answers:.2f}")
+              f"cpu_ms={1000 * SPENT['cpu'] / answers:.2f} wall_ms={1000 * SPENT['wall'] / answers:.2f} "
+              f"db_ms={1000 * SPENT['db'] / answers:.2f} "
+              f"entry_ms={1000 * SPENT['entry'] / args.participants:.1f}")
         return 0
     if not PY_SPY.exists():
         sys.exit(f"{PY_SPY} is missing: install it with `{sys.executable} -m pip install py-spy`")
@@ -175,7 +200,11 @@ def main(argv=None) -> int:
     parts, total = split(raw)
     print(f"code={'this checkout' if code == ROOT else code} answers={figures['answers']} "
           f"requests={figures['requests']} cpu_ms_per_answer={cpu_ms:.2f} "
-          f"wall_ms_per_answer={figures['wall_ms']} (the database's own CPU not counted)")
+          f"wall_ms_per_answer={figures['wall_ms']} (this process's CPU; the database's below)")
+    if "db_ms" in figures:  # an older driver's code may not print them
+        print(f"the database server's CPU per answer: {figures['db_ms']} ms; the entry (link "
+              f"to the first trial page, the session planned) per participant: "
+              f"{figures['entry_ms']} ms of this process's CPU")
     for part, samples in parts.most_common():
         print(f"  {part:40s} {100 * samples / total:5.1f} %  {cpu_ms * samples / total:6.2f} ms")
     return 0

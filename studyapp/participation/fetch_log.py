@@ -354,7 +354,8 @@ def waiting_at_most(seconds: float):
 
 def witness(items) -> list:
     """Fold the witnesses of ``items`` whose ``fetched_at`` is not set into them, in
-    memory; return the items that changed (:func:`settle` writes them)."""
+    memory; return the items that changed (:func:`merged` locks and merges them for the
+    answer's own write, :func:`settle` writes them alone)."""
     waiting = {item.token: item for item in items if item.fetched_at is None}
     if not waiting:
         return []
@@ -383,28 +384,32 @@ def witness(items) -> list:
     return changed
 
 
-def settle(items) -> None:
-    """Write what :func:`witness` folded into ``items`` (one statement; inside the
-    caller's transaction) and drop those witnesses once it commits."""
+def merged(items) -> bool:
+    """Under the rows' locks, merge the witnesses :func:`witness` folded into ``items``
+    with what was committed meanwhile (a queued ``record_fetch``), so nothing committed
+    is written over: every item's ``fetched`` and ``fetched_at`` are then what to write.
+    Return False (nothing read, nothing locked) when no item had a witness. The
+    witnesses are dropped once the caller's transaction commits."""
     read = [item for item in items if getattr(item, "_fetch_witnesses", None)]
     if not read:
-        return
-    # Under the write lock: merge again with what was committed meanwhile (a queued
-    # record_fetch), so nothing committed is written over.
-    current = {pk: (fetched, at) for pk, fetched, at in TrialItem.objects.select_for_update()
-               .filter(pk__in=[i.pk for i in read]).order_by("pk")
-               .values_list("pk", "fetched", "fetched_at")}
-    dirty = []
-    for item in read:
-        fetched, at = current.get(item.pk, (None, None))
-        merged, merged_at, _ = fold(fetched, at, item._fetch_witnesses)
-        if (merged, merged_at) != (fetched, at):
-            item.fetched, item.fetched_at = merged, merged_at
-            dirty.append(item)
-    if dirty:
-        TrialItem.objects.bulk_update(dirty, ["fetched", "fetched_at"])
+        return False
+    current = TrialItem.objects.lock_fetches(items)
+    for item in items:
+        fetched, at = current.get(item.pk, (item.fetched, item.fetched_at))
+        lines = getattr(item, "_fetch_witnesses", None)
+        if lines:
+            fetched, at, _ = fold(fetched, at, lines)
+        item.fetched, item.fetched_at = fetched, at
     done = [(item.token, item._fetch_witnesses) for item in read]
     transaction.on_commit(lambda: _drop(done))
+    return True
+
+
+def settle(items) -> None:
+    """Write what :func:`witness` folded into ``items`` (inside the caller's transaction;
+    an answer writes them with its own, ``TrialManager.record_answer(fetches=merged)``)."""
+    if merged(items):
+        TrialItem.objects.bulk_update(items, ["fetched", "fetched_at"])
 
 
 def _stores():

@@ -161,47 +161,32 @@ class DatabaseStore:
     def trial_with_items(participant, trial_id):
         """Return ``(trial, items)`` of one of the participant's trials, read in one query
         (items in screen order, with their stimuli), or ``(None, [])``."""
-        items = list(
-            TrialItem.objects.filter(trial_id=trial_id, trial__participant=participant)
-            .select_related("trial", "stimulus")
-            .order_by("position")
-        )
-        if not items:
-            return None, []
-        trial = items[0].trial
-        trial.participant = participant
-        for item in items:
-            item.trial = trial
-        return trial, items
+        found = TrialItem.objects.trials_of(participant, trial_id)
+        return found[0] if found else (None, [])
 
     def advance(self, participant, trial) -> bool:
-        """After ``trial`` was answered, read the next trial and its items in one query for
-        ``current_trial`` (trials are answered in index order, so it is the next index);
-        return False when there is none to show now (the caller redirects instead)."""
-        items = list(
-            TrialItem.objects.filter(trial__participant=participant, trial__index=trial.index + 1,
-                                     trial__answered_at__isnull=True)
-            .select_related("trial", "stimulus")
-            .order_by("position")
-        )
-        if not items:
+        """After ``trial`` was answered, take the next trial and its items for
+        ``current_trial``: read with the answered one (``posted_trial``; trials are
+        answered in index order, so it is the next index); return False when there is
+        none to show now (the caller redirects instead)."""
+        following = getattr(participant, "following", None)
+        if not following or following[0].index != trial.index + 1:
             return False
-        following = items[0].trial
-        following.participant = participant
-        for item in items:
-            item.trial = following
-        participant.current_id = following.pk
-        participant.next_trial = (following, items)
+        participant.current_id = following[0].pk
+        participant.next_trial = following
         return True
 
     def posted_trial(self, request, participant):
-        """Return ``(trial, items, problem)`` of the trial a POST answers."""
+        """Return ``(trial, items, problem)`` of the trial a POST answers; the unanswered
+        trial after it is read in the same statement (``participant.following``)."""
         trial_id = request.POST.get("trial", "")
         if not (trial_id.isascii() and trial_id.isdigit() and len(trial_id) <= 18):
             return None, [], "The answer does not say which question it is for."
-        trial, items = self.trial_with_items(participant, int(trial_id))
-        if trial is None:
+        found = TrialItem.objects.trials_of(participant, int(trial_id), and_next=True)
+        if not found or found[0][0].pk != int(trial_id):
             return None, [], "This question is not part of your session."
+        trial, items = found[0]
+        participant.following = found[1] if len(found) > 1 else None
         if trial.answered_at is not None:
             return trial, items, None
         # ``current_id`` was read before ``trial``: an unanswered trial that is not the
@@ -251,8 +236,9 @@ class DatabaseStore:
 
     def record_answer(self, request, trial, answer, items) -> bool:
         with transaction.atomic():  # the fetches the check read from witnesses, with it
-            won = Trial.objects.record_answer(trial, answer, items)
-            fetch_log.settle(items)
+            won = Trial.objects.record_answer(trial, answer, items, fetches=fetch_log.merged)
+            if not won:
+                fetch_log.settle(items)
         if not won:  # a simultaneous copy stored it, and may have completed the study
             trial.participant.refresh_from_db(fields=["completed_at", "outcome",
                                                       "completion_code"])
@@ -508,6 +494,9 @@ def render_trial(request, store, study, trial, items, number, total, n_practice,
         "practice_over": bool(n_practice) and number == 1,
         "preview": store.preview,
         "player": player,
+        # What the clip and check templates ask for where a type leaves it out (a name
+        # missing from the context costs the template engine two exceptions a lookup).
+        "instruction": "", "lazy": False, "hold": False, "caption": "",
         **extra,
     }
     if trial.kind == Trial.Kind.INSTRUCTED:

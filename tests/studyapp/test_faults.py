@@ -180,13 +180,13 @@ def test_database_unavailable_shows_503_page_and_writes_nothing(clips, make_bot,
 
     # The connection breaks in the middle of storing the answer: after the trial row
     # is marked answered, before the ranks are written.
-    real = TrialItem.objects.bulk_update
+    def broken(execute, sql, params, many, context):
+        if sql.startswith(f'UPDATE "{TrialItem._meta.db_table}"'):
+            raise OperationalError("server closed the connection unexpectedly")
+        return execute(sql, params, many, context)
 
-    def broken(*args, **kwargs):
-        raise OperationalError("server closed the connection unexpectedly")
-
-    monkeypatch.setattr(TrialItem.objects, "bulk_update", broken)
-    response = bot.answer(data)
+    with connection.execute_wrapper(broken):
+        response = bot.answer(data)
     assert response.status_code == 503
     assert b"The study is briefly unavailable" in response.content
     assert response["Retry-After"]
@@ -194,7 +194,6 @@ def test_database_unavailable_shows_503_page_and_writes_nothing(clips, make_bot,
     assert trial.answered_at is None  # the transaction rolled back: nothing half-written
     assert not TrialItem.objects.filter(trial=trial).exclude(answers={}).exists()
 
-    monkeypatch.setattr(TrialItem.objects, "bulk_update", real)
     assert bot.answer(data).status_code == 302  # back: the same answer goes through
     trial.refresh_from_db()
     assert trial.answered_at is not None

@@ -5,7 +5,9 @@ label, so databases made before the split migrate forward unchanged.
 - :mod:`.stimuli`: ``Stimulus`` (a registered clip and its role), ``ScoringStandard``;
 - :mod:`.participation`: ``Participant``, ``Trial``, ``TrialItem`` (answers, fetches),
   ``Balance`` (the balanced planner's kept counts);
-- :mod:`.jobs`: ``BuildJob``; :mod:`.logins`: ``FailedLogin``.
+- :mod:`.jobs`: ``BuildJob``; :mod:`.logins`: ``FailedLogin``;
+- :mod:`.rows`: no models: the answer path's statements written out from the models'
+  metadata, read and written with the ORM's conversions.
 
 The lower modules never import the higher: participation imports stimuli and study,
 stimuli imports study; where a study counts its participants it asks Django's app

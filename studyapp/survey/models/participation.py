@@ -23,6 +23,7 @@ from django.urls import reverse
 from django.utils import timezone
 
 from studyapp.stimuli.media import merge_ranges
+from studyapp.survey.models.rows import Columns, Statements, Values, prepared, quote, read
 from studyapp.survey.models.stimuli import Stimulus
 from studyapp.survey.models.study import Study, Unavailable, new_token
 
@@ -140,28 +141,13 @@ class ParticipantManager(models.Manager):
         start and after the last answer). Every page asks this, so it is one SQL
         statement written out (building it as an annotated queryset costs more CPU than
         running it)."""
-        rows = list(self.raw(self._by_token_sql(), [study.pk, token]))
-        return rows[0] if rows else None
-
-    @staticmethod
-    def _by_token_sql() -> str:
-        """The statement of ``by_token``; it also reads the study's ``version`` (as
-        ``study_version``): a process keeping the study row checks it for free."""
-        quote = connection.ops.quote_name
-        p, t = quote(Participant._meta.db_table), quote(Trial._meta.db_table)
-        s = quote(Study._meta.db_table)
-        trials = f"FROM {t} WHERE {t}.{quote('participant_id')} = {p}.{quote('id')}"
-        return (
-            f"SELECT {p}.*, "
-            f"(SELECT {s}.{quote('version')} FROM {s} WHERE {s}.{quote('id')} = "
-            f"{p}.{quote('study_id')}) AS study_version, "
-            f"(SELECT COUNT(*) {trials}) AS n_trials, "
-            f"(SELECT COUNT(*) {trials} AND {t}.{quote('kind')} = '{Trial.Kind.PRACTICE}') "
-            f"AS n_practice, "
-            f"(SELECT {t}.{quote('id')} {trials} AND {t}.{quote('answered_at')} IS NULL "
-            f"ORDER BY {t}.{quote('index')} LIMIT 1) AS current_id "
-            f"FROM {p} WHERE {p}.{quote('study_id')} = %s AND {p}.{quote('token')} = %s"
-        )
+        rows = read(_BY_TOKEN.get(), [study.pk, token], PARTICIPANT_ROW, Values(4))
+        if not rows:
+            return None
+        participant, (study_version, n_trials, n_practice, current_id) = rows[0]
+        participant.study_version, participant.n_trials = study_version, n_trials
+        participant.n_practice, participant.current_id = n_practice, current_id
+        return participant
 
     def record_demographics(self, participant: "Participant", answers: dict) -> None:
         """Store the answers to the closing questions once; later posts change nothing."""
@@ -304,10 +290,12 @@ class TrialManager(models.Manager):
         if trial.shown_at is not None:
             return  # a reload: ``trial`` was just read, so the database has it too
         now = timezone.now()
-        if self.filter(pk=trial.pk, shown_at__isnull=True).update(shown_at=now):
-            trial.shown_at = now
+        with connection.cursor() as cursor:
+            cursor.execute(_SHOWN.get(), [prepared(Trial, "shown_at", now), trial.pk])
+            if cursor.rowcount:
+                trial.shown_at = now
 
-    def record_answer(self, trial: "Trial", answer, items) -> bool:
+    def record_answer(self, trial: "Trial", answer, items, fetches=None) -> bool:
         """Store a checked answer (:class:`~studyapp.participation.answers.Answer`) of a trial once.
 
         A practice trial keeps only its plays and events: its answer is no judgement. A
@@ -316,7 +304,13 @@ class TrialManager(models.Manager):
         ``items`` are the trial's items as read in this request (with their stimuli);
         ``trial.shown_at`` must be as read in this request (a trial never shown counts
         from now). When this answer is the participant's last, the outcome and the
-        completion code are set on ``trial.participant`` too.
+        completion code are set on ``trial.participant`` too. ``following`` on the
+        participant, when set (``TrialItemManager.trials_of``), is the next trial as read
+        before: the participant is then only marked active.
+
+        ``fetches(items)``, when given, runs in the transaction once the answer won; if
+        it returns True it has set every item's ``fetched`` and ``fetched_at`` under a
+        lock, and they are written with the answers (one statement for the items).
 
         Return False (and store nothing) when the trial was already answered. The
         conditional UPDATE comes first so two simultaneous submits cannot both win.
@@ -326,24 +320,36 @@ class TrialManager(models.Manager):
         trial_answers = {} if practice else answer.trial
         shown_at = trial.shown_at or now
         time_ms = max(0, round((now - shown_at).total_seconds() * 1000))
-        with transaction.atomic():
-            won = self.filter(pk=trial.pk, answered_at__isnull=True).update(
-                answered_at=now, time_ms=time_ms, shown_at=shown_at, answers=trial_answers,
-                events=answer.events,
-            )
-            if not won:
+        with transaction.atomic(), connection.cursor() as cursor:
+            cursor.execute(_ANSWER_TRIAL.get(), [
+                prepared(Trial, "answered_at", now), time_ms,
+                prepared(Trial, "shown_at", shown_at), prepared(Trial, "answers", trial_answers),
+                prepared(Trial, "events", answer.events), trial.pk])
+            if not cursor.rowcount:
                 return False
             trial.answered_at, trial.time_ms, trial.shown_at = now, time_ms, shown_at
             trial.answers, trial.events = trial_answers, answer.events
             for item in items:
                 item.plays = answer.plays.get(item.pk, item.plays)
                 item.answers = {} if practice else answer.items.get(item.pk, {})
-            TrialItem.objects.bulk_update(items, ["plays", "answers"])
+            with_fetches = bool(fetches and fetches(items))
+            cursor.executemany(
+                (_ANSWER_ITEMS_FETCHED if with_fetches else _ANSWER_ITEMS).get(),
+                [[prepared(TrialItem, name, getattr(item, name))
+                  for name in (ITEM_ANSWER_FIELDS + ITEM_FETCH_FIELDS if with_fetches
+                               else ITEM_ANSWER_FIELDS)] + [item.pk] for item in items])
             participant = trial.participant
             if trial.kind in Trial.GRADED_KINDS:
                 passed = participant.study.kind.grade(trial, items)
                 self.filter(pk=trial.pk).update(catch_passed=passed)
                 trial.catch_passed = passed
+            following = getattr(participant, "following", None)
+            if following and following[0].index == trial.index + 1:
+                # The next trial was read unanswered: this was not the last answer.
+                cursor.execute(_ACTIVE.get(), [prepared(Participant, "active_at", now),
+                                               participant.pk])
+                participant.active_at = now
+                return True
             # One statement: the participant is active now, unless that was their last
             # answer (no unanswered trial left), when they finish.
             unanswered = Trial.objects.filter(participant=OuterRef("pk"), answered_at__isnull=True)
@@ -409,6 +415,31 @@ class Trial(models.Model):
 class TrialItemManager(models.Manager):
     def judged(self):
         return self.filter(role=TrialItem.Role.JUDGED)
+
+    def trials_of(self, participant: "Participant", trial_id: int, and_next: bool = False):
+        """Return ``[(trial, items), ...]``: the participant's trial ``trial_id`` and, with
+        ``and_next``, the unanswered trial after it, each with its items in screen order
+        and their stimuli, in index order, read in one statement (written out:
+        :mod:`.rows`). A trial that is not the participant's, or has no items, is not
+        there."""
+        sql = (_TRIALS_AND_NEXT if and_next else _TRIALS).get()
+        params = [participant.pk, trial_id] + ([trial_id, participant.pk] if and_next else [])
+        out, trial = [], None
+        for item, row_trial, stimulus in read(sql, params, ITEM_ROW, TRIAL_ROW, STIMULUS_ROW):
+            if trial is None or row_trial.pk != trial.pk:
+                trial = row_trial
+                trial.participant = participant
+                out.append((trial, []))
+            item.trial, item.stimulus = trial, stimulus
+            out[-1][1].append(item)
+        return out
+
+    def lock_fetches(self, items) -> dict:
+        """Return ``{item id: (fetched, fetched_at)}`` of ``items`` as committed, their rows
+        locked until the transaction ends (on SQLite, the caller already wrote)."""
+        rows = read(_LOCK_FETCHES.get().format(
+            ", ".join(["%s"] * len(items))), [item.pk for item in items], FETCH_ROW)
+        return {item.pk: (item.fetched, item.fetched_at) for (item,) in rows}
 
     def record_fetch(self, item_id: int, ext: str, start: int, end: int, size: int) -> None:
         """Record that bytes ``start..end`` (inclusive) of an item's ``ext`` file (its mp4,
@@ -627,3 +658,78 @@ class Response(TrialItem):
     class Meta:
         proxy = True
         ordering = ["-trial__answered_at", "position"]
+
+
+# --- the answer's statements, written out (:mod:`.rows`) ------------------------------------
+
+PARTICIPANT_ROW = Columns(Participant, "p")
+ITEM_ROW = Columns(TrialItem, "i")
+TRIAL_ROW = Columns(Trial, "t")
+STIMULUS_ROW = Columns(Stimulus, "s")
+FETCH_ROW = Columns(TrialItem, "i", ["id", "fetched", "fetched_at"])
+ITEM_ANSWER_FIELDS = ["plays", "answers"]
+ITEM_FETCH_FIELDS = ["fetched", "fetched_at"]
+
+
+def _by_token_sql() -> str:
+    """The statement of ``ParticipantManager.by_token``; it also reads the study's
+    ``version``: a process keeping the study row checks it for free."""
+    t, s = quote(Trial._meta.db_table), quote(Study._meta.db_table)
+    trials = f"FROM {t} WHERE {t}.{quote('participant_id')} = p.{quote('id')}"
+    return (
+        f"SELECT {PARTICIPANT_ROW.sql()}, "
+        f"(SELECT {s}.{quote('version')} FROM {s} WHERE {s}.{quote('id')} = "
+        f"p.{quote('study_id')}), "
+        f"(SELECT COUNT(*) {trials}), "
+        f"(SELECT COUNT(*) {trials} AND {t}.{quote('kind')} = '{Trial.Kind.PRACTICE}'), "
+        f"(SELECT {t}.{quote('id')} {trials} AND {t}.{quote('answered_at')} IS NULL "
+        f"ORDER BY {t}.{quote('index')} LIMIT 1) "
+        f"FROM {quote(Participant._meta.db_table)} p "
+        f"WHERE p.{quote('study_id')} = %s AND p.{quote('token')} = %s"
+    )
+
+
+def _trials_sql(and_next: bool) -> str:
+    item_table, trial_table = quote(TrialItem._meta.db_table), quote(Trial._meta.db_table)
+    index, answered = quote("index"), quote("answered_at")
+    following = (
+        f" OR (t.{answered} IS NULL AND t.{index} = (SELECT u.{index} + 1 FROM {trial_table} u "
+        f"WHERE u.{quote('id')} = %s AND u.{quote('participant_id')} = %s))"
+    ) if and_next else ""
+    return (
+        f"SELECT {ITEM_ROW.sql()}, {TRIAL_ROW.sql()}, {STIMULUS_ROW.sql()} "
+        f"FROM {item_table} i "
+        f"INNER JOIN {trial_table} t ON i.{quote('trial_id')} = t.{quote('id')} "
+        f"INNER JOIN {quote(Stimulus._meta.db_table)} s "
+        f"ON i.{quote('stimulus_id')} = s.{quote('id')} "
+        f"WHERE t.{quote('participant_id')} = %s AND (t.{quote('id')} = %s{following}) "
+        f"ORDER BY t.{index}, i.{quote('position')}"
+    )
+
+
+def _update_sql(model, names, where="") -> str:
+    assignments = ", ".join(f"{quote(model._meta.get_field(name).column)} = %s"
+                            for name in names)
+    return (f"UPDATE {quote(model._meta.db_table)} SET {assignments} "
+            f"WHERE {quote('id')} = %s{where}")
+
+
+def _lock_fetches_sql() -> str:
+    lock = " FOR UPDATE" if connection.features.has_select_for_update else ""
+    return (f"SELECT {FETCH_ROW.sql()} FROM {quote(TrialItem._meta.db_table)} i "
+            f"WHERE i.{quote('id')} IN ({{}}) ORDER BY i.{quote('id')}{lock}")
+
+
+_BY_TOKEN = Statements(_by_token_sql)
+_TRIALS = Statements(lambda: _trials_sql(False))
+_TRIALS_AND_NEXT = Statements(lambda: _trials_sql(True))
+_ANSWER_TRIAL = Statements(lambda: _update_sql(
+    Trial, ["answered_at", "time_ms", "shown_at", "answers", "events"],
+    f" AND {quote('answered_at')} IS NULL"))
+_ANSWER_ITEMS = Statements(lambda: _update_sql(TrialItem, ITEM_ANSWER_FIELDS))
+_ANSWER_ITEMS_FETCHED = Statements(lambda: _update_sql(
+    TrialItem, ITEM_ANSWER_FIELDS + ITEM_FETCH_FIELDS))
+_SHOWN = Statements(lambda: _update_sql(
+    Trial, ["shown_at"], f" AND {quote('shown_at')} IS NULL"))
+_ACTIVE = Statements(lambda: _update_sql(Participant, ["active_at"]))
+_LOCK_FETCHES = Statements(_lock_fetches_sql)

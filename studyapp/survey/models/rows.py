@@ -1,0 +1,116 @@
+"""Statements of the answer's path written out once, with the ORM's own conversions.
+
+Every answer reads a trial with its items and their stimuli and writes the items'
+answers. Built as querysets, those statements cost more CPU to compile (a
+``select_related`` join, a ``bulk_update``'s CASE expressions) than the database takes
+to run them (docs/BENCHMARKS.md, "Where an answer's CPU goes"). Here their SQL is
+written from the models' metadata once per process and database, and rows become model
+instances as the ORM makes them: each column through the converters the ORM would apply
+(the backend's and the field's ``from_db_value``), then ``Model.from_db``; values written
+go through each field's ``get_db_prep_save``. Nothing here knows a study type.
+"""
+
+from __future__ import annotations
+
+from django.db import connection
+
+
+def quote(name: str) -> str:
+    return connection.ops.quote_name(name)
+
+
+class Columns:
+    """The concrete fields of ``model`` (or ``names`` of them, in that order) read under
+    the table alias ``alias``; :meth:`build` makes an instance of one row's values."""
+
+    def __init__(self, model, alias: str, names=None):
+        self.model, self.alias = model, alias
+        fields = model._meta.concrete_fields
+        if names is not None:
+            by_name = {field.attname: field for field in fields}
+            fields = [by_name[name] for name in names]
+        self.fields = list(fields)
+        self.names = [field.attname for field in self.fields]
+        self._converters = {}
+
+    def __len__(self):
+        return len(self.fields)
+
+    def sql(self) -> str:
+        return ", ".join(f"{self.alias}.{quote(field.column)}" for field in self.fields)
+
+    def converters(self) -> list:
+        """``[(index, [converter, ...], column expression)]`` of the columns the ORM
+        converts on this connection's backend (as ``SQLCompiler.get_converters``)."""
+        key = connection.alias
+        if key not in self._converters:
+            found = []
+            for index, field in enumerate(self.fields):
+                column = field.get_col(self.alias)
+                functions = (connection.ops.get_db_converters(column)
+                             + column.get_db_converters(connection))
+                if functions:
+                    found.append((index, functions, column))
+            self._converters[key] = found
+        return self._converters[key]
+
+    def values(self, row) -> list:
+        """Return ``row``'s values as the ORM reads them into the fields."""
+        values = list(row)
+        for index, functions, column in self.converters():
+            value = values[index]
+            for function in functions:
+                value = function(value, column, connection)
+            values[index] = value
+        return values
+
+    def build(self, row):
+        """Return the model instance of ``row`` (this object's columns, in order)."""
+        return self.model.from_db(connection.alias, self.names, self.values(row))
+
+
+class Values:
+    """``n`` columns read as they come (counts, ids): :meth:`build` returns them as a tuple."""
+
+    def __init__(self, n: int):
+        self.n = n
+
+    def __len__(self):
+        return self.n
+
+    def build(self, row) -> tuple:
+        return tuple(row)
+
+
+def prepared(model, name: str, value):
+    """Return ``value`` as the database takes it for ``model``'s field ``name``."""
+    return model._meta.get_field(name).get_db_prep_save(value, connection)
+
+
+def read(sql: str, params, *columns: Columns) -> list[tuple]:
+    """Run ``sql`` (selecting each of ``columns``' fields in order) and return a tuple of
+    instances per row."""
+    with connection.cursor() as cursor:
+        cursor.execute(sql, params)
+        rows = cursor.fetchall()
+    out = []
+    for row in rows:
+        start, instances = 0, []
+        for part in columns:
+            instances.append(part.build(row[start:start + len(part)]))
+            start += len(part)
+        out.append(tuple(instances))
+    return out
+
+
+class Statements:
+    """SQL text kept per database connection (vendors quote and lock differently)."""
+
+    def __init__(self, write):
+        self.write, self.kept = write, {}
+
+    def get(self) -> str:
+        key = connection.alias, connection.vendor
+        if key not in self.kept:
+            self.kept[key] = self.write()
+        return self.kept[key]
