@@ -122,14 +122,19 @@ def fetch_clips(client, page: str) -> None:
 
 def drive(participants: int, trials: int) -> int:
     """Play the participants through the pages; return the answers given."""
+    from http.cookies import SimpleCookie
+
     from django.test import Client
 
     from benchmarks.loadtest import make_study
 
     study = make_study("profile", Path(os.environ["STUDY_VAR_DIR"]) / "media", trials=trials)
     answers = 0
+    # One client (its handler loads the middleware once, as a server's worker does), each
+    # participant in a fresh browser: no cookies.
+    client = Client(enforce_csrf_checks=True)
     for i in range(participants):
-        client = Client(enforce_csrf_checks=True)
+        client.cookies = SimpleCookie()
         base = f"/s/{study.slug}/"
         cpu = time.process_time()  # the entry: the link to the first trial page
         page = client.get(base, {"PROLIFIC_PID": f"profile-{i}"}, follow=True).content.decode()

@@ -96,3 +96,33 @@ def test_an_answer_writes_its_items_and_fetches_in_one_statement(ranking_study, 
     assert Participant.objects.get(pk=participant.pk).active_at == participant.active_at
     # The same answer again stores nothing and says so.
     assert not Trial.objects.record_answer(trial, answer, items)
+
+
+def test_on_postgresql_the_statements_are_prepared_once_per_connection(
+        transactional_db, ranking_study, make_bot, settings):
+    import pytest
+    from django.db import connection
+
+    if connection.vendor != "postgresql":
+        pytest.skip("prepared statements are PostgreSQL's")
+    connection.close()  # a new connection: nothing prepared on it by an earlier test
+    def prepared_here() -> list[str]:
+        with connection.cursor() as cursor:
+            cursor.execute("SELECT statement FROM pg_prepared_statements")
+            return [row[0] for row in cursor.fetchall()]
+
+    settings.STUDY_PREPARED_STATEMENTS = False  # as behind an old PgBouncer
+    bot, participant = started(ranking_study, make_bot)
+    bot.trial_page()
+    Participant.objects.by_token(ranking_study, participant.token)
+    assert prepared_here() == []
+    settings.STUDY_PREPARED_STATEMENTS = True
+    for _ in range(3):  # the same answers every time
+        read = Participant.objects.by_token(ranking_study, participant.token)
+        assert read.pk == participant.pk and read.n_trials == participant.trials.count()
+    found = [sql for sql in prepared_here() if 'FROM "survey_participant" p' in sql]
+    assert len(found) == 1 and "$1" in found[0]
+    # Django's own statements (the bot's consent and start: INSERTs, WHERE clauses the
+    # ORM qualifies and wraps in parentheses) are not prepared: client-side binding.
+    assert not any(sql.startswith("INSERT") or 'WHERE ("' in sql for sql in prepared_here()), \
+        prepared_here()

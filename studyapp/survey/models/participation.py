@@ -23,7 +23,7 @@ from django.urls import reverse
 from django.utils import timezone
 
 from studyapp.stimuli.media import merge_ranges
-from studyapp.survey.models.rows import Columns, Statements, Values, prepared, quote, read
+from studyapp.survey.models.rows import Columns, Statements, Values, cursor, prepared, quote, read
 from studyapp.survey.models.stimuli import Stimulus
 from studyapp.survey.models.study import Study, Unavailable, new_token
 
@@ -290,9 +290,9 @@ class TrialManager(models.Manager):
         if trial.shown_at is not None:
             return  # a reload: ``trial`` was just read, so the database has it too
         now = timezone.now()
-        with connection.cursor() as cursor:
-            cursor.execute(_SHOWN.get(), [prepared(Trial, "shown_at", now), trial.pk])
-            if cursor.rowcount:
+        with cursor() as shown:
+            shown.execute(_SHOWN.get(), [prepared(Trial, "shown_at", now), trial.pk])
+            if shown.rowcount:
                 trial.shown_at = now
 
     def record_answer(self, trial: "Trial", answer, items, fetches=None) -> bool:
@@ -320,12 +320,12 @@ class TrialManager(models.Manager):
         trial_answers = {} if practice else answer.trial
         shown_at = trial.shown_at or now
         time_ms = max(0, round((now - shown_at).total_seconds() * 1000))
-        with transaction.atomic(), connection.cursor() as cursor:
-            cursor.execute(_ANSWER_TRIAL.get(), [
+        with transaction.atomic(), cursor() as writing:
+            writing.execute(_ANSWER_TRIAL.get(), [
                 prepared(Trial, "answered_at", now), time_ms,
                 prepared(Trial, "shown_at", shown_at), prepared(Trial, "answers", trial_answers),
                 prepared(Trial, "events", answer.events), trial.pk])
-            if not cursor.rowcount:
+            if not writing.rowcount:
                 return False
             trial.answered_at, trial.time_ms, trial.shown_at = now, time_ms, shown_at
             trial.answers, trial.events = trial_answers, answer.events
@@ -333,7 +333,7 @@ class TrialManager(models.Manager):
                 item.plays = answer.plays.get(item.pk, item.plays)
                 item.answers = {} if practice else answer.items.get(item.pk, {})
             with_fetches = bool(fetches and fetches(items))
-            cursor.executemany(
+            writing.executemany(
                 (_ANSWER_ITEMS_FETCHED if with_fetches else _ANSWER_ITEMS).get(),
                 [[prepared(TrialItem, name, getattr(item, name))
                   for name in (ITEM_ANSWER_FIELDS + ITEM_FETCH_FIELDS if with_fetches
@@ -346,7 +346,7 @@ class TrialManager(models.Manager):
             following = getattr(participant, "following", None)
             if following and following[0].index == trial.index + 1:
                 # The next trial was read unanswered: this was not the last answer.
-                cursor.execute(_ACTIVE.get(), [prepared(Participant, "active_at", now),
+                writing.execute(_ACTIVE.get(), [prepared(Participant, "active_at", now),
                                                participant.pk])
                 participant.active_at = now
                 return True

@@ -12,7 +12,32 @@ go through each field's ``get_db_prep_save``. Nothing here knows a study type.
 
 from __future__ import annotations
 
+from django.conf import settings
 from django.db import connection
+
+
+def cursor():
+    """Return a cursor for the written-out statements.
+
+    On PostgreSQL (``STUDY_PREPARED_STATEMENTS``, on by default) it binds parameters on the
+    server, and psycopg prepares each statement on its connection the first time it runs
+    there: the server parses and plans it once per connection rather than once per
+    answer (about half the database's CPU of an answer, docs/BENCHMARKS.md). Django's
+    own cursors stay as they are (client-side binding, nothing prepared: what a
+    connection pooler in transaction mode needs; turn the setting off behind one that
+    cannot keep prepared statements, as PgBouncer before 1.21). Where queries are logged
+    (``DEBUG``, a test counting them) the statements go through Django's cursor, so the
+    log shows them with their values."""
+    if (connection.vendor != "postgresql" or connection.queries_logged
+            or not getattr(settings, "STUDY_PREPARED_STATEMENTS", True)):
+        return connection.cursor()
+    from django.db.backends.postgresql.base import ServerBindingCursor
+
+    connection.ensure_connection()
+    raw = connection.connection
+    if raw.prepare_threshold is None:  # Django's default; an OPTIONS setting is kept
+        raw.prepare_threshold = 0  # only server-binding cursors prepare: these ones
+    return connection.make_cursor(ServerBindingCursor(raw))
 
 
 def quote(name: str) -> str:
@@ -90,11 +115,11 @@ def prepared(model, name: str, value):
 def read(sql: str, params, *columns: Columns) -> list[tuple]:
     """Run ``sql`` (selecting each of ``columns``' fields in order) and return a tuple of
     instances per row."""
-    with connection.cursor() as cursor:
-        cursor.execute(sql, params)
-        rows = cursor.fetchall()
+    with cursor() as reading:
+        reading.execute(sql, params)
+        found = reading.fetchall()
     out = []
-    for row in rows:
+    for row in found:
         start, instances = 0, []
         for part in columns:
             instances.append(part.build(row[start:start + len(part)]))
