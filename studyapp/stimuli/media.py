@@ -44,15 +44,21 @@ def delivery_seed(token: str) -> bytes:
     return salted_hmac(SEED_SALT, token, algorithm="sha256").digest()
 
 
+# Stored files already reported as sent as stored, by this process: one warning a file,
+# not one a delivery (a study of unpadded clips would fill the log otherwise).
+SENT_AS_STORED: set = set()
+
+
 def delivered_bytes(data: bytes, kind: str, seed: bytes, name: str = "") -> bytes:
     """Return one delivery's bytes of the stored file ``data`` (the stored bytes when the
-    file is not one the transformation reads)."""
+    file is not one the transformation reads; logged once per file and process)."""
     try:
         out = deliver(data, kind, seed)
         reason = "it has no padding to lay out anew (build it with build_stimuli)"
     except (PaddingError, PayloadError, ValueError, IndexError, struct.error) as error:
         out, reason = data, str(error)
-    if out == data:
+    if out == data and (name or kind) not in SENT_AS_STORED:
+        SENT_AS_STORED.add(name or kind)
         logger.warning("%s is sent as stored, the same bytes for every delivery: %s",
                        name or kind, reason)
     return out
