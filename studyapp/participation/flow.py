@@ -141,8 +141,7 @@ class DatabaseStore:
         return participant
 
     def start(self, request, participant) -> None:
-        Participant.objects.start(participant)
-        participant.n_trials = participant.trials.count()
+        participant.n_trials = Participant.objects.start(participant)
 
     def current_trial(self, request, participant):
         """Return ``(trial, items, number, total)`` of the first unanswered trial."""

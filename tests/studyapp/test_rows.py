@@ -60,6 +60,25 @@ def test_by_token_reads_what_the_orm_reads(ranking_study, make_bot):
     assert read.study_version == type(ranking_study).objects.get(pk=ranking_study.pk).version
 
 
+def test_find_and_the_study_lock_read_what_the_orm_reads(ranking_study, make_bot):
+    import pytest
+    from django.db import transaction
+
+    from studyapp.survey.models import Study
+
+    _, participant = started(ranking_study, make_bot, pid="found")
+    found = Participant.objects.find(ranking_study, participant.external_key)
+    assert field_values(found) == field_values(Participant.objects.get(pk=participant.pk))
+    assert Participant.objects.find(ranking_study, "nobody") is None
+    assert Participant.objects.find(ranking_study, "") is None
+    with transaction.atomic():
+        locked = Study.objects.lock(ranking_study.pk)
+        assert field_values(locked) == field_values(Study.objects.get(pk=ranking_study.pk))
+        assert type(locked.kind) is type(ranking_study.kind)
+        with pytest.raises(Study.DoesNotExist):
+            Study.objects.lock(ranking_study.pk + 1000)
+
+
 def test_an_answer_writes_its_items_and_fetches_in_one_statement(ranking_study, make_bot):
     from django.db import connection
     from django.test.utils import CaptureQueriesContext

@@ -30,8 +30,12 @@ from studyapp.survey.models.study import Study, Unavailable, new_token
 
 class ParticipantManager(models.Manager):
     def find(self, study: Study, key: str):
-        """Return the participant whose platform id is ``key``, or None."""
-        return self.filter(study=study, external_key=key).first() if key else None
+        """Return the participant whose platform id is ``key``, or None (the entry link
+        and the consent ask: one statement written out, :mod:`.rows`)."""
+        if not key:
+            return None
+        found = read(_FIND.get(), [study.pk, key], PARTICIPANT_ROW)
+        return found[0][0] if found else None
 
     def holding_a_place(self, study: Study):
         """Return the participants who count against ``max_participants``: finished, or
@@ -107,12 +111,13 @@ class ParticipantManager(models.Manager):
             same |= Q(**{f"external_ids__{name}": value})
         return self.filter(study=study).filter(same).exclude(external_key=key).exists()
 
-    def start(self, participant: "Participant") -> None:
-        """Create the participant's trials once, balanced against everyone before them."""
+    def start(self, participant: "Participant") -> int:
+        """Create the participant's trials once, balanced against everyone before them;
+        return how many trials the participant has."""
         with transaction.atomic():
             study = Study.objects.lock(participant.study_id)
             if participant.trials.exists():
-                return
+                return participant.trials.count()  # started already (a second submit)
             tally = Tally.read(study)
             plans = study.kind.plan_trials(study, random.Random(participant.seed), tally)
             # At most three INSERTs (on PostgreSQL) whatever the number of trials, as the
@@ -134,6 +139,7 @@ class ParticipantManager(models.Manager):
             items = TrialItem.objects.bulk_create(
                 [item for plan in plans for item in plan.items(created[id(plan)])])
             tally.store(list(created.values()), items)
+        return len(plans)
 
     def by_token(self, study: Study, token: str):
         """Return the study's participant with ``token``, or None, with ``n_trials``,
@@ -721,6 +727,9 @@ def _lock_fetches_sql() -> str:
 
 
 _BY_TOKEN = Statements(_by_token_sql)
+_FIND = Statements(lambda: (
+    f"SELECT {PARTICIPANT_ROW.sql()} FROM {quote(Participant._meta.db_table)} p "
+    f"WHERE p.{quote('study_id')} = %s AND p.{quote('external_key')} = %s LIMIT 1"))
 _TRIALS = Statements(lambda: _trials_sql(False))
 _TRIALS_AND_NEXT = Statements(lambda: _trials_sql(True))
 _ANSWER_TRIAL = Statements(lambda: _update_sql(

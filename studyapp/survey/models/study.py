@@ -9,12 +9,14 @@ from datetime import timedelta
 from django.apps import apps
 from django.core.exceptions import ValidationError
 from django.db import connection, models
+from django.db.transaction import TransactionManagementError
 from django.db.models import Count, F, OuterRef, Subquery
 from django.db.models.functions import Coalesce
 from django.urls import reverse
 
 from studyapp.crowd.platform import outcomes_of, platform_of
 from studyapp.participation.duration import Duration, fixed_seconds, study_duration
+from studyapp.survey.models.rows import Columns, Statements, quote, read
 from studyapp.survey.study_type_registry import STUDY_TYPES
 
 
@@ -162,9 +164,14 @@ class StudyManager(models.Manager):
         UPDATE takes its database write lock first: concurrent assigners then queue
         instead of reading the same counts.
         """
+        if connection.get_autocommit():  # as select_for_update: a lock would be held for nothing
+            raise TransactionManagementError("Study.objects.lock needs a transaction")
         if connection.vendor == "sqlite":
             self.filter(pk=study_id).update(status=F("status"))
-        study = self.select_for_update().get(pk=study_id)
+        found = read(_LOCK.get(), [study_id], STUDY_ROW)  # written out: every entry locks twice
+        if not found:
+            raise self.model.DoesNotExist(f"no study with id {study_id}")
+        study = found[0][0]
         # Its minutes (a session planned, every completion read: a Prolific study's default
         # time limit) are worked out once for the transaction, not at each place-count.
         study.__dict__["_worked_out"] = {}
@@ -397,3 +404,11 @@ class Study(models.Model):
     def participant_url(self, base: str = "") -> str:
         """Return the link participants open, absolute when ``base`` is a site URL."""
         return base.rstrip("/") + self.get_absolute_url()
+
+
+# --- written out (:mod:`.rows`) ----------------------------------------------------------------
+
+STUDY_ROW = Columns(Study, "s")
+_LOCK = Statements(lambda: (
+    f"SELECT {STUDY_ROW.sql()} FROM {quote(Study._meta.db_table)} s WHERE s.{quote('id')} = %s"
+    + (" FOR UPDATE" if connection.features.has_select_for_update else "")))
