@@ -87,7 +87,7 @@ class ParticipantManager(models.Manager):
                 if study.is_full():
                     raise Unavailable("full")
             now = timezone.now()
-            return self.create(
+            participant = self.create(
                 study=study,
                 external_ids=external_ids,
                 external_key=key,
@@ -99,6 +99,8 @@ class ParticipantManager(models.Manager):
                 completion_code=study.platform.code_for(outcome) if outcome else "",
                 user_agent=user_agent[:300],
             )
+            participant.n_trials = 0  # none yet: the next page need not ask
+            return participant
 
     def sharing_ids(self, study: Study, external_ids: dict, key: str) -> bool:
         """Whether another participant of ``study`` came with one of the ids that must be

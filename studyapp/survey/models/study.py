@@ -16,7 +16,7 @@ from django.urls import reverse
 
 from studyapp.crowd.platform import outcomes_of, platform_of
 from studyapp.participation.duration import Duration, fixed_seconds, study_duration
-from studyapp.survey.models.rows import Columns, Statements, quote, read
+from studyapp.survey.models.rows import Columns, Statements, Values, quote, read
 from studyapp.survey.study_type_registry import STUDY_TYPES
 
 
@@ -113,7 +113,8 @@ class StudyManager(models.Manager):
         """
         slug = study.slug
         if version is None:
-            row = self.filter(slug=slug).values_list("pk", "version").first()
+            found = read(_VERSION.get(), [slug], Values(2))
+            row = found[0][0] if found else None
             if row is None:
                 _CACHE.pop(slug, None)
                 raise self.model.DoesNotExist(f"no study {slug!r}")
@@ -412,3 +413,6 @@ STUDY_ROW = Columns(Study, "s")
 _LOCK = Statements(lambda: (
     f"SELECT {STUDY_ROW.sql()} FROM {quote(Study._meta.db_table)} s WHERE s.{quote('id')} = %s"
     + (" FOR UPDATE" if connection.features.has_select_for_update else "")))
+_VERSION = Statements(lambda: (
+    f"SELECT s.{quote('id')}, s.{quote('version')} FROM {quote(Study._meta.db_table)} s "
+    f"WHERE s.{quote('slug')} = %s"))
