@@ -83,8 +83,10 @@ TICK_S = 1 / os.sysconf("SC_CLK_TCK")
 
 
 def database_cpu() -> float:
-    """Return the CPU seconds this process's PostgreSQL backend has used so far (0 where
-    its /proc entry cannot be read: a server on another machine)."""
+    """Return the CPU seconds this process's PostgreSQL backend has used so far (NaN where
+    its /proc entry cannot be read: a server on another machine). The backend's id is
+    asked each time, after the reading before an answer and before the one after it: that
+    statement's own CPU (a few µs) counts in the answer's."""
     from django.db import connection
 
     with connection.cursor() as cursor:
@@ -93,7 +95,7 @@ def database_cpu() -> float:
     try:
         fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
     except OSError:
-        return 0.0
+        return float("nan")
     return (int(fields[11]) + int(fields[12])) * TICK_S  # utime, stime
 
 
@@ -207,7 +209,9 @@ def main(argv=None) -> int:
           f"requests={figures['requests']} cpu_ms_per_answer={cpu_ms:.2f} "
           f"wall_ms_per_answer={figures['wall_ms']} (this process's CPU; the database's below)")
     if "db_ms" in figures:  # an older driver's code may not print them
-        print(f"the database server's CPU per answer: {figures['db_ms']} ms; the entry (link "
+        db = "not measured (no /proc entry of its process here)" if figures["db_ms"] == "nan" \
+            else f"{figures['db_ms']} ms"
+        print(f"the database server's CPU per answer: {db}; the entry (link "
               f"to the first trial page, the session planned) per participant: "
               f"{figures['entry_ms']} ms of this process's CPU")
     for part, samples in parts.most_common():

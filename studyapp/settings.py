@@ -5,9 +5,10 @@ Everything a deployment changes comes from the environment:
 - ``STUDY_DATABASE_URL`` / ``DATABASE_URL``: ``postgres://user:pass@host:port/name`` or
   ``sqlite:///relative/path`` or ``sqlite:////absolute/path``; default: SQLite at
   ``var/db.sqlite3``;
-- ``STUDY_PREPARED_STATEMENTS=0``: PostgreSQL behind a pooler that cannot keep prepared
-  statements (PgBouncer in transaction mode before 1.21): the answer path's statements are
-  then not prepared (``survey/models/rows.py``);
+- ``STUDY_PREPARED_STATEMENTS=0``: PostgreSQL behind a pooler that does not keep prepared
+  statements (PgBouncer in transaction mode before 1.21, or without
+  ``max_prepared_statements``): the answer path's statements are then not prepared
+  (``survey/models/rows.py``);
 - ``STUDY_VAR_DIR``: where the database, media and demo artefacts live (default ``var/``);
 - ``STUDY_CACHE_URL``: ``redis://host:6379/1`` shares the cache (rate limits) between
   workers; ``STUDY_CELERY_BROKER``: background jobs through Celery;
@@ -225,7 +226,8 @@ DATABASES = {
 
 
 # The answer path's statements prepared on PostgreSQL, once per connection (rows.cursor).
-STUDY_PREPARED_STATEMENTS = os.environ.get("STUDY_PREPARED_STATEMENTS", "1") != "0"
+STUDY_PREPARED_STATEMENTS = (os.environ.get("STUDY_PREPARED_STATEMENTS", "1").strip().lower()
+                             not in ("0", "false", "no", "off"))
 
 
 def ensure_folders(var_dir: Path, databases: dict) -> None:

@@ -44,8 +44,8 @@ def delivery_seed(token: str) -> bytes:
     return salted_hmac(SEED_SALT, token, algorithm="sha256").digest()
 
 
-# Stored files already reported as sent as stored, by this process: one warning a file,
-# not one a delivery (a study of unpadded clips would fill the log otherwise).
+# Stored files already reported as sent as stored, with the reason, by this process: one
+# warning a file and reason, not one a delivery (unpadded clips would fill the log).
 SENT_AS_STORED: set = set()
 
 
@@ -57,8 +57,8 @@ def delivered_bytes(data: bytes, kind: str, seed: bytes, name: str = "") -> byte
         reason = "it has no padding to lay out anew (build it with build_stimuli)"
     except (PaddingError, PayloadError, ValueError, IndexError, struct.error) as error:
         out, reason = data, str(error)
-    if out == data and (name or kind) not in SENT_AS_STORED:
-        SENT_AS_STORED.add(name or kind)
+    if out == data and (name or kind, reason) not in SENT_AS_STORED:
+        SENT_AS_STORED.add((name or kind, reason))
         logger.warning("%s is sent as stored, the same bytes for every delivery: %s",
                        name or kind, reason)
     return out

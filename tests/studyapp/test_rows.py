@@ -79,7 +79,7 @@ def test_find_and_the_study_lock_read_what_the_orm_reads(ranking_study, make_bot
             Study.objects.lock(ranking_study.pk + 1000)
 
 
-def test_an_answer_writes_its_items_and_fetches_in_one_statement(ranking_study, make_bot):
+def test_an_answer_writes_its_items_and_fetches_in_one_executemany(ranking_study, make_bot):
     from django.db import connection
     from django.test.utils import CaptureQueriesContext
 
@@ -119,16 +119,24 @@ def test_an_answer_writes_its_items_and_fetches_in_one_statement(ranking_study, 
 
 def test_on_postgresql_the_statements_are_prepared_once_per_connection(
         transactional_db, ranking_study, make_bot, settings):
+    import re
+
     import pytest
     from django.db import connection
+
+    from studyapp.survey.models.rows import Statements
 
     if connection.vendor != "postgresql":
         pytest.skip("prepared statements are PostgreSQL's")
     connection.close()  # a new connection: nothing prepared on it by an earlier test
+
     def prepared_here() -> list[str]:
         with connection.cursor() as cursor:
             cursor.execute("SELECT statement FROM pg_prepared_statements")
             return [row[0] for row in cursor.fetchall()]
+
+    def shape(sql: str) -> str:  # placeholders and IN lists alike, whatever their style
+        return re.sub(r"IN \([^)]*\)", "IN (?)", re.sub(r"%s|\$\d+", "?", sql))
 
     settings.STUDY_PREPARED_STATEMENTS = False  # as behind an old PgBouncer
     bot, participant = started(ranking_study, make_bot)
@@ -141,7 +149,15 @@ def test_on_postgresql_the_statements_are_prepared_once_per_connection(
         assert read.pk == participant.pk and read.n_trials == participant.trials.count()
     found = [sql for sql in prepared_here() if 'FROM "survey_participant" p' in sql]
     assert len(found) == 1 and "$1" in found[0]
-    # Django's own statements (the bot's consent and start: INSERTs, WHERE clauses the
-    # ORM qualifies and wraps in parentheses) are not prepared: client-side binding.
-    assert not any(sql.startswith("INSERT") or 'WHERE ("' in sql for sql in prepared_here()), \
-        prepared_here()
+    # A whole session through the pages (consent and start: the ORM's INSERTs and
+    # queries; every answer: the written-out statements): only those are prepared.
+    other = make_bot(ranking_study)
+    other.join(PROLIFIC_PID="prepared")
+    while (trial := other.participant().current_trial()) is not None:
+        other.trial_page()
+        assert other.answer(other.answer_data(trial)).status_code == 302
+    ours = {shape(text) for statement in Statements.every for text in statement.kept.values()}
+    prepared = prepared_here()
+    assert len(prepared) > 3, prepared
+    assert all(shape(sql) in ours for sql in prepared), \
+        [sql for sql in prepared if shape(sql) not in ours]

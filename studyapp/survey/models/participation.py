@@ -318,7 +318,8 @@ class TrialManager(models.Manager):
 
         ``fetches(items)``, when given, runs in the transaction once the answer won; if
         it returns True it has set every item's ``fetched`` and ``fetched_at`` under a
-        lock, and they are written with the answers (one statement for the items).
+        lock, and they are written with the answers (one executemany for the items: an
+        UPDATE per item, sent together).
 
         Return False (and store nothing) when the trial was already answered. The
         conditional UPDATE comes first so two simultaneous submits cannot both win.

@@ -3,41 +3,58 @@
 Every answer reads a trial with its items and their stimuli and writes the items'
 answers. Built as querysets, those statements cost more CPU to compile (a
 ``select_related`` join, a ``bulk_update``'s CASE expressions) than the database takes
-to run them (docs/BENCHMARKS.md, "Where an answer's CPU goes"). Here their SQL is
-written from the models' metadata once per process and database, and rows become model
-instances as the ORM makes them: each column through the converters the ORM would apply
-(the backend's and the field's ``from_db_value``), then ``Model.from_db``; values written
-go through each field's ``get_db_prep_save``. Nothing here knows a study type.
+to run them (docs/BENCHMARKS.md, "The answer's statements written out and prepared").
+Here their SQL is written from the models' metadata once per process and database, and
+rows become model instances as the ORM makes them: each column through the converters the
+ORM would apply (the backend's and the field's ``from_db_value``), then
+``Model.from_db``; values written go through each field's ``get_db_prep_save``. Nothing
+here knows a study type.
 """
 
 from __future__ import annotations
 
 from django.conf import settings
 from django.db import connection
+from django.utils.asyncio import async_unsafe
 
 
+@async_unsafe
 def cursor():
     """Return a cursor for the written-out statements.
 
     On PostgreSQL (``STUDY_PREPARED_STATEMENTS``, on by default) it binds parameters on the
     server, and psycopg prepares each statement on its connection the first time it runs
     there: the server parses and plans it once per connection rather than once per
-    answer (about half the database's CPU of an answer, docs/BENCHMARKS.md). Django's
-    own cursors stay as they are (client-side binding, nothing prepared: what a
+    answer (docs/BENCHMARKS.md, "The answer's statements written out and prepared").
+    Django's own cursors stay as they are (client-side binding, nothing prepared: what a
     connection pooler in transaction mode needs; turn the setting off behind one that
-    cannot keep prepared statements, as PgBouncer before 1.21). Where queries are logged
-    (``DEBUG``, a test counting them) the statements go through Django's cursor, so the
-    log shows them with their values."""
+    does not keep prepared statements: PgBouncer before 1.21, or without
+    ``max_prepared_statements``). The cursor is made as Django makes its own (the health
+    check, the thread check, the connection's time zone), and a deployment that made
+    Django's cursors bind on the server (``OPTIONS["server_side_binding"]``) gets those,
+    prepared as it configured. Where queries are logged (``DEBUG``, a test counting
+    them) the statements go through Django's cursor, so the log shows them with their
+    values."""
     if (connection.vendor != "postgresql" or connection.queries_logged
-            or not getattr(settings, "STUDY_PREPARED_STATEMENTS", True)):
+            or not getattr(settings, "STUDY_PREPARED_STATEMENTS", True)
+            or connection.settings_dict.get("OPTIONS", {}).get("server_side_binding")):
         return connection.cursor()
-    from django.db.backends.postgresql.base import ServerBindingCursor
+    from django.db.backends.postgresql.base import TIMESTAMPTZ_OID, ServerBindingCursor
+    from django.db.backends.postgresql.psycopg_any import register_tzloader
+    from psycopg.pq import Format
 
+    connection.close_if_health_check_failed()
     connection.ensure_connection()
-    raw = connection.connection
-    if raw.prepare_threshold is None:  # Django's default; an OPTIONS setting is kept
-        raw.prepare_threshold = 0  # only server-binding cursors prepare: these ones
-    return connection.make_cursor(ServerBindingCursor(raw))
+    connection.validate_thread_sharing()
+    with connection.wrap_database_errors:
+        raw = connection.connection
+        if raw.prepare_threshold is None:  # Django's default; an OPTIONS setting is kept
+            raw.prepare_threshold = 0  # only server-binding cursors prepare: these ones
+        server = ServerBindingCursor(raw)
+        loader = raw.adapters.get_loader(TIMESTAMPTZ_OID, Format.TEXT)
+        if connection.timezone != loader.timezone:  # as Django's create_cursor
+            register_tzloader(connection.timezone, server)
+    return connection.make_cursor(server)
 
 
 def quote(name: str) -> str:
@@ -131,8 +148,11 @@ def read(sql: str, params, *columns: Columns) -> list[tuple]:
 class Statements:
     """SQL text kept per database connection (vendors quote and lock differently)."""
 
+    every: list = []  # each one made, for tests to know them
+
     def __init__(self, write):
         self.write, self.kept = write, {}
+        Statements.every.append(self)
 
     def get(self) -> str:
         key = connection.alias, connection.vendor
